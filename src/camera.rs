@@ -1,0 +1,135 @@
+//! The DESIGN.md camera: orthographic by default, perspective with `--fov`.
+//! The same struct describes the key light's orthographic view. f64 here (the
+//! CPU references use it directly); `to_gpu` rounds to f32 for the shaders.
+
+use crate::error::{Error, Result};
+use crate::gpu::GpuView;
+use glam::DVec3;
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Camera {
+    pub center: DVec3,
+    /// Unit view direction d.
+    pub dir: DVec3,
+    /// r = normalize(cross(d, up)).
+    pub right: DVec3,
+    /// u = cross(r, d).
+    pub up: DVec3,
+    /// View height h in world units (at the view centre for perspective).
+    pub view_height: f64,
+    /// Vertical field of view in degrees; None = orthographic.
+    pub fov_deg: Option<f64>,
+    pub width: u32,
+    pub height: u32,
+}
+
+impl Camera {
+    pub fn new(
+        center: DVec3,
+        view_dir: DVec3,
+        up_hint: DVec3,
+        view_height: f64,
+        fov_deg: Option<f64>,
+        width: u32,
+        height: u32,
+    ) -> Result<Self> {
+        if !(view_dir.length() > 0.0) || !view_dir.is_finite() {
+            return Err(Error::Invalid("--view-dir must be a non-zero vector".into()));
+        }
+        let dir = view_dir.normalize();
+        let r = dir.cross(up_hint);
+        if !(r.length() > 1e-9) {
+            return Err(Error::Invalid("--up must not be parallel to --view-dir".into()));
+        }
+        if !(view_height > 0.0) || !view_height.is_finite() {
+            return Err(Error::Invalid("--view-height must be positive".into()));
+        }
+        if let Some(f) = fov_deg {
+            if !(f > 0.0 && f < 179.0) {
+                return Err(Error::Invalid("--fov must be between 0 and 179 degrees".into()));
+            }
+        }
+        if width == 0 || height == 0 || width > 16384 || height > 16384 {
+            return Err(Error::Invalid("--width/--height must be between 1 and 16384".into()));
+        }
+        let right = r.normalize();
+        let up = right.cross(dir);
+        Ok(Camera { center, dir, right, up, view_height, fov_deg, width, height })
+    }
+
+    /// Eye distance from the view centre (0 for orthographic).
+    pub fn eye_distance(&self) -> f64 {
+        self.fov_deg.map_or(0.0, |f| 0.5 * self.view_height / (0.5 * f.to_radians()).tan())
+    }
+
+    pub fn eye(&self) -> DVec3 {
+        self.center - self.eye_distance() * self.dir
+    }
+
+    /// View-plane coordinates of a pixel centre (row 0 at the top).
+    pub fn plane(&self, px: f64, py: f64) -> (f64, f64) {
+        let (w, h) = (self.width as f64, self.height as f64);
+        let x = ((px + 0.5) / w - 0.5) * self.view_height * w / h;
+        let y = (0.5 - (py + 0.5) / h) * self.view_height;
+        (x, y)
+    }
+
+    /// Primary ray of a pixel: (origin, unit direction). Orthographic rays
+    /// start 1e6 units behind the view centre, as DESIGN.md specifies.
+    pub fn ray(&self, px: u32, py: u32) -> (DVec3, DVec3) {
+        let (x, y) = self.plane(px as f64, py as f64);
+        match self.fov_deg {
+            None => (self.center + x * self.right + y * self.up - 1e6 * self.dir, self.dir),
+            Some(_) => {
+                let dist = self.eye_distance();
+                (self.eye(), (dist * self.dir + x * self.right + y * self.up).normalize())
+            }
+        }
+    }
+
+    /// Pixels per world unit on the view plane.
+    pub fn pixels_per_unit(&self) -> f64 {
+        self.height as f64 / self.view_height
+    }
+
+    pub fn to_gpu(&self, depth_offset: f64) -> GpuView {
+        let f = |v: DVec3, w: f64| [v.x as f32, v.y as f32, v.z as f32, w as f32];
+        GpuView {
+            center: f(self.center, self.pixels_per_unit()),
+            right: f(self.right, self.width as f64),
+            up: f(self.up, self.height as f64),
+            dir: f(self.dir, self.eye_distance()),
+            depth: [depth_offset as f32, 0.0, 0.0, 0.0],
+            dims: [self.width, self.height, 0, 0],
+        }
+    }
+}
+
+/// An orthographic square view along `light_dir`, fitted tightly to the
+/// spheres' extent across the light (not to the camera frustum).
+pub fn light_view(spheres: impl Iterator<Item = ([f32; 3], f32)> + Clone, light_dir: DVec3, size: u32) -> Result<Camera> {
+    if !(light_dir.length() > 0.0) || !light_dir.is_finite() {
+        return Err(Error::Invalid("--light must be a non-zero direction".into()));
+    }
+    let d = light_dir.normalize();
+    // Any up not parallel to d.
+    let hint = if d.y.abs() < 0.9 { DVec3::Y } else { DVec3::X };
+    let right = d.cross(hint).normalize();
+    let up = right.cross(d);
+    let (mut lo, mut hi) = (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN));
+    for (c, r) in spheres {
+        let c = DVec3::new(c[0] as f64, c[1] as f64, c[2] as f64);
+        let p = DVec3::new(c.dot(right), c.dot(up), c.dot(d));
+        lo = lo.min(p - r as f64);
+        hi = hi.max(p + r as f64);
+    }
+    if lo.x > hi.x {
+        lo = DVec3::splat(-1.0);
+        hi = DVec3::splat(1.0);
+    }
+    let mid = 0.5 * (lo + hi);
+    let center = mid.x * right + mid.y * up + mid.z * d;
+    // Square texels; a hair of margin keeps border spheres off the edge.
+    let extent = (hi.x - lo.x).max(hi.y - lo.y).max(1e-3) * 1.001;
+    Camera::new(center, d, up, extent, None, size, size)
+}

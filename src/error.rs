@@ -1,0 +1,40 @@
+//! Library errors. The binary adds context with anyhow at its edge.
+
+use ash::vk;
+
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    #[error("cannot load the Vulkan loader (libvulkan.so.1): {0}; run tools/setup.sh")]
+    Loader(String),
+    #[error("no Vulkan device found (install mesa-vulkan-drivers for lavapipe: tools/setup.sh)")]
+    NoDevice,
+    #[error("--device {index}: only {count} Vulkan device(s) present (see `sphereshade info`)")]
+    BadDeviceIndex { index: usize, count: usize },
+    #[error("device '{device}' lacks required Vulkan feature {feature}")]
+    MissingFeature { device: String, feature: &'static str },
+    #[error("--validate needs VK_LAYER_KHRONOS_validation (apt-get install vulkan-validationlayers)")]
+    NoValidationLayer,
+    #[error("Vulkan call {call} failed: {result}")]
+    Vk { call: &'static str, result: vk::Result },
+    #[error("GPU memory allocation for '{name}' failed: {source}")]
+    Alloc { name: String, source: gpu_allocator::AllocationError },
+    #[error(transparent)]
+    Scene(#[from] crate::scene::SceneError),
+    #[error("{0}")]
+    Invalid(String),
+    #[error("{path}: {source}")]
+    Io { path: String, source: std::io::Error },
+}
+
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// Adds the name of the failing Vulkan call to a `vk::Result`.
+pub trait VkContext<T> {
+    fn vk(self, call: &'static str) -> Result<T>;
+}
+
+impl<T> VkContext<T> for std::result::Result<T, vk::Result> {
+    fn vk(self, call: &'static str) -> Result<T> {
+        self.map_err(|result| Error::Vk { call, result })
+    }
+}

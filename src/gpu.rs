@@ -1,0 +1,60 @@
+//! Every struct that crosses to the GPU, mirrored in `glsl/shared.glsl`.
+//! Sizes are asserted here at compile time; tests/gpu_layout.rs checks the
+//! field offsets on the device through `glsl/layout_probe.comp`.
+
+use bytemuck::{Pod, Zeroable};
+
+/// A view (camera or key light). See `View` in glsl/shared.glsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
+pub struct GpuView {
+    /// xyz view centre; w pixels per world unit on the view plane (H / h).
+    pub center: [f32; 4],
+    /// xyz right axis; w image width in pixels.
+    pub right: [f32; 4],
+    /// xyz up axis; w image height in pixels.
+    pub up: [f32; 4],
+    /// xyz view direction; w eye distance (0 = orthographic).
+    pub dir: [f32; 4],
+    /// x depth offset added to orthographic depths so keys stay positive.
+    pub depth: [f32; 4],
+    /// x width, y height.
+    pub dims: [u32; 4],
+}
+
+/// Per-frame constants, bound as a uniform buffer at binding 0 of every pass.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
+pub struct Globals {
+    pub cam: GpuView,
+    pub light: GpuView,
+    /// xyz normalised key-light direction (from the light toward the scene).
+    pub light_dir: [f32; 4],
+    pub background: [f32; 4],
+    /// x sphere count.
+    pub counts: [u32; 4],
+    pub params: [f32; 4],
+}
+
+/// Per-sphere attributes used after visibility (shading, regions).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
+pub struct SphereAttr {
+    /// Region ids per hierarchy level, outermost first.
+    pub region: [u32; 4],
+    /// RGBA8, R in the low byte.
+    pub color: u32,
+    pub flags: u32,
+    pub pad: [u32; 2],
+}
+
+/// Geometry as the rasterizer reads it: centre xyz, radius w.
+pub type GpuSphere = [f32; 4];
+
+/// Visibility-buffer value of a pixel no sphere covers.
+pub const VIS_EMPTY: u64 = u64::MAX;
+
+const _: () = assert!(std::mem::size_of::<GpuView>() == 96);
+const _: () = assert!(std::mem::size_of::<Globals>() == 2 * 96 + 4 * 16);
+const _: () = assert!(std::mem::size_of::<SphereAttr>() == 32);
+const _: () = assert!(std::mem::size_of::<GpuSphere>() == 16);

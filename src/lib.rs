@@ -1,0 +1,19 @@
+//! sphereshade: a Vulkan compute renderer for millions of spheres.
+//!
+//! `vk` wraps the device, `scene` reads structures and builds procedural
+//! scenes, `passes` holds one file per GPU pass, `render` is the frame graph,
+//! `reference` the independent CPU references the tests compare against.
+
+pub mod camera;
+pub mod cli;
+pub mod error;
+pub mod gpu;
+pub mod output;
+pub mod passes;
+pub mod reference;
+pub mod render;
+pub mod scene;
+pub mod settings;
+pub mod vk;
+
+pub use error::{Error, Result};

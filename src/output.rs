@@ -1,0 +1,186 @@
+//! What `render`/`bench` write: AOV images (DESIGN.md encodings), PNG files
+//! written atomically (never a partial PNG), and the JSON stats record.
+
+use crate::error::{Error, Result};
+use crate::gpu::VIS_EMPTY;
+use crate::settings::Aov;
+use serde::Serialize;
+use sha2::{Digest, Sha256};
+use std::path::Path;
+
+/// An encoded AOV image ready to be written.
+pub enum AovImage {
+    Rgba8(image::RgbaImage),
+    Gray16(image::ImageBuffer<image::Luma<u16>, Vec<u16>>),
+    Gray8(image::GrayImage),
+}
+
+impl AovImage {
+    /// SHA-256 of the raw pixel bytes (format independent of PNG encoder).
+    pub fn sha256(&self) -> String {
+        let mut h = Sha256::new();
+        match self {
+            AovImage::Rgba8(i) => h.update(i.as_raw()),
+            AovImage::Gray16(i) => h.update(bytemuck::cast_slice::<u16, u8>(i.as_raw())),
+            AovImage::Gray8(i) => h.update(i.as_raw()),
+        }
+        format!("{:x}", h.finalize())
+    }
+
+    /// Writes a PNG to a temporary name and renames it into place.
+    pub fn save_png(&self, path: &Path) -> Result<()> {
+        let io_err = |e: std::io::Error| Error::Io { path: path.display().to_string(), source: e };
+        let file_name = path.file_name().ok_or_else(|| Error::Invalid(format!("{}: not a file name", path.display())))?;
+        let tmp = path.with_file_name(format!(".{}.tmp", file_name.to_string_lossy()));
+        let saved = match self {
+            AovImage::Rgba8(i) => i.save_with_format(&tmp, image::ImageFormat::Png),
+            AovImage::Gray16(i) => i.save_with_format(&tmp, image::ImageFormat::Png),
+            AovImage::Gray8(i) => i.save_with_format(&tmp, image::ImageFormat::Png),
+        };
+        if let Err(e) = saved {
+            let _ = std::fs::remove_file(&tmp);
+            return Err(Error::Invalid(format!("{}: cannot write PNG: {e}", path.display())));
+        }
+        std::fs::rename(&tmp, path).map_err(io_err)
+    }
+}
+
+/// `color`: RGBA8 from the composite buffer.
+pub fn color_image(w: u32, h: u32, color: &[u32]) -> AovImage {
+    let bytes: Vec<u8> = color.iter().flat_map(|c| c.to_le_bytes()).collect();
+    AovImage::Rgba8(image::RgbaImage::from_raw(w, h, bytes).unwrap_or_else(|| image::RgbaImage::new(w, h)))
+}
+
+/// Sphere index per pixel from the visibility buffer (None = background).
+pub fn ids_from_vis(vis: &[u64]) -> Vec<Option<u32>> {
+    vis.iter().map(|&k| (k != VIS_EMPTY).then_some((k & 0xFFFF_FFFF) as u32)).collect()
+}
+
+/// `id`: (index + 1) little-endian in R, G, B; A = 255; background 0,0,0,255.
+pub fn id_image(w: u32, h: u32, vis: &[u64]) -> AovImage {
+    let mut img = image::RgbaImage::new(w, h);
+    for (p, id) in img.pixels_mut().zip(ids_from_vis(vis)) {
+        let v = id.map_or(0, |i| i + 1);
+        *p = image::Rgba([(v & 0xFF) as u8, ((v >> 8) & 0xFF) as u8, ((v >> 16) & 0xFF) as u8, 255]);
+    }
+    AovImage::Rgba8(img)
+}
+
+/// `depth`: 16-bit, 0 = nearest visible depth in the frame, 65534 = farthest,
+/// 65535 = background. `depth` is the G-buffer depth key (< 0 = background).
+pub fn depth_image(w: u32, h: u32, depth: &[f32]) -> AovImage {
+    let (mut lo, mut hi) = (f32::MAX, f32::MIN);
+    for &d in depth.iter().filter(|d| **d >= 0.0) {
+        lo = lo.min(d);
+        hi = hi.max(d);
+    }
+    let span = (hi - lo).max(f32::MIN_POSITIVE);
+    let data = depth
+        .iter()
+        .map(|&d| if d < 0.0 { 65535 } else { (((d - lo) / span) * 65534.0).round().clamp(0.0, 65534.0) as u16 })
+        .collect();
+    AovImage::Gray16(image::ImageBuffer::from_raw(w, h, data).unwrap_or_else(|| image::ImageBuffer::new(w, h)))
+}
+
+/// 8-bit grayscale of a [0,1] quantity, background (mask false) = 255.
+pub fn unit_image(w: u32, h: u32, values: impl Iterator<Item = f32>, covered: &[bool]) -> AovImage {
+    let data = values
+        .zip(covered)
+        .map(|(v, &c)| if c { (v.clamp(0.0, 1.0) * 255.0).round() as u8 } else { 255 })
+        .collect();
+    AovImage::Gray8(image::GrayImage::from_raw(w, h, data).unwrap_or_else(|| image::GrayImage::new(w, h)))
+}
+
+pub fn aov_name(aov: Aov) -> String {
+    aov.name()
+}
+
+#[derive(Clone, Debug, Serialize, serde::Deserialize, PartialEq)]
+pub struct PassStats {
+    pub name: String,
+    pub median_ms: f64,
+    pub min_ms: f64,
+    pub max_ms: f64,
+}
+
+#[derive(Clone, Debug, Serialize, serde::Deserialize, PartialEq)]
+pub struct TotalStats {
+    pub median: f64,
+    pub min: f64,
+    pub max: f64,
+}
+
+#[derive(Clone, Debug, Serialize, serde::Deserialize, PartialEq)]
+pub struct DeepStats {
+    pub entries: u64,
+    pub chunks_used: u64,
+    pub chunk_capacity: u64,
+    pub bytes: u64,
+    pub fixed_layer_bytes: u64,
+    pub overflowed: bool,
+}
+
+/// One run, exactly the DESIGN.md JSON object.
+#[derive(Clone, Debug, Serialize, serde::Deserialize, PartialEq)]
+pub struct RunStats {
+    pub device: String,
+    pub driver: String,
+    pub input: String,
+    pub spheres: u64,
+    pub width: u32,
+    pub height: u32,
+    pub frames: u32,
+    pub shadows: String,
+    pub ssdo: String,
+    pub raster: String,
+    pub opacity: f64,
+    pub passes: Vec<PassStats>,
+    pub total_ms: TotalStats,
+    pub load_ms: f64,
+    pub gpu_memory_bytes: u64,
+    pub validation_messages: u32,
+    pub deep: Option<DeepStats>,
+    pub image_sha256: String,
+}
+
+fn median(v: &mut [f64]) -> f64 {
+    v.sort_by(|a, b| a.total_cmp(b));
+    let n = v.len();
+    if n == 0 {
+        0.0
+    } else if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
+/// Median/min/max per pass (in first-frame order) and of the frame total.
+pub fn summarize(frames: &[crate::render::PassTimes]) -> (Vec<PassStats>, TotalStats) {
+    let mut passes = Vec::new();
+    if let Some(first) = frames.first() {
+        for (name, _) in first {
+            let mut v: Vec<f64> =
+                frames.iter().filter_map(|f| f.iter().find(|(n, _)| n == name).map(|(_, t)| *t)).collect();
+            let (mn, mx) = (v.iter().cloned().fold(f64::MAX, f64::min), v.iter().cloned().fold(f64::MIN, f64::max));
+            passes.push(PassStats { name: name.to_string(), median_ms: median(&mut v), min_ms: mn, max_ms: mx });
+        }
+    }
+    let mut totals: Vec<f64> = frames.iter().map(|f| f.iter().map(|(_, t)| t).sum()).collect();
+    let (mn, mx) = (totals.iter().cloned().fold(f64::MAX, f64::min), totals.iter().cloned().fold(f64::MIN, f64::max));
+    let total = if totals.is_empty() {
+        TotalStats { median: 0.0, min: 0.0, max: 0.0 }
+    } else {
+        TotalStats { median: median(&mut totals), min: mn, max: mx }
+    };
+    (passes, total)
+}
+
+/// Writes JSON to a temporary file and renames it into place.
+pub fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<()> {
+    let text = serde_json::to_string_pretty(value).map_err(|e| Error::Invalid(format!("JSON: {e}")))?;
+    let tmp = path.with_extension("json.tmp");
+    let io_err = |e: std::io::Error| Error::Io { path: path.display().to_string(), source: e };
+    std::fs::write(&tmp, text + "\n").map_err(io_err)?;
+    std::fs::rename(&tmp, path).map_err(io_err)
+}

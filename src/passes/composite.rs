@@ -1,0 +1,70 @@
+//! Final shading: three-point lighting with key-light shadows, ambient
+//! visibility and bounce, into an RGBA8 colour buffer.
+
+use super::{LOCAL_SIZE, spirv};
+use crate::error::Result;
+use crate::vk::pipeline::{PipelineDesc, STORAGE, UNIFORM};
+use crate::vk::{Buffer, ComputePipeline, Context};
+use ash::vk;
+use bytemuck::{Pod, Zeroable};
+
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+pub struct CompositePush {
+    pub use_shadow: u32,
+    pub use_ambient: u32,
+    /// Fraction of the key light's diffuse term kept in full shadow.
+    pub shadow_diffuse: f32,
+    pub pad: f32,
+}
+
+/// Inputs of the composite pass, in binding order after the globals.
+pub struct CompositeInputs<'a> {
+    pub attrs: &'a Buffer,
+    pub vis: &'a Buffer,
+    pub gpos: &'a Buffer,
+    pub gnorm: &'a Buffer,
+    pub shadow: &'a Buffer,
+    pub ambient: &'a Buffer,
+    pub color: &'a Buffer,
+}
+
+pub struct CompositePass {
+    pipeline: ComputePipeline,
+}
+
+impl CompositePass {
+    pub const NAME: &'static str = "composite";
+
+    pub fn new(ctx: &Context) -> Result<Self> {
+        let pipeline = ComputePipeline::new(
+            ctx,
+            &PipelineDesc {
+                name: Self::NAME,
+                spirv: spirv::COMPOSITE_COMP,
+                bindings: &[UNIFORM, STORAGE, STORAGE, STORAGE, STORAGE, STORAGE, STORAGE, STORAGE],
+                push_size: std::mem::size_of::<CompositePush>() as u32,
+                local_size: LOCAL_SIZE,
+                constants: &[],
+            },
+        )?;
+        Ok(CompositePass { pipeline })
+    }
+
+    pub fn record(
+        &self,
+        ctx: &Context,
+        cmd: vk::CommandBuffer,
+        globals: &Buffer,
+        io: &CompositeInputs,
+        push: &CompositePush,
+        pixels: u64,
+    ) -> Result<()> {
+        let bufs = [globals, io.attrs, io.vis, io.gpos, io.gnorm, io.shadow, io.ambient, io.color];
+        self.pipeline.dispatch(ctx, cmd, &bufs, push, pixels)
+    }
+
+    pub fn destroy(&mut self, ctx: &Context) {
+        self.pipeline.destroy(ctx);
+    }
+}

@@ -1,0 +1,364 @@
+//! The frame graph: scene buffers, render targets and the passes recorded in
+//! order, each inside its own timestamp scope.
+
+use crate::camera::Camera;
+use crate::error::{Error, Result, VkContext};
+use crate::gpu::{Globals, GpuSphere, SphereAttr};
+use crate::passes::composite::{CompositeInputs, CompositePass, CompositePush};
+use crate::passes::issm::{self, IssmPush, IssmShadowPass};
+use crate::passes::raster::{self, RasterPass, ViewIndex};
+use crate::passes::resolve::ResolvePass;
+use crate::scene::Scene;
+use crate::settings::{RasterMode, RenderSettings, ShadowMode, SsdoMode};
+use crate::vk::{Buffer, Context, Profiler, barrier};
+use ash::vk;
+use gpu_allocator::MemoryLocation;
+
+/// Per-pass milliseconds of one frame, in recording order.
+pub type PassTimes = Vec<(&'static str, f64)>;
+
+pub struct Renderer<'c> {
+    ctx: &'c Context,
+    pub settings: RenderSettings,
+    pub sphere_count: u32,
+    globals_data: Globals,
+    globals: Buffer,
+    spheres: Buffer,
+    attrs: Buffer,
+    vis: Buffer,
+    gpos: Buffer,
+    gnorm: Buffer,
+    shadow: Buffer,
+    ambient: Buffer,
+    color: Buffer,
+    raster: RasterPass,
+    resolve: ResolvePass,
+    composite: CompositePass,
+    issm: Option<IssmState>,
+    profiler: Profiler,
+    cmd: vk::CommandBuffer,
+    fence: vk::Fence,
+}
+
+/// The key light's sphere id map and the shadow lookup that reads it.
+struct IssmState {
+    light: Camera,
+    map: Buffer,
+    pass: IssmShadowPass,
+    push: IssmPush,
+}
+
+/// Builds the DESIGN.md default camera for a scene, overridable per field.
+pub fn default_camera(
+    scene: &Scene,
+    width: u32,
+    height: u32,
+    view_dir: glam::DVec3,
+    up: glam::DVec3,
+    center: Option<glam::DVec3>,
+    view_height: Option<f64>,
+    fov: Option<f64>,
+) -> Result<Camera> {
+    let (bs_center, bs_radius) = scene.bounding_sphere();
+    let center = center.unwrap_or(bs_center.as_dvec3());
+    let h = view_height.unwrap_or((2.0 * bs_radius as f64 * 1.05).max(1e-3));
+    Camera::new(center, view_dir, up, h, fov, width, height)
+}
+
+impl<'c> Renderer<'c> {
+    pub fn new(ctx: &'c Context, scene: &Scene, settings: RenderSettings) -> Result<Self> {
+        if scene.spheres.is_empty() {
+            return Err(Error::Invalid(format!("{}: no spheres to render", scene.source)));
+        }
+        if scene.spheres.len() >= (1 << 24) {
+            return Err(Error::Invalid(format!(
+                "{} spheres: at most 16,777,215 are supported (sphere ids are 24-bit in the id AOV)",
+                scene.spheres.len()
+            )));
+        }
+        if settings.shadows == ShadowMode::Deep {
+            return Err(Error::Invalid("--shadows deep: not implemented yet".into()));
+        }
+        if settings.ssdo != SsdoMode::Off {
+            return Err(Error::Invalid(format!("--ssdo {}: not implemented yet", settings.ssdo.name())));
+        }
+        if settings.raster != RasterMode::Compute {
+            return Err(Error::Invalid("--raster graphics: not implemented yet".into()));
+        }
+        let cam = &settings.camera;
+        let pixels = cam.width as u64 * cam.height as u64;
+        let geom: Vec<GpuSphere> =
+            scene.spheres.iter().map(|s| [s.center[0], s.center[1], s.center[2], s.radius]).collect();
+        let attrs: Vec<SphereAttr> = scene
+            .spheres
+            .iter()
+            .map(|s| SphereAttr { region: s.region, color: u32::from_le_bytes(s.color), ..Default::default() })
+            .collect();
+
+        let globals = Buffer::new(
+            ctx,
+            "globals",
+            std::mem::size_of::<Globals>() as u64,
+            vk::BufferUsageFlags::UNIFORM_BUFFER,
+            MemoryLocation::CpuToGpu,
+        )?;
+        let spheres = Buffer::storage(ctx, "spheres", (geom.len() * 16) as u64)?;
+        spheres.upload(ctx, 0, bytemuck::cast_slice(&geom))?;
+        let attr_buf = Buffer::storage(ctx, "sphere attributes", (attrs.len() * 32) as u64)?;
+        attr_buf.upload(ctx, 0, bytemuck::cast_slice(&attrs))?;
+
+        let vis = raster::vis_buffer(ctx, "visibility", pixels)?;
+        let gpos = Buffer::storage(ctx, "gbuffer position", pixels * 16)?;
+        let gnorm = Buffer::storage(ctx, "gbuffer normal", pixels * 16)?;
+        let shadow = Buffer::storage(ctx, "key-light visibility", pixels * 4)?;
+        let ambient = Buffer::storage(ctx, "ambient visibility+bounce", pixels * 16)?;
+        let color = Buffer::storage(ctx, "colour", pixels * 4)?;
+
+        let (bs_center, bs_radius) = scene.bounding_sphere();
+        let depth_offset = (bs_center.as_dvec3() - cam.center).length() + bs_radius as f64 + 1.0;
+        let issm = match settings.shadows {
+            ShadowMode::Issm | ShadowMode::IssmSoft => {
+                let soft = settings.shadows == ShadowMode::IssmSoft;
+                let p = &settings.issm;
+                let light = crate::camera::light_view(
+                    scene.spheres.iter().map(|s| (s.center, s.radius)),
+                    settings.light,
+                    p.size,
+                )?;
+                let texel = light.view_height / p.size as f64;
+                let t = p.t.unwrap_or_else(|| {
+                    issm::auto_t(scene.max_radius(), if soft { p.soft_s } else { 0.0 }, texel)
+                });
+                Some(IssmState {
+                    map: raster::vis_buffer(ctx, "issm", p.size as u64 * p.size as u64)?,
+                    pass: IssmShadowPass::new(ctx)?,
+                    push: IssmShadowPass::push(p, soft, t),
+                    light,
+                })
+            }
+            _ => None,
+        };
+        let light_gpu = match &issm {
+            Some(st) => {
+                let off = (bs_center.as_dvec3() - st.light.center).length() + bs_radius as f64 + 1.0;
+                st.light.to_gpu(off)
+            }
+            None => cam.to_gpu(depth_offset),
+        };
+        let globals_data = Globals {
+            cam: cam.to_gpu(depth_offset),
+            light: light_gpu,
+            light_dir: {
+                let l = settings.light.normalize();
+                [l.x as f32, l.y as f32, l.z as f32, 0.0]
+            },
+            background: [0.13, 0.14, 0.17, 1.0],
+            counts: [geom.len() as u32, 0, 0, 0],
+            params: [0.0; 4],
+        };
+
+        // Without a shadow pass, key-light visibility is 1 everywhere.
+        ctx.one_shot("init shadow", |cmd| {
+            unsafe { ctx.device.cmd_fill_buffer(cmd, shadow.raw, 0, vk::WHOLE_SIZE, 1.0f32.to_bits()) };
+            Ok(())
+        })?;
+
+        let cmd = ctx.command_buffer("frame")?;
+        let fence = unsafe { ctx.device.create_fence(&vk::FenceCreateInfo::default(), None) }.vk("vkCreateFence")?;
+        ctx.name(fence, "frame fence");
+        Ok(Renderer {
+            ctx,
+            sphere_count: geom.len() as u32,
+            settings,
+            globals_data,
+            globals,
+            spheres,
+            attrs: attr_buf,
+            vis,
+            gpos,
+            gnorm,
+            shadow,
+            ambient,
+            color,
+            raster: RasterPass::new(ctx)?,
+            resolve: ResolvePass::new(ctx)?,
+            composite: CompositePass::new(ctx)?,
+            issm,
+            profiler: Profiler::new(ctx, 32)?,
+            cmd,
+            fence,
+        })
+    }
+
+    pub fn pixels(&self) -> u64 {
+        self.settings.camera.width as u64 * self.settings.camera.height as u64
+    }
+
+    /// Bytes of GPU memory held by this renderer's buffers.
+    pub fn memory_bytes(&self) -> u64 {
+        [&self.globals, &self.spheres, &self.attrs, &self.vis, &self.gpos, &self.gnorm, &self.shadow, &self.ambient, &self.color]
+            .iter()
+            .map(|b| b.size)
+            .sum::<u64>()
+            + self.raster.memory_bytes()
+            + self.issm.as_ref().map_or(0, |s| s.map.size)
+    }
+
+    /// Records, submits and waits for one frame; returns per-pass times.
+    pub fn render_frame(&mut self) -> Result<PassTimes> {
+        let ctx = self.ctx;
+        let dev = &ctx.device;
+        if let Some(m) = self.globals.mapped_mut() {
+            m.copy_from_slice(bytemuck::bytes_of(&self.globals_data));
+        } else {
+            self.globals.upload(ctx, 0, bytemuck::bytes_of(&self.globals_data))?;
+        }
+        // The previous frame's fence was waited on: its descriptor sets are free.
+        ctx.reset_descriptors()?;
+        unsafe {
+            dev.reset_command_buffer(self.cmd, vk::CommandBufferResetFlags::empty()).vk("vkResetCommandBuffer")?;
+            let begin = vk::CommandBufferBeginInfo::default().flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
+            dev.begin_command_buffer(self.cmd, &begin).vk("vkBeginCommandBuffer")?;
+        }
+        let recorded = self.record(self.cmd);
+        unsafe { dev.end_command_buffer(self.cmd) }.vk("vkEndCommandBuffer")?;
+        recorded?;
+        let cmds = [self.cmd];
+        let submit = [vk::SubmitInfo::default().command_buffers(&cmds)];
+        unsafe {
+            dev.reset_fences(&[self.fence]).vk("vkResetFences")?;
+            dev.queue_submit(ctx.queue, &submit, self.fence).vk("vkQueueSubmit")?;
+            dev.wait_for_fences(&[self.fence], true, u64::MAX).vk("vkWaitForFences")?;
+        }
+        self.profiler.results(ctx)
+    }
+
+    fn record(&mut self, cmd: vk::CommandBuffer) -> Result<()> {
+        let ctx = self.ctx;
+        let pixels = self.pixels();
+        let prof = &mut self.profiler;
+        prof.begin_frame(ctx, cmd);
+        barrier(&ctx.device, cmd);
+
+        self.raster.record_scoped(
+            ctx,
+            cmd,
+            prof,
+            "raster",
+            &self.globals,
+            &self.spheres,
+            self.sphere_count,
+            &self.vis,
+            pixels,
+            ViewIndex::Camera,
+        )?;
+
+        if let Some(st) = &self.issm {
+            let n = st.light.width as u64 * st.light.height as u64;
+            let name = IssmShadowPass::RASTER_NAME;
+            let (g, s, c) = (&self.globals, &self.spheres, self.sphere_count);
+            self.raster.record_scoped(ctx, cmd, prof, name, g, s, c, &st.map, n, ViewIndex::Light)?;
+        }
+
+        prof.begin(ctx, cmd, ResolvePass::NAME)?;
+        self.resolve.record(ctx, cmd, &self.globals, &self.spheres, &self.vis, &self.gpos, &self.gnorm, pixels)?;
+        prof.end(ctx, cmd)?;
+        barrier(&ctx.device, cmd);
+
+        if let Some(st) = &self.issm {
+            prof.begin(ctx, cmd, IssmShadowPass::NAME)?;
+            let (g, s) = (&self.globals, &self.spheres);
+            st.pass.record(ctx, cmd, g, s, &self.vis, &self.gpos, &st.map, &self.shadow, &st.push, pixels)?;
+            prof.end(ctx, cmd)?;
+            barrier(&ctx.device, cmd);
+        }
+
+        prof.begin(ctx, cmd, CompositePass::NAME)?;
+        let io = CompositeInputs {
+            attrs: &self.attrs,
+            vis: &self.vis,
+            gpos: &self.gpos,
+            gnorm: &self.gnorm,
+            shadow: &self.shadow,
+            ambient: &self.ambient,
+            color: &self.color,
+        };
+        let use_shadow = self.issm.is_some() as u32;
+        let push = CompositePush { use_shadow, use_ambient: 0, shadow_diffuse: 0.0, pad: 0.0 };
+        self.composite.record(ctx, cmd, &self.globals, &io, &push, pixels)?;
+        prof.end(ctx, cmd)?;
+        barrier(&ctx.device, cmd);
+        Ok(())
+    }
+
+    /// Visibility buffer (depth|id per pixel), without the guard words.
+    pub fn read_vis(&self) -> Result<Vec<u64>> {
+        self.vis.download_pod(self.ctx, 0, self.pixels())
+    }
+
+    /// The guard words after the visibility buffer (must stay GUARD_PATTERN).
+    pub fn read_vis_guard(&self) -> Result<Vec<u64>> {
+        self.vis.download_pod(self.ctx, self.pixels(), raster::VIS_GUARD_WORDS)
+    }
+
+    pub fn read_color(&self) -> Result<Vec<u32>> {
+        self.color.download_pod(self.ctx, 0, self.pixels())
+    }
+
+    /// G-buffer positions: xyz world, w depth key (-1 = background).
+    pub fn read_gpos(&self) -> Result<Vec<[f32; 4]>> {
+        self.gpos.download_pod(self.ctx, 0, self.pixels())
+    }
+
+    /// The ISSM light view, patch half-size t and the light-space id map.
+    pub fn issm_info(&self) -> Option<(Camera, u32)> {
+        self.issm.as_ref().map(|s| (s.light, s.push.t as u32))
+    }
+
+    pub fn read_issm(&self) -> Result<Option<Vec<u64>>> {
+        match &self.issm {
+            Some(st) => Ok(Some(st.map.download_pod(self.ctx, 0, st.light.width as u64 * st.light.height as u64)?)),
+            None => Ok(None),
+        }
+    }
+
+    pub fn read_shadow(&self) -> Result<Vec<f32>> {
+        self.shadow.download_pod(self.ctx, 0, self.pixels())
+    }
+
+    pub fn read_ambient(&self) -> Result<Vec<[f32; 4]>> {
+        self.ambient.download_pod(self.ctx, 0, self.pixels())
+    }
+}
+
+impl Drop for Renderer<'_> {
+    fn drop(&mut self) {
+        let ctx = self.ctx;
+        ctx.wait_idle();
+        unsafe {
+            ctx.device.destroy_fence(self.fence, None);
+            ctx.device.free_command_buffers(ctx.command_pool, &[self.cmd]);
+        }
+        self.profiler.destroy(ctx);
+        self.raster.destroy(ctx);
+        self.resolve.destroy(ctx);
+        self.composite.destroy(ctx);
+        if let Some(st) = &mut self.issm {
+            st.pass.destroy(ctx);
+            st.map.destroy(ctx);
+        }
+        for b in [
+            &mut self.globals,
+            &mut self.spheres,
+            &mut self.attrs,
+            &mut self.vis,
+            &mut self.gpos,
+            &mut self.gnorm,
+            &mut self.shadow,
+            &mut self.ambient,
+            &mut self.color,
+        ] {
+            b.destroy(ctx);
+        }
+    }
+}

@@ -1,0 +1,149 @@
+//! Buffers backed by gpu-allocator, each with a debug name. Device-local
+//! buffers are filled and read through host-visible staging copies.
+
+use super::Context;
+use crate::error::{Error, Result, VkContext};
+use ash::vk;
+use gpu_allocator::MemoryLocation;
+use gpu_allocator::vulkan::{Allocation, AllocationCreateDesc, AllocationScheme};
+
+pub struct Buffer {
+    pub raw: vk::Buffer,
+    pub size: u64,
+    pub name: String,
+    allocation: Option<Allocation>,
+}
+
+impl Buffer {
+    pub fn new(ctx: &Context, name: &str, size: u64, usage: vk::BufferUsageFlags, location: MemoryLocation) -> Result<Self> {
+        let size = size.max(16);
+        let info = vk::BufferCreateInfo::default()
+            .size(size)
+            .usage(usage | vk::BufferUsageFlags::TRANSFER_SRC | vk::BufferUsageFlags::TRANSFER_DST)
+            .sharing_mode(vk::SharingMode::EXCLUSIVE);
+        let raw = unsafe { ctx.device.create_buffer(&info, None) }.vk("vkCreateBuffer")?;
+        let requirements = unsafe { ctx.device.get_buffer_memory_requirements(raw) };
+        let alloc = ctx
+            .allocator
+            .lock()
+            .map_err(|_| Error::Invalid("allocator lock poisoned".into()))
+            .and_then(|mut a| {
+                a.allocate(&AllocationCreateDesc {
+                    name,
+                    requirements,
+                    location,
+                    linear: true,
+                    allocation_scheme: AllocationScheme::GpuAllocatorManaged,
+                })
+                .map_err(|source| Error::Alloc { name: name.to_string(), source })
+            });
+        let allocation = match alloc {
+            Ok(a) => a,
+            Err(e) => {
+                unsafe { ctx.device.destroy_buffer(raw, None) };
+                return Err(e);
+            }
+        };
+        let bound = unsafe { ctx.device.bind_buffer_memory(raw, allocation.memory(), allocation.offset()) };
+        let mut buffer = Buffer { raw, size, name: name.to_string(), allocation: Some(allocation) };
+        if let Err(result) = bound {
+            buffer.destroy(ctx);
+            return Err(Error::Vk { call: "vkBindBufferMemory", result });
+        }
+        ctx.name(raw, name);
+        Ok(buffer)
+    }
+
+    /// A device-local storage buffer.
+    pub fn storage(ctx: &Context, name: &str, size: u64) -> Result<Self> {
+        Self::new(ctx, name, size, vk::BufferUsageFlags::STORAGE_BUFFER, MemoryLocation::GpuOnly)
+    }
+
+    /// Host-visible bytes (mapped), if this buffer lives in host memory.
+    pub fn mapped(&self) -> Option<&[u8]> {
+        self.allocation.as_ref().and_then(|a| a.mapped_slice()).map(|s| &s[..self.size as usize])
+    }
+
+    pub fn mapped_mut(&mut self) -> Option<&mut [u8]> {
+        let size = self.size as usize;
+        self.allocation.as_mut().and_then(|a| a.mapped_slice_mut()).map(|s| &mut s[..size])
+    }
+
+    /// Copies `data` into this buffer at `offset` through a staging buffer.
+    pub fn upload(&self, ctx: &Context, offset: u64, data: &[u8]) -> Result<()> {
+        if data.is_empty() {
+            return Ok(());
+        }
+        if offset + data.len() as u64 > self.size {
+            return Err(Error::Invalid(format!("upload past the end of {}", self.name)));
+        }
+        let mut staging = Buffer::new(
+            ctx,
+            &format!("{} upload", self.name),
+            data.len() as u64,
+            vk::BufferUsageFlags::TRANSFER_SRC,
+            MemoryLocation::CpuToGpu,
+        )?;
+        let result = (|| {
+            let dst = staging.mapped_mut().ok_or_else(|| Error::Invalid("staging buffer not mapped".into()))?;
+            dst[..data.len()].copy_from_slice(data);
+            ctx.one_shot("upload", |cmd| {
+                let region = [vk::BufferCopy { src_offset: 0, dst_offset: offset, size: data.len() as u64 }];
+                unsafe { ctx.device.cmd_copy_buffer(cmd, staging.raw, self.raw, &region) };
+                Ok(())
+            })
+        })();
+        staging.destroy(ctx);
+        result
+    }
+
+    /// Reads `len` bytes at `offset` back to the host (waits for the queue).
+    pub fn download(&self, ctx: &Context, offset: u64, len: u64) -> Result<Vec<u8>> {
+        if offset + len > self.size {
+            return Err(Error::Invalid(format!("download past the end of {}", self.name)));
+        }
+        let mut staging = Buffer::new(
+            ctx,
+            &format!("{} readback", self.name),
+            len,
+            vk::BufferUsageFlags::TRANSFER_DST,
+            MemoryLocation::GpuToCpu,
+        )?;
+        let result = ctx
+            .one_shot("readback", |cmd| {
+                super::barrier(&ctx.device, cmd);
+                let region = [vk::BufferCopy { src_offset: offset, dst_offset: 0, size: len }];
+                unsafe { ctx.device.cmd_copy_buffer(cmd, self.raw, staging.raw, &region) };
+                Ok(())
+            })
+            .and_then(|_| {
+                staging
+                    .mapped()
+                    .map(|m| m[..len as usize].to_vec())
+                    .ok_or_else(|| Error::Invalid("readback buffer not mapped".into()))
+            });
+        staging.destroy(ctx);
+        result
+    }
+
+    /// Reads the whole buffer as a vector of `T`.
+    pub fn download_pod<T: bytemuck::Pod>(&self, ctx: &Context, first: u64, count: u64) -> Result<Vec<T>> {
+        let sz = std::mem::size_of::<T>() as u64;
+        let bytes = self.download(ctx, first * sz, count * sz)?;
+        Ok(bytemuck::pod_collect_to_vec(&bytes))
+    }
+
+    pub fn descriptor(&self) -> vk::DescriptorBufferInfo {
+        vk::DescriptorBufferInfo { buffer: self.raw, offset: 0, range: vk::WHOLE_SIZE }
+    }
+
+    /// Frees the buffer; idempotent, so owners may call it from `Drop`.
+    pub fn destroy(&mut self, ctx: &Context) {
+        if let Some(a) = self.allocation.take() {
+            if let Ok(mut alloc) = ctx.allocator.lock() {
+                let _ = alloc.free(a);
+            }
+            unsafe { ctx.device.destroy_buffer(self.raw, None) };
+        }
+    }
+}

@@ -1,0 +1,103 @@
+//! Pass scopes: `begin(cmd, "raster")` ... `end(cmd)` brackets a pass with a
+//! debug label and a pair of timestamps. Slots are assigned in recording
+//! order, never by hand; names must be unique within a frame.
+
+use super::Context;
+use crate::error::{Error, Result, VkContext};
+use ash::vk;
+
+pub struct Profiler {
+    pool: vk::QueryPool,
+    capacity: u32,
+    names: Vec<&'static str>,
+    open: Option<usize>,
+    period_ns: f64,
+    valid_mask: u64,
+}
+
+impl Profiler {
+    pub fn new(ctx: &Context, max_scopes: u32) -> Result<Self> {
+        let info = vk::QueryPoolCreateInfo::default()
+            .query_type(vk::QueryType::TIMESTAMP)
+            .query_count(2 * max_scopes);
+        let pool = unsafe { ctx.device.create_query_pool(&info, None) }.vk("vkCreateQueryPool")?;
+        ctx.name(pool, "pass timestamps");
+        let families = unsafe { ctx.instance.get_physical_device_queue_family_properties(ctx.physical) };
+        let bits = families[ctx.queue_family as usize].timestamp_valid_bits;
+        Ok(Profiler {
+            pool,
+            capacity: max_scopes,
+            names: Vec::new(),
+            open: None,
+            period_ns: ctx.props.limits.timestamp_period as f64,
+            valid_mask: if bits >= 64 { u64::MAX } else { (1u64 << bits) - 1 },
+        })
+    }
+
+    /// Starts a frame: resets the queries (recorded into `cmd`).
+    pub fn begin_frame(&mut self, ctx: &Context, cmd: vk::CommandBuffer) {
+        unsafe { ctx.device.cmd_reset_query_pool(cmd, self.pool, 0, 2 * self.capacity) };
+        self.names.clear();
+        self.open = None;
+    }
+
+    /// Opens the scope of pass `name`.
+    pub fn begin(&mut self, ctx: &Context, cmd: vk::CommandBuffer, name: &'static str) -> Result<()> {
+        if self.open.is_some() {
+            return Err(Error::Invalid(format!("pass scope '{name}' opened inside another")));
+        }
+        if self.names.contains(&name) {
+            return Err(Error::Invalid(format!("pass name '{name}' used twice in one frame")));
+        }
+        if self.names.len() as u32 >= self.capacity {
+            return Err(Error::Invalid("too many pass scopes in one frame".into()));
+        }
+        let slot = self.names.len();
+        self.names.push(name);
+        self.open = Some(slot);
+        ctx.begin_label(cmd, name);
+        unsafe {
+            ctx.device
+                .cmd_write_timestamp2(cmd, vk::PipelineStageFlags2::ALL_COMMANDS, self.pool, 2 * slot as u32)
+        };
+        Ok(())
+    }
+
+    pub fn end(&mut self, ctx: &Context, cmd: vk::CommandBuffer) -> Result<()> {
+        let slot = self.open.take().ok_or_else(|| Error::Invalid("pass scope closed twice".into()))?;
+        unsafe {
+            ctx.device
+                .cmd_write_timestamp2(cmd, vk::PipelineStageFlags2::ALL_COMMANDS, self.pool, 2 * slot as u32 + 1)
+        };
+        ctx.end_label(cmd);
+        Ok(())
+    }
+
+    /// Milliseconds per pass of the last submitted frame (after its fence).
+    pub fn results(&self, ctx: &Context) -> Result<Vec<(&'static str, f64)>> {
+        let n = self.names.len();
+        if n == 0 {
+            return Ok(Vec::new());
+        }
+        let mut data = vec![0u64; 2 * n];
+        unsafe {
+            ctx.device
+                .get_query_pool_results(self.pool, 0, &mut data, vk::QueryResultFlags::TYPE_64 | vk::QueryResultFlags::WAIT)
+        }
+        .vk("vkGetQueryPoolResults")?;
+        Ok(self
+            .names
+            .iter()
+            .enumerate()
+            .map(|(i, &name)| {
+                let t0 = data[2 * i] & self.valid_mask;
+                let t1 = data[2 * i + 1] & self.valid_mask;
+                (name, t1.wrapping_sub(t0) as f64 * self.period_ns * 1e-6)
+            })
+            .collect())
+    }
+
+    pub fn destroy(&self, ctx: &Context) {
+        unsafe { ctx.device.destroy_query_pool(self.pool, None) };
+    }
+}

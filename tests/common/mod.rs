@@ -1,0 +1,106 @@
+//! Shared test helpers: a validated Vulkan context, scene builders, and image
+//! comparison against CPU references that writes a difference image on
+//! failure (target/test-output/NAME-diff.png).
+#![allow(dead_code)]
+
+use glam::DVec3;
+use sphereshade::camera::Camera;
+use sphereshade::reference::RefImage;
+use sphereshade::render::default_camera;
+use sphereshade::scene::{Scene, Sphere};
+use sphereshade::settings::{IssmParams, RasterMode, RenderSettings, ShadowMode, SsdoMode};
+use sphereshade::vk::{Context, ContextOptions};
+use std::path::PathBuf;
+
+/// A context with the validation layer, GPU-assisted and synchronization
+/// validation on: every GPU test runs under it.
+pub fn validated_context() -> Context {
+    Context::new(&ContextOptions { validate: true, ..Default::default() })
+        .unwrap_or_else(|e| panic!("cannot create a validated Vulkan context: {e} (run tools/setup.sh)"))
+}
+
+/// Fails the test if the validation layer reported anything.
+pub fn assert_no_validation_messages(ctx: &Context) {
+    let n = ctx.validation_messages();
+    assert_eq!(n, 0, "validation reported {n} message(s):\n{}", ctx.messages.messages().join("\n---\n"));
+}
+
+pub fn data_file(name: &str) -> PathBuf {
+    let p = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/")).join(name);
+    assert!(p.exists(), "{} is missing: the tests need ../shared/data beside the checkout", p.display());
+    p
+}
+
+pub fn out_dir() -> PathBuf {
+    let p = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/target/test-output"));
+    let _ = std::fs::create_dir_all(&p);
+    p
+}
+
+pub fn sphere(c: [f32; 3], r: f32) -> Sphere {
+    Sphere { center: c, radius: r, color: [200, 200, 200, 255], region: [0; 4] }
+}
+
+pub fn scene_of(spheres: Vec<Sphere>, name: &str) -> Scene {
+    Scene { spheres, level_names: vec![], source: name.to_string() }
+}
+
+pub fn settings(camera: Camera, shadows: ShadowMode) -> RenderSettings {
+    RenderSettings {
+        camera,
+        light: DVec3::new(-1.0, -1.0, -1.0),
+        shadows,
+        issm: IssmParams::default(),
+        opacity: 1.0,
+        ssdo: SsdoMode::Off,
+        blur: false,
+        raster: RasterMode::Compute,
+    }
+}
+
+/// Default DESIGN camera for a scene (view along -z) at a test resolution.
+pub fn camera(scene: &Scene, w: u32, h: u32, fov: Option<f64>) -> Camera {
+    default_camera(scene, w, h, DVec3::new(0.0, 0.0, -1.0), DVec3::Y, None, None, fov).expect("camera")
+}
+
+/// Result of comparing GPU ids with the reference.
+pub struct IdMatch {
+    pub pixels: usize,
+    pub mismatches: usize,
+    /// Mismatches on pixels the reference does not mark ambiguous.
+    pub hard_mismatches: usize,
+}
+
+impl IdMatch {
+    pub fn percent(&self) -> f64 {
+        100.0 * (self.pixels - self.mismatches) as f64 / self.pixels as f64
+    }
+}
+
+/// Compares GPU sphere ids with the reference; on any non-ambiguous mismatch
+/// writes NAME-diff.png (red = mismatch, yellow = ambiguous mismatch).
+pub fn compare_ids(name: &str, gpu: &[Option<u32>], reference: &RefImage) -> IdMatch {
+    let mut m = IdMatch { pixels: gpu.len(), mismatches: 0, hard_mismatches: 0 };
+    let mut diff = image::RgbImage::new(reference.width, reference.height);
+    for (i, (g, &r)) in gpu.iter().zip(&reference.ids).enumerate() {
+        let r = (r != u32::MAX).then_some(r);
+        let px = diff.get_pixel_mut(i as u32 % reference.width, i as u32 / reference.width);
+        if *g != r {
+            m.mismatches += 1;
+            if reference.ambiguous[i] {
+                *px = image::Rgb([255, 255, 0]);
+            } else {
+                m.hard_mismatches += 1;
+                *px = image::Rgb([255, 0, 0]);
+            }
+        } else if r.is_some() {
+            *px = image::Rgb([40, 40, 40]);
+        }
+    }
+    if m.hard_mismatches > 0 {
+        let p = out_dir().join(format!("{name}-diff.png"));
+        let _ = diff.save(&p);
+        eprintln!("{name}: wrote difference image {}", p.display());
+    }
+    m
+}

@@ -1,0 +1,128 @@
+//! The compute rasterizer's id AOV against the exact CPU ray caster (f64),
+//! orthographic and perspective, on random, procedural and real scenes, with
+//! border-crossing, larger-than-screen and sub-pixel spheres. All under
+//! GPU-assisted + synchronization validation.
+
+mod common;
+
+use common::*;
+use sphereshade::output::ids_from_vis;
+use sphereshade::passes::raster::{GUARD_PATTERN, VIS_GUARD_WORDS};
+use sphereshade::reference;
+use sphereshade::render::Renderer;
+use sphereshade::scene::{self, LoadOptions, Scene};
+use sphereshade::settings::ShadowMode;
+
+/// Renders `scene` with `cam`, compares with the reference, checks guards.
+fn check_against_reference(ctx: &sphereshade::vk::Context, name: &str, scene: &Scene, cam: sphereshade::camera::Camera) -> f64 {
+    let mut r = Renderer::new(ctx, scene, settings(cam, ShadowMode::None)).expect("renderer");
+    r.render_frame().expect("frame");
+    let vis = r.read_vis().expect("read vis");
+    let guard = r.read_vis_guard().expect("read guard");
+    assert_eq!(guard.len() as u64, VIS_GUARD_WORDS);
+    assert!(guard.iter().all(|&g| g == GUARD_PATTERN), "{name}: visibility guard words overwritten");
+
+    let (_, radius) = scene.bounding_sphere();
+    let tolerance = 2e-5 * (radius as f64).max(1.0);
+    let reference = reference::cast(&scene.spheres, &cam, tolerance);
+    let m = compare_ids(name, &ids_from_vis(&vis), &reference);
+    let hit = reference.ids.iter().filter(|&&i| i != u32::MAX).count();
+    eprintln!(
+        "{name}: {:.4}% of {} pixels match ({} covered), {} mismatches, {} outside float tolerance",
+        m.percent(),
+        m.pixels,
+        hit,
+        m.mismatches,
+        m.hard_mismatches
+    );
+    assert!(hit > 0, "{name}: the reference sees no sphere; the test would prove nothing");
+    assert!(m.percent() >= 99.9, "{name}: only {:.3}% match", m.percent());
+    // Mismatches must be explainable by float rounding (ties or silhouettes).
+    assert!(
+        m.hard_mismatches as f64 <= 1e-4 * m.pixels as f64,
+        "{name}: {} mismatches outside float tolerance",
+        m.hard_mismatches
+    );
+    m.percent()
+}
+
+#[test]
+fn random_scene_matches_reference_ortho_and_perspective() {
+    let ctx = validated_context();
+    let s = scene::procedural("random", 3000, 7).expect("scene");
+    check_against_reference(&ctx, "random-ortho", &s, camera(&s, 320, 200, None));
+    check_against_reference(&ctx, "random-persp", &s, camera(&s, 320, 200, Some(50.0)));
+    assert_no_validation_messages(&ctx);
+}
+
+#[test]
+fn capsid_scene_matches_reference() {
+    let ctx = validated_context();
+    let s = scene::procedural("capsid", 6000, 3).expect("scene");
+    check_against_reference(&ctx, "capsid-ortho", &s, camera(&s, 256, 256, None));
+    check_against_reference(&ctx, "capsid-persp", &s, camera(&s, 256, 256, Some(35.0)));
+    assert_no_validation_messages(&ctx);
+}
+
+#[test]
+fn pdb_1tii_matches_reference() {
+    let ctx = validated_context();
+    let s = scene::load(&data_file("1tii.pdb"), &LoadOptions::default(), &mut |_, _| {}).expect("1tii");
+    assert_eq!(s.spheres.len(), 5684);
+    check_against_reference(&ctx, "1tii-ortho", &s, camera(&s, 300, 240, None));
+    check_against_reference(&ctx, "1tii-persp", &s, camera(&s, 300, 240, Some(40.0)));
+    assert_no_validation_messages(&ctx);
+}
+
+/// Spheres crossing the border, one larger than the whole screen (banded
+/// path), sub-pixel spheres, and perspective with a sphere around the view.
+#[test]
+fn edge_cases_match_reference() {
+    let ctx = validated_context();
+    let mut spheres = vec![
+        sphere([0.0, 0.0, -50.0], 400.0), // far bigger than the view: covers everything behind
+        sphere([-48.0, 10.0, 5.0], 9.0),  // crosses the left border
+        sphere([30.0, -26.0, 8.0], 7.0),  // crosses the bottom border
+        sphere([0.0, 0.0, 10.0], 14.0),   // large: banded path
+    ];
+    for i in 0..400 {
+        // sub-pixel spheres (pixel = 0.5 units here)
+        let (x, y) = ((i % 20) as f32 * 4.0 - 40.0, (i / 20) as f32 * 2.5 - 25.0);
+        spheres.push(sphere([x + 0.37, y + 0.11, 30.0], 0.08 + 0.001 * (i % 7) as f32));
+    }
+    let s = scene_of(spheres, "edge cases");
+    let cam = |fov| {
+        sphereshade::camera::Camera::new(
+            glam::DVec3::new(0.0, 0.0, 0.0),
+            glam::DVec3::new(0.0, 0.0, -1.0),
+            glam::DVec3::Y,
+            60.0,
+            fov,
+            160,
+            120,
+        )
+        .unwrap()
+    };
+    check_against_reference(&ctx, "edges-ortho", &s, cam(None));
+    check_against_reference(&ctx, "edges-persp", &s, cam(Some(60.0)));
+    assert_no_validation_messages(&ctx);
+}
+
+#[test]
+fn timestamps_report_every_pass() {
+    let ctx = validated_context();
+    let s = scene::procedural("capsid", 2000, 1).expect("scene");
+    let mut r = Renderer::new(&ctx, &s, settings(camera(&s, 128, 96, None), ShadowMode::None)).expect("renderer");
+    let times = r.render_frame().expect("frame");
+    let names: Vec<&str> = times.iter().map(|(n, _)| *n).collect();
+    assert!(names.contains(&"raster") && names.contains(&"resolve") && names.contains(&"composite"), "{names:?}");
+    let mut unique = names.clone();
+    unique.sort();
+    unique.dedup();
+    assert_eq!(unique.len(), names.len(), "pass names repeat: {names:?}");
+    for (n, ms) in &times {
+        assert!(*ms > 0.0 && ms.is_finite(), "pass {n} reported {ms} ms");
+    }
+    drop(r);
+    assert_no_validation_messages(&ctx);
+}
