@@ -25,7 +25,8 @@ layout(set = 0, binding = 4) readonly buffer Issm { uint64_t issm[]; };
 layout(set = 0, binding = 5) writeonly buffer Shadow { float shadow[]; };
 
 layout(push_constant) uniform Push {
-    int t;         // patch half-size
+    int t;         // patch half-size in texels
+    int stride;    // texel step outside the dense 3x3 core (1 = every texel)
     float soft_s;  // 0 = hard shadows
     float soft_x;
     float soft_b;
@@ -46,6 +47,14 @@ float occluder_visibility(vec3 p, vec3 dl, vec4 s) {
     return 1.0 - pow(1.0 - gap / se, pc.soft_x);
 }
 
+float texel_visibility(ivec2 t, int size, uint self_id, vec3 p, vec3 dl) {
+    if (any(lessThan(t, ivec2(0))) || any(greaterThanEqual(t, ivec2(size)))) return 1.0;
+    uint64_t k = issm[uint(t.y) * uint(size) + uint(t.x)];
+    if (k == VIS_EMPTY) return 1.0;
+    uint id = uint(k & 0xFFFFFFFFul);
+    return id == self_id ? 1.0 : occluder_visibility(p, dl, spheres[id]);
+}
+
 void main() {
     uint w = g.cam.dims.x, h = g.cam.dims.y;
     uint i = FLAT_ID;
@@ -64,17 +73,20 @@ void main() {
     ivec2 c = ivec2(round(vec2(dot(q, L.right.xyz) * ppu + 0.5 * n - 0.5, 0.5 * n - dot(q, L.up.xyz) * ppu - 0.5)));
     int size = int(L.dims.x);
     float v = 1.0;
-    for (int dy = -pc.t; dy <= pc.t && v > 0.0; ++dy) {
-        int y = c.y + dy;
-        if (y < 0 || y >= size) continue;
-        for (int dx = -pc.t; dx <= pc.t; ++dx) {
-            int x = c.x + dx;
-            if (x < 0 || x >= size) continue;
-            uint64_t k2 = issm[uint(y) * uint(size) + uint(x)];
-            if (k2 == VIS_EMPTY) continue;
-            uint id = uint(k2 & 0xFFFFFFFFul);
-            if (id == self_id) continue;
-            v = min(v, occluder_visibility(p, dl, spheres[id]));
+    // Dense core: the spheres nearest the light around P's own texel.
+    for (int dy = -1; dy <= 1; ++dy) {
+        for (int dx = -1; dx <= 1; ++dx) {
+            v = min(v, texel_visibility(c + ivec2(dx, dy), size, self_id, p, dl));
+        }
+    }
+    // The rest of the (2t+1)^2 patch, every `stride` texels: the stride is at
+    // most the smallest sphere radius in texels, so every sphere whose disk
+    // is visible from the light lands on at least one sample.
+    int lim = (pc.t / pc.stride) * pc.stride;
+    for (int dy = -lim; dy <= lim && v > 0.0; dy += pc.stride) {
+        for (int dx = -lim; dx <= lim; dx += pc.stride) {
+            if (abs(dx) <= 1 && abs(dy) <= 1) continue;
+            v = min(v, texel_visibility(c + ivec2(dx, dy), size, self_id, p, dl));
         }
     }
     shadow[i] = v;

@@ -28,6 +28,8 @@ pub enum Command {
     },
     /// Render one scene to a PNG (and optionally JSON stats).
     Render(RenderArgs),
+    /// Run a benchmark matrix and write per-pass timings as JSON.
+    Bench(crate::bench::BenchArgs),
 }
 
 /// Where spheres come from (shared by render/bench/view).
@@ -370,6 +372,10 @@ pub fn run(cli: Cli) -> Result<Exit> {
     match cli.command {
         Command::Info { device } => info(device),
         Command::Render(args) => render(args),
+        Command::Bench(args) => {
+            let n = crate::bench::main(&args)?;
+            Ok(if n > 0 { Exit::ValidationMessages(n) } else { Exit::Ok })
+        }
     }
 }
 

@@ -4,6 +4,7 @@
 //! scenes, `passes` holds one file per GPU pass, `render` is the frame graph,
 //! `reference` the independent CPU references the tests compare against.
 
+pub mod bench;
 pub mod camera;
 pub mod cli;
 pub mod error;

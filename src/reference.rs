@@ -148,7 +148,8 @@ pub fn cast(spheres: &[Sphere], cam: &Camera, tolerance: f64) -> RefImage {
                 if gap.abs() <= tolerance * r.max(1.0) * 2.0 {
                     graze = true;
                 }
-                if let Some((t, _)) = ray_sphere(o, d, c64(s), r) {
+                // Hits behind the eye (perspective, eye inside a sphere) do not count.
+                if let Some((t, _)) = ray_sphere(o, d, c64(s), r).filter(|(t, _)| *t > 0.0) {
                     if t < best {
                         second = best;
                         best = t;

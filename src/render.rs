@@ -126,13 +126,18 @@ impl<'c> Renderer<'c> {
                     p.size,
                 )?;
                 let texel = light.view_height / p.size as f64;
-                let t = p.t.unwrap_or_else(|| {
-                    issm::auto_t(scene.max_radius(), if soft { p.soft_s } else { 0.0 }, texel)
-                });
+                let (t, stride) = match p.t {
+                    Some(t) => (t, 1),
+                    None => {
+                        let min_r = scene.spheres.iter().map(|s| s.radius).fold(f32::MAX, f32::min);
+                        let t = issm::auto_t(scene.max_radius(), if soft { p.soft_s } else { 0.0 }, texel);
+                        (t, issm::auto_stride(min_r, texel))
+                    }
+                };
                 Some(IssmState {
                     map: raster::vis_buffer(ctx, "issm", p.size as u64 * p.size as u64)?,
                     pass: IssmShadowPass::new(ctx)?,
-                    push: IssmShadowPass::push(p, soft, t),
+                    push: IssmShadowPass::push(p, soft, t, stride),
                     light,
                 })
             }

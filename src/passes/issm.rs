@@ -11,13 +11,15 @@ use crate::vk::{Buffer, ComputePipeline, Context};
 use ash::vk;
 use bytemuck::{Pod, Zeroable};
 
-/// Largest automatic patch half-size: (2*8+1)^2 = 289 lookups per pixel.
-pub const MAX_AUTO_T: u32 = 8;
+/// Largest automatic patch half-size in texels.
+pub const MAX_AUTO_T: u32 = 64;
 
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct IssmPush {
     pub t: i32,
+    /// Texel step outside the dense 3x3 core.
+    pub stride: i32,
     pub soft_s: f32,
     pub soft_x: f32,
     pub soft_b: f32,
@@ -31,6 +33,12 @@ pub struct IssmPush {
 pub fn auto_t(max_radius: f32, soft_s: f32, texel: f64) -> u32 {
     let reach = (max_radius + soft_s) as f64 / texel.max(1e-9) + 0.5;
     (reach.ceil() as u32).clamp(1, MAX_AUTO_T)
+}
+
+/// Patch sampling step for automatic t: the smallest sphere radius in texels
+/// (at least 1), so a sphere's light-space disk always holds a sample.
+pub fn auto_stride(min_radius: f32, texel: f64) -> u32 {
+    ((min_radius as f64 / texel.max(1e-9)).floor() as u32).max(1)
 }
 
 pub struct IssmShadowPass {
@@ -56,9 +64,12 @@ impl IssmShadowPass {
         Ok(IssmShadowPass { pipeline })
     }
 
-    pub fn push(params: &IssmParams, soft: bool, t: u32) -> IssmPush {
+    /// `stride` 1 walks every texel of the patch (the paper's method; used
+    /// when the user sets t); automatic t uses `auto_stride`.
+    pub fn push(params: &IssmParams, soft: bool, t: u32, stride: u32) -> IssmPush {
         IssmPush {
             t: t as i32,
+            stride: stride.max(1) as i32,
             soft_s: if soft { params.soft_s } else { 0.0 },
             soft_x: params.soft_x,
             soft_b: params.soft_b,
