@@ -237,6 +237,7 @@ pub fn run(a: &BenchArgs) -> Result<BenchReport> {
                                 fov: None,
                                 validate: a.validate,
                                 device: a.device,
+                                deep_pool_chunks: None,
                             };
                             let settings = cli::settings_for(&set.scene, &view)?;
                             let out = cli::render_run(

@@ -110,6 +110,9 @@ pub struct ViewArgs {
     /// Physical device index (see `sphereshade info`).
     #[arg(long)]
     pub device: Option<usize>,
+    /// Initial deep-list pool size in chunks of 64 entries (grown on overflow).
+    #[arg(long)]
+    pub deep_pool_chunks: Option<u32>,
 }
 
 #[derive(Args, Debug)]
@@ -268,6 +271,7 @@ pub fn settings_for(scene: &Scene, v: &ViewArgs) -> Result<RenderSettings> {
         ssdo: v.ssdo,
         blur: v.blur == "on",
         raster: v.raster,
+        deep_pool_chunks: v.deep_pool_chunks,
     })
 }
 
@@ -349,7 +353,7 @@ pub fn render_run(
         load_ms,
         gpu_memory_bytes: r.memory_bytes(),
         validation_messages: ctx.validation_messages(),
-        deep: None,
+        deep: r.deep_stats.clone(),
         image_sha256: image.sha256(),
     };
     Ok(RunOutcome { stats, image })

@@ -4,7 +4,9 @@
 use crate::camera::Camera;
 use crate::error::{Error, Result, VkContext};
 use crate::gpu::{Globals, GpuSphere, SphereAttr};
+use crate::output::DeepStats;
 use crate::passes::composite::{CompositeInputs, CompositePass, CompositePush};
+use crate::passes::deep::DeepShadows;
 use crate::passes::issm::{self, IssmPush, IssmShadowPass};
 use crate::passes::raster::{self, RasterPass, ViewIndex};
 use crate::passes::resolve::ResolvePass;
@@ -35,6 +37,9 @@ pub struct Renderer<'c> {
     resolve: ResolvePass,
     composite: CompositePass,
     issm: Option<IssmState>,
+    deep: Option<DeepShadows>,
+    /// Stats of the last frame's deep lists (after any pool growth).
+    pub deep_stats: Option<DeepStats>,
     profiler: Profiler,
     cmd: vk::CommandBuffer,
     fence: vk::Fence,
@@ -75,9 +80,6 @@ impl<'c> Renderer<'c> {
                 "{} spheres: at most 16,777,215 are supported (sphere ids are 24-bit in the id AOV)",
                 scene.spheres.len()
             )));
-        }
-        if settings.shadows == ShadowMode::Deep {
-            return Err(Error::Invalid("--shadows deep: not implemented yet".into()));
         }
         if settings.ssdo != SsdoMode::Off {
             return Err(Error::Invalid(format!("--ssdo {}: not implemented yet", settings.ssdo.name())));
@@ -143,10 +145,24 @@ impl<'c> Renderer<'c> {
             }
             _ => None,
         };
-        let light_gpu = match &issm {
-            Some(st) => {
-                let off = (bs_center.as_dvec3() - st.light.center).length() + bs_radius as f64 + 1.0;
-                st.light.to_gpu(off)
+        // Deep lists use the same tightly fitted light view as the ISSM.
+        let deep = match settings.shadows {
+            ShadowMode::Deep => {
+                let p = &settings.issm;
+                let light = crate::camera::light_view(
+                    scene.spheres.iter().map(|s| (s.center, s.radius)),
+                    settings.light,
+                    p.size,
+                )?;
+                Some(DeepShadows::new(ctx, light, geom.len() as u32, settings.deep_pool_chunks)?)
+            }
+            _ => None,
+        };
+        let light_cam = issm.as_ref().map(|s| s.light).or(deep.as_ref().map(|d| d.light));
+        let light_gpu = match light_cam {
+            Some(l) => {
+                let off = (bs_center.as_dvec3() - l.center).length() + bs_radius as f64 + 1.0;
+                l.to_gpu(off)
             }
             None => cam.to_gpu(depth_offset),
         };
@@ -189,6 +205,8 @@ impl<'c> Renderer<'c> {
             resolve: ResolvePass::new(ctx)?,
             composite: CompositePass::new(ctx)?,
             issm,
+            deep,
+            deep_stats: None,
             profiler: Profiler::new(ctx, 32)?,
             cmd,
             fence,
@@ -207,10 +225,38 @@ impl<'c> Renderer<'c> {
             .sum::<u64>()
             + self.raster.memory_bytes()
             + self.issm.as_ref().map_or(0, |s| s.map.size)
+            + self.deep.as_ref().map_or(0, |d| d.memory_bytes())
+    }
+
+    /// Renders one frame; when the deep-list pool overflowed, grows it and
+    /// renders the frame again (the overflowed frame's image is discarded).
+    pub fn render_frame(&mut self) -> Result<PassTimes> {
+        let mut times = self.submit_frame()?;
+        let Some(deep) = &self.deep else { return Ok(times) };
+        let mut stats = deep.read_stats(self.ctx)?;
+        let overflowed = stats.overflowed;
+        for _ in 0..4 {
+            if !stats.overflowed {
+                break;
+            }
+            let needed = stats.chunks_used;
+            if let Some(d) = &mut self.deep {
+                d.grow(self.ctx, needed)?;
+            }
+            times = self.submit_frame()?;
+            stats = self.deep.as_ref().map(|d| d.read_stats(self.ctx)).transpose()?.unwrap_or(stats);
+        }
+        if stats.overflowed {
+            return Err(Error::Invalid("deep shadow list pool still overflows after growing it".into()));
+        }
+        // Report that this frame needed a retry even though the final one fit.
+        stats.overflowed = overflowed;
+        self.deep_stats = Some(stats);
+        Ok(times)
     }
 
     /// Records, submits and waits for one frame; returns per-pass times.
-    pub fn render_frame(&mut self) -> Result<PassTimes> {
+    fn submit_frame(&mut self) -> Result<PassTimes> {
         let ctx = self.ctx;
         let dev = &ctx.device;
         if let Some(m) = self.globals.mapped_mut() {
@@ -270,6 +316,11 @@ impl<'c> Renderer<'c> {
         prof.end(ctx, cmd)?;
         barrier(&ctx.device, cmd);
 
+        if let Some(d) = &self.deep {
+            let (g, s, v, gp, sh) = (&self.globals, &self.spheres, &self.vis, &self.gpos, &self.shadow);
+            d.record(ctx, cmd, prof, g, s, v, gp, sh, self.settings.opacity, pixels)?;
+        }
+
         if let Some(st) = &self.issm {
             prof.begin(ctx, cmd, IssmShadowPass::NAME)?;
             let (g, s) = (&self.globals, &self.spheres);
@@ -288,7 +339,7 @@ impl<'c> Renderer<'c> {
             ambient: &self.ambient,
             color: &self.color,
         };
-        let use_shadow = self.issm.is_some() as u32;
+        let use_shadow = (self.issm.is_some() || self.deep.is_some()) as u32;
         let push = CompositePush { use_shadow, use_ambient: 0, shadow_diffuse: 0.0, pad: 0.0 };
         self.composite.record(ctx, cmd, &self.globals, &io, &push, pixels)?;
         prof.end(ctx, cmd)?;
@@ -327,6 +378,11 @@ impl<'c> Renderer<'c> {
         }
     }
 
+    /// The deep shadow lists, when `--shadows deep` is active.
+    pub fn deep(&self) -> Option<&DeepShadows> {
+        self.deep.as_ref()
+    }
+
     pub fn read_shadow(&self) -> Result<Vec<f32>> {
         self.shadow.download_pod(self.ctx, 0, self.pixels())
     }
@@ -351,6 +407,9 @@ impl Drop for Renderer<'_> {
         if let Some(st) = &mut self.issm {
             st.pass.destroy(ctx);
             st.map.destroy(ctx);
+        }
+        if let Some(d) = &mut self.deep {
+            d.destroy(ctx);
         }
         for b in [
             &mut self.globals,

@@ -83,4 +83,6 @@ pub struct RenderSettings {
     pub ssdo: SsdoMode,
     pub blur: bool,
     pub raster: RasterMode,
+    /// Initial deep-list pool size in chunks (None = estimate from the scene).
+    pub deep_pool_chunks: Option<u32>,
 }

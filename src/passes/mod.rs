@@ -2,6 +2,7 @@
 //! exposes `NAME` (its debug label and timestamp scope) and a `record()`.
 
 pub mod composite;
+pub mod deep;
 pub mod issm;
 pub mod raster;
 pub mod resolve;

@@ -136,24 +136,24 @@ fn walk(rng: &mut Rng, center: Vec3, r: f32, n: usize, mut emit: impl FnMut(Vec3
     }
 }
 
-/// The shell protein: domains of ~100 beads laid out as a flat sunflower in
-/// the local xy plane (z = outward), so copies tile the shell like plates.
-/// Returns the beads and the footprint radius.
-fn protein_template(rng: &mut Rng, beads: usize) -> (Vec<Bead>, f32) {
-    let domains = beads.div_ceil(BEADS_PER_DOMAIN).max(1);
-    let per = beads / domains;
-    let extra = beads % domains;
-    let rd = blob_radius(per + 1);
-    let spacing = 1.7 * rd;
+/// One protein: a domain of ~100 beads around each site, residues of 8
+/// beads that never span domains.
+fn protein(rng: &mut Rng, sites: &[Vec3], beads: usize, rd: f32) -> Vec<Bead> {
+    let per = beads / sites.len();
+    let extra = beads % sites.len();
     let mut out = Vec::with_capacity(beads);
     let mut residue = 0u32;
     let mut in_residue = 0usize;
-    for d in 0..domains {
-        let a = d as f32 * std::f32::consts::TAU * GOLDEN;
-        let rr = spacing * (d as f32 + 0.5).sqrt() - spacing * 0.7;
-        let c = Vec3::new(rr * a.cos(), rr * a.sin(), rng.range(-0.3, 0.3) * rd);
+    for (d, &site) in sites.iter().enumerate() {
         let n = per + usize::from(d < extra);
-        walk(rng, c, rd, n, |pos, radius| {
+        if n == 0 {
+            continue;
+        }
+        if in_residue > 0 {
+            residue += 1;
+            in_residue = 0;
+        }
+        walk(rng, site, rd, n, |pos, radius| {
             if in_residue == BEADS_PER_RESIDUE {
                 in_residue = 0;
                 residue += 1;
@@ -166,30 +166,16 @@ fn protein_template(rng: &mut Rng, beads: usize) -> (Vec<Bead>, f32) {
                 residue,
             });
         });
-        // Residues do not span domains.
-        if in_residue > 0 {
-            in_residue = BEADS_PER_RESIDUE;
-        }
     }
-    // Centre the template on its centroid.
-    let centroid = out.iter().map(|b| b.pos).sum::<Vec3>() / out.len().max(1) as f32;
-    let mut extent = 0.0f32;
-    for b in &mut out {
-        b.pos -= centroid;
-        extent = extent.max(b.pos.truncate().length() + b.radius);
-    }
-    (out, extent)
+    out
 }
 
 /// The 60 rotations of the icosahedral group, by closure of a 5-fold and a
 /// 3-fold generator (an icosahedron with vertices (0, ±1, ±φ) and cyclic).
+/// The identity comes first.
 fn icosahedral_rotations() -> Vec<Quat> {
-    let phi = (1.0 + 5.0f32.sqrt()) / 2.0;
     let gens = [
-        Quat::from_axis_angle(
-            Vec3::new(0.0, 1.0, phi).normalize(),
-            std::f32::consts::TAU / 5.0,
-        ),
+        Quat::from_axis_angle(five_fold_axis(), std::f32::consts::TAU / 5.0),
         Quat::from_axis_angle(Vec3::ONE.normalize(), std::f32::consts::TAU / 3.0),
     ];
     let mut group = vec![Quat::IDENTITY];
@@ -206,6 +192,12 @@ fn icosahedral_rotations() -> Vec<Quat> {
     group
 }
 
+const PHI: f32 = 1.618_034;
+
+fn five_fold_axis() -> Vec3 {
+    Vec3::new(0.0, 1.0, PHI).normalize()
+}
+
 /// Unit vectors spread evenly on the sphere (Fibonacci lattice).
 fn fibonacci_directions(n: usize) -> Vec<Vec3> {
     (0..n)
@@ -218,6 +210,18 @@ fn fibonacci_directions(n: usize) -> Vec<Vec3> {
         .collect()
 }
 
+/// Index of the direction in `centres` closest to `u`.
+fn nearest(u: Vec3, centres: &[Vec3]) -> usize {
+    let mut best = (0, f32::MIN);
+    for (i, c) in centres.iter().enumerate() {
+        let d = u.dot(*c);
+        if d > best.1 {
+            best = (i, d);
+        }
+    }
+    best.0
+}
+
 fn capsid(atoms: usize, seed: u64) -> Vec<Sphere> {
     let mut rng = Rng::new(seed);
     // About 3/4 of the atoms in the shell, at least 8 beads per protein.
@@ -225,77 +229,124 @@ fn capsid(atoms: usize, seed: u64) -> Vec<Sphere> {
     let copies = (shell_target / 8).clamp(1, 60);
     let per = shell_target / copies;
     let core = atoms - copies * per;
-
     let mut spheres = Vec::with_capacity(atoms);
-    let (template, footprint) = protein_template(&mut rng, per);
-    // Shell radius so that `copies` footprints cover the sphere.
-    let shell_r = (footprint.max(2.0) * (copies as f32 / 3.2).sqrt()).max(footprint * 1.2);
 
-    // Orientation and position of each copy.
-    let placements: Vec<(Mat3, Vec3)> = if copies == 60 {
-        // A generic direction in the asymmetric unit, between a 5-fold and
-        // a 3-fold axis, so the copies form pentamers and trimers.
-        let phi = (1.0 + 5.0f32.sqrt()) / 2.0;
-        let five = Vec3::new(0.0, 1.0, phi).normalize();
-        let three = Vec3::ONE.normalize();
-        let two = Vec3::Y;
-        let d0 = (five * 0.55 + three * 0.3 + two * 0.15).normalize();
-        let base = Quat::from_axis_angle(d0, 0.4) * Quat::from_rotation_arc(Vec3::Z, d0);
+    // Copy centres on the unit sphere. With 60 copies they are the orbit of
+    // a generic direction (the centroid of an asymmetric unit) under the
+    // icosahedral group, as in a T=1 virus capsid.
+    let ico = copies == 60;
+    let rotations = if ico {
         icosahedral_rotations()
-            .into_iter()
-            .map(|g| (Mat3::from_quat(g * base), g * d0 * shell_r))
-            .collect()
+    } else {
+        vec![Quat::IDENTITY; copies]
+    };
+    let centres: Vec<Vec3> = if ico {
+        let v = five_fold_axis();
+        let f = Vec3::ONE.normalize();
+        let e = Vec3::new(0.5, (1.0 + PHI) / 2.0, PHI / 2.0).normalize();
+        let d0 = (v + f + e).normalize();
+        rotations.iter().map(|g| *g * d0).collect()
     } else {
         fibonacci_directions(copies)
-            .into_iter()
-            .map(|d| {
-                let twist = Quat::from_axis_angle(Vec3::Z, rng.range(0.0, std::f32::consts::TAU));
-                (
-                    Mat3::from_quat(Quat::from_rotation_arc(Vec3::Z, d) * twist),
-                    d * shell_r,
-                )
-            })
-            .collect()
     };
-    let domains_per_copy = template.last().map_or(0, |b| b.domain + 1);
-    let residues_per_copy = template.last().map_or(0, |b| b.residue + 1);
-    for (c, (rot, pos)) in placements.iter().enumerate().take(copies) {
-        let c = c as u32;
-        let hue = c as f32 * GOLDEN;
-        for b in &template {
-            // Domains vary the copy's colour a little so they read as parts.
-            let v = 0.82 + 0.12 * ((b.domain % 3) as f32 / 2.0);
+
+    // Domain sites: an even Fibonacci lattice over the whole sphere, each
+    // site owned by the nearest copy centre. These Voronoi cells tile the
+    // sphere, so the proteins close the shell without overlapping.
+    let domains = per.div_ceil(BEADS_PER_DOMAIN).max(1);
+    let lattice = fibonacci_directions(copies * domains);
+    let rd = blob_radius((per / domains).max(1));
+    let site_spacing = (4.0 * std::f32::consts::PI / lattice.len() as f32).sqrt();
+    let shell_r = (1.8 * rd / site_spacing).max(2.0 * rd);
+    let sites_of = |copy: usize, rng: &mut Rng| -> Vec<Vec3> {
+        let mut sites: Vec<Vec3> = lattice
+            .iter()
+            .filter(|u| nearest(**u, &centres) == copy)
+            .map(|u| *u * (shell_r + rng.range(-0.2, 0.2) * rd))
+            .collect();
+        if sites.is_empty() {
+            sites.push(centres[copy] * shell_r);
+        }
+        sites
+    };
+    // Icosahedral copies are rotated images of one protein; otherwise each
+    // copy is built in its own cell.
+    let template = if ico {
+        let sites = sites_of(0, &mut rng);
+        protein(&mut rng, &sites, per, rd)
+    } else {
+        Vec::new()
+    };
+    // Copy c sits next to the 5-fold axis g_c * v; number the 12 distinct
+    // axes to colour by pentamer.
+    let mut axes: Vec<Vec3> = Vec::new();
+    let pentamer: Vec<usize> = rotations
+        .iter()
+        .map(|g| {
+            let v = *g * five_fold_axis();
+            axes.iter()
+                .position(|a| a.dot(v) > 0.999)
+                .unwrap_or_else(|| {
+                    axes.push(v);
+                    axes.len() - 1
+                })
+        })
+        .collect();
+    let mut domain_base = 0u32;
+    let mut residue_base = 0u32;
+    for c in 0..copies {
+        let own;
+        let (beads, rot): (&[Bead], Mat3) = if ico {
+            (&template, Mat3::from_quat(rotations[c]))
+        } else {
+            let sites = sites_of(c, &mut rng);
+            own = protein(&mut rng, &sites, per, rd);
+            (&own, Mat3::IDENTITY)
+        };
+        // Colour by pentamer with a lighter or darker shade per protein, so
+        // both levels read in images.
+        let group = if ico { pentamer[c] } else { c };
+        let hue = group as f32 * GOLDEN;
+        let member = if ico {
+            pentamer[..c].iter().filter(|&&p| p == pentamer[c]).count()
+        } else {
+            c % 5
+        };
+        let shade = 0.7 + 0.07 * member as f32;
+        for b in beads {
+            let v = shade * if b.domain % 2 == 0 { 1.0 } else { 0.93 };
             spheres.push(Sphere {
-                center: (*pos + *rot * b.pos).to_array(),
+                center: (rot * b.pos).to_array(),
                 radius: b.radius,
-                color: hsv(hue, 0.45, v),
+                color: hsv(hue, 0.5, v),
                 region: [
                     0,
-                    c,
-                    c * domains_per_copy + b.domain,
-                    c * residues_per_copy + b.residue,
+                    c as u32,
+                    domain_base + b.domain,
+                    residue_base + b.residue,
                 ],
             });
         }
+        domain_base += beads.last().map_or(0, |b| b.domain + 1);
+        residue_base += beads.last().map_or(0, |b| b.residue + 1);
     }
 
-    // Core: compact strands placed uniformly inside the shell.
-    let strand_r = blob_radius(BEADS_PER_STRAND) * 1.2;
-    let core_r = (shell_r - 1.5 * footprint.min(shell_r * 0.3) - strand_r)
-        .max(blob_radius(core) * 1.5 - strand_r)
+    // Core: a dense ball of compact "genome" strands well inside the shell.
+    let strand_r = blob_radius(BEADS_PER_STRAND.min(core.max(1))) * 1.1;
+    let ball = (blob_radius(core) * 1.1)
+        .min(shell_r - 1.5 * rd - strand_r)
         .max(0.0);
     let mut molecule = copies as u32;
-    let mut domain = copies as u32 * domains_per_copy;
-    let mut residue = copies as u32 * residues_per_copy;
+    let mut domain = domain_base;
+    let mut residue = residue_base;
     let mut left = core;
     while left > 0 {
         let n = left.min(BEADS_PER_STRAND);
         left -= n;
-        let center = rng.in_ball() * core_r;
-        let strand_rad = blob_radius(n) * 1.2;
+        let center = rng.in_ball() * (ball - strand_r).max(0.0);
         let hue = 0.05 + 0.08 * rng.f32();
         let mut i = 0usize;
-        walk(&mut rng, center, strand_rad, n, |pos, radius| {
+        walk(&mut rng, center, strand_r, n, |pos, radius| {
             if i > 0 && i.is_multiple_of(BEADS_PER_RESIDUE) {
                 residue += 1;
             }

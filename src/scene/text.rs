@@ -86,7 +86,9 @@ pub(crate) fn parse_f32(field: &[u8]) -> Option<f32> {
     let mut mant: u64 = 0;
     let digits_start = i;
     while i < n && field[i].is_ascii_digit() {
-        mant = mant.wrapping_mul(10).wrapping_add(u64::from(field[i] - b'0'));
+        mant = mant
+            .wrapping_mul(10)
+            .wrapping_add(u64::from(field[i] - b'0'));
         i += 1;
     }
     let mut n_digits = i - digits_start;
@@ -95,7 +97,9 @@ pub(crate) fn parse_f32(field: &[u8]) -> Option<f32> {
         i += 1;
         let frac_start = i;
         while i < n && field[i].is_ascii_digit() {
-            mant = mant.wrapping_mul(10).wrapping_add(u64::from(field[i] - b'0'));
+            mant = mant
+                .wrapping_mul(10)
+                .wrapping_add(u64::from(field[i] - b'0'));
             i += 1;
         }
         frac = i - frac_start;
@@ -224,8 +228,14 @@ mod tests {
             }
         }
         assert_eq!(find_byte(b"", b'a'), None);
-        assert_eq!(find_byte(b"\x01\x01\x01\x01\x01\x01\x01\x00\n", b'\n'), Some(8));
-        assert_eq!(find_byte(b"\x00\x00\x01\x01\x01\x01\x01\x0a", b'\n'), Some(7));
+        assert_eq!(
+            find_byte(b"\x01\x01\x01\x01\x01\x01\x01\x00\n", b'\n'),
+            Some(8)
+        );
+        assert_eq!(
+            find_byte(b"\x00\x00\x01\x01\x01\x01\x01\x0a", b'\n'),
+            Some(7)
+        );
     }
 
     #[test]

@@ -55,6 +55,7 @@ pub fn settings(camera: Camera, shadows: ShadowMode) -> RenderSettings {
         ssdo: SsdoMode::Off,
         blur: false,
         raster: RasterMode::Compute,
+        deep_pool_chunks: None,
     }
 }
 
