@@ -58,11 +58,16 @@ void main() {
     // Weights chosen so a fully shadowed surface keeps about a third of its
     // lit brightness after gamma: shadows read clearly without going black.
     float key_diffuse = nk * mix(pc.shadow_diffuse, 1.0, vis_key);
-    float fill = 0.16 * max(dot(n, l_fill), 0.0);
+    float fill = 0.14 * max(dot(n, l_fill), 0.0);
     float rim = 0.22 * pow(1.0 - max(dot(n, v), 0.0), 3.0) * max(dot(n, l_rim) + 0.3, 0.0);
-    float ambient_term = 0.16 * amb.x;
+    // Ambient carries the occlusion: it must weigh enough for AO to read.
+    float ambient_term = (pc.use_ambient != 0 ? 0.5 : 0.16) * amb.x;
+    float key_weight = pc.use_ambient != 0 ? 0.85 : 1.1;
 
-    vec3 c = albedo * (1.1 * key_diffuse + fill + ambient_term) + albedo * amb.yzw
+    vec3 c = albedo * (key_weight * key_diffuse + fill + ambient_term) + albedo * amb.yzw
            + vec3(0.3 * spec * vis_key) + vec3(rim);
+    // Exponential tone map: saturated CPK colours would otherwise clip in
+    // the light and lose the shading that shows shape.
+    c = vec3(1.0) - exp(-1.5 * c);
     color[i] = pack_rgba8(vec4(linear_to_srgb(c), 1.0));
 }

@@ -10,6 +10,9 @@ layout(set = 0, binding = 1) readonly buffer Spheres { vec4 spheres[]; };
 layout(set = 0, binding = 2) readonly buffer Vis { uint64_t vis[]; };
 layout(set = 0, binding = 3) writeonly buffer GPos { vec4 gpos[]; };    // xyz world, w depth key
 layout(set = 0, binding = 4) writeonly buffer GNorm { vec4 gnorm[]; };  // xyz normal, w 1 (0 = background)
+layout(set = 0, binding = 5) readonly buffer Attrs { SphereAttr attrs[]; };
+// The regions buffer of seed 001: region ids of the visible sphere per level.
+layout(set = 0, binding = 6) writeonly buffer GRegion { uvec4 gregion[]; };
 
 void main() {
     uint w = g.cam.dims.x, h = g.cam.dims.y;
@@ -19,6 +22,7 @@ void main() {
     if (key == VIS_EMPTY) {
         gpos[i] = vec4(0.0, 0.0, 0.0, -1.0);
         gnorm[i] = vec4(0.0);
+        gregion[i] = uvec4(NO_SPHERE);
         return;
     }
     uint id = uint(key & 0xFFFFFFFFul);
@@ -34,4 +38,5 @@ void main() {
     vec3 n = normalize(p - s.xyz);
     gpos[i] = vec4(p, uintBitsToFloat(uint(key >> 32)));
     gnorm[i] = vec4(n, 1.0);
+    gregion[i] = attrs[id].region;
 }

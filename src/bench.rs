@@ -153,12 +153,9 @@ fn data_sets(a: &BenchArgs, atoms: &[usize]) -> Result<Vec<DataSet>> {
 }
 
 /// Modes a run can use today; others are rejected up front with a clear line.
-fn check_supported(shadows: ShadowMode, ssdo: SsdoMode, raster: RasterMode) -> Result<()> {
+fn check_supported(shadows: ShadowMode, raster: RasterMode) -> Result<()> {
     if shadows == ShadowMode::Deep {
         return Err(Error::Invalid("bench: --shadows deep is not implemented yet".into()));
-    }
-    if ssdo != SsdoMode::Off {
-        return Err(Error::Invalid(format!("bench: --ssdo {} is not implemented yet", ssdo.name())));
     }
     if raster != RasterMode::Compute {
         return Err(Error::Invalid("bench: --raster graphics is not implemented yet".into()));
@@ -186,10 +183,8 @@ pub fn run(a: &BenchArgs) -> Result<BenchReport> {
         Some(s) => s.split(',').map(parse_size).collect::<Result<_>>()?,
     };
     for &sh in &shadows {
-        for &ss in &ssdo {
-            for &ra in &raster {
-                check_supported(sh, ss, ra)?;
-            }
+        for &ra in &raster {
+            check_supported(sh, ra)?;
         }
     }
     if opacity.iter().any(|o| !(0.0..=1.0).contains(o)) {
@@ -238,6 +233,7 @@ pub fn run(a: &BenchArgs) -> Result<BenchReport> {
                                 validate: a.validate,
                                 device: a.device,
                                 deep_pool_chunks: None,
+                                semantic_levels: None,
                             };
                             let settings = cli::settings_for(&set.scene, &view)?;
                             let out = cli::render_run(

@@ -113,6 +113,10 @@ pub struct ViewArgs {
     /// Initial deep-list pool size in chunks of 64 entries (grown on overflow).
     #[arg(long)]
     pub deep_pool_chunks: Option<u32>,
+    /// Zoom thresholds for semantic SSDO levels: comma list of visible
+    /// heights (world units, descending) where the next finer level takes over.
+    #[arg(long)]
+    pub semantic_levels: Option<String>,
 }
 
 #[derive(Args, Debug)]
@@ -272,6 +276,20 @@ pub fn settings_for(scene: &Scene, v: &ViewArgs) -> Result<RenderSettings> {
         blur: v.blur == "on",
         raster: v.raster,
         deep_pool_chunks: v.deep_pool_chunks,
+        semantic_levels: match &v.semantic_levels {
+            None => None,
+            Some(s) => {
+                let t: Vec<f64> = s
+                    .split(',')
+                    .map(|p| p.trim().parse::<f64>().ok().filter(|x| *x > 0.0 && x.is_finite()))
+                    .collect::<Option<_>>()
+                    .ok_or_else(|| Error::Invalid(format!("--semantic-levels {s}: expected positive numbers")))?;
+                if t.windows(2).any(|w| w[1] >= w[0]) {
+                    return Err(Error::Invalid(format!("--semantic-levels {s}: thresholds must descend")));
+                }
+                Some(t)
+            }
+        },
     })
 }
 
@@ -307,6 +325,7 @@ pub fn aov_image(r: &Renderer, aov: Aov) -> Result<output::AovImage> {
                 } else {
                     r.read_ambient()?.into_iter().map(|a| a[0]).collect()
                 };
+                // (ambient visibility after the blur, as DESIGN.md specifies)
                 output::unit_image(w, h, ao.into_iter(), &covered)
             }
         }

@@ -14,6 +14,7 @@ pub mod passes;
 pub mod reference;
 pub mod render;
 pub mod scene;
+pub mod semantic;
 pub mod settings;
 pub mod vk;
 

@@ -5,7 +5,10 @@ use crate::camera::Camera;
 use crate::error::{Error, Result, VkContext};
 use crate::gpu::{Globals, GpuSphere, SphereAttr};
 use crate::output::DeepStats;
+use crate::passes::blur::{Axis, BlurPass, BlurPush};
 use crate::passes::composite::{CompositeInputs, CompositePass, CompositePush};
+use crate::passes::ssdo::{GBuffer, KeyShadowPush, SsdoPass, SsdoPush};
+use crate::semantic::{self, LevelChoice};
 use crate::passes::deep::DeepShadows;
 use crate::passes::issm::{self, IssmPush, IssmShadowPass};
 use crate::passes::raster::{self, RasterPass, ViewIndex};
@@ -30,9 +33,13 @@ pub struct Renderer<'c> {
     vis: Buffer,
     gpos: Buffer,
     gnorm: Buffer,
+    gregion: Buffer,
     shadow: Buffer,
     ambient: Buffer,
+    /// Blur ping-pong and results: [ambient tmp, shadow tmp, ambient out, shadow out].
+    blurred: [Buffer; 4],
     color: Buffer,
+    ssdo: Option<SsdoState>,
     raster: RasterPass,
     resolve: ResolvePass,
     composite: CompositePass,
@@ -43,6 +50,23 @@ pub struct Renderer<'c> {
     profiler: Profiler,
     cmd: vk::CommandBuffer,
     fence: vk::Fence,
+}
+
+/// SSDO, screen-space key shadows and blur with this frame's parameters.
+struct SsdoState {
+    pass: SsdoPass,
+    blur: BlurPass,
+    push: SsdoPush,
+    key_shadow: KeyShadowPush,
+    blur_push: BlurPush,
+}
+
+/// Typical sphere radius (median of a sample) to scale screen-space effects.
+fn typical_radius(scene: &Scene) -> f32 {
+    let step = (scene.spheres.len() / 4096).max(1);
+    let mut r: Vec<f32> = scene.spheres.iter().step_by(step).map(|s| s.radius).collect();
+    r.sort_by(|a, b| a.total_cmp(b));
+    r.get(r.len() / 2).copied().unwrap_or(1.0)
 }
 
 /// The key light's sphere id map and the shadow lookup that reads it.
@@ -81,9 +105,6 @@ impl<'c> Renderer<'c> {
                 scene.spheres.len()
             )));
         }
-        if settings.ssdo != SsdoMode::Off {
-            return Err(Error::Invalid(format!("--ssdo {}: not implemented yet", settings.ssdo.name())));
-        }
         if settings.raster != RasterMode::Compute {
             return Err(Error::Invalid("--raster graphics: not implemented yet".into()));
         }
@@ -112,8 +133,15 @@ impl<'c> Renderer<'c> {
         let vis = raster::vis_buffer(ctx, "visibility", pixels)?;
         let gpos = Buffer::storage(ctx, "gbuffer position", pixels * 16)?;
         let gnorm = Buffer::storage(ctx, "gbuffer normal", pixels * 16)?;
+        let gregion = Buffer::storage(ctx, "gbuffer regions", pixels * 16)?;
         let shadow = Buffer::storage(ctx, "key-light visibility", pixels * 4)?;
         let ambient = Buffer::storage(ctx, "ambient visibility+bounce", pixels * 16)?;
+        let blurred = [
+            Buffer::storage(ctx, "ambient blur tmp", pixels * 16)?,
+            Buffer::storage(ctx, "shadow blur tmp", pixels * 4)?,
+            Buffer::storage(ctx, "ambient blurred", pixels * 16)?,
+            Buffer::storage(ctx, "shadow blurred", pixels * 4)?,
+        ];
         let color = Buffer::storage(ctx, "colour", pixels * 4)?;
 
         let (bs_center, bs_radius) = scene.bounding_sphere();
@@ -178,6 +206,48 @@ impl<'c> Renderer<'c> {
             params: [0.0; 4],
         };
 
+        let ssdo = match settings.ssdo {
+            SsdoMode::Off => None,
+            mode => {
+                let r = typical_radius(scene) as f64;
+                // Radii in world units, at least a few pixels so far views still sample.
+                let px = 1.0 / cam.pixels_per_unit();
+                let (levels, choice) = level_choice(scene, cam, &settings.semantic_levels);
+                log::info!("semantic levels {levels:?}, choice {choice:?}");
+                let semantic = (mode == SsdoMode::Semantic) as u32;
+                Some(SsdoState {
+                    pass: SsdoPass::new(ctx)?,
+                    blur: BlurPass::new(ctx)?,
+                    push: SsdoPush {
+                        r_near: (2.0 * r).max(2.0 * px) as f32,
+                        r_far: (8.0 * r).max(8.0 * px) as f32,
+                        dirs: 12,
+                        steps: 4,
+                        semantic,
+                        level_a: choice.level_a,
+                        level_b: choice.level_b,
+                        blend: choice.blend,
+                        bounce: 1.0,
+                        pad: [0.0; 3],
+                    },
+                    key_shadow: KeyShadowPush {
+                        march: (6.0 * r).max(6.0 * px) as f32,
+                        thickness: (2.0 * r).max(px) as f32,
+                        steps: 12,
+                        pad: 0.0,
+                    },
+                    blur_push: BlurPush {
+                        radius: 4,
+                        sigma_z: (0.5 * r).max(px) as f32,
+                        semantic,
+                        level: if choice.blend >= 0.5 { choice.level_b } else { choice.level_a },
+                        blur_shadow: 0,
+                        pad: [0.0; 3],
+                    },
+                })
+            }
+        };
+
         // Without a shadow pass, key-light visibility is 1 everywhere.
         ctx.one_shot("init shadow", |cmd| {
             unsafe { ctx.device.cmd_fill_buffer(cmd, shadow.raw, 0, vk::WHOLE_SIZE, 1.0f32.to_bits()) };
@@ -198,9 +268,12 @@ impl<'c> Renderer<'c> {
             vis,
             gpos,
             gnorm,
+            gregion,
             shadow,
             ambient,
+            blurred,
             color,
+            ssdo,
             raster: RasterPass::new(ctx)?,
             resolve: ResolvePass::new(ctx)?,
             composite: CompositePass::new(ctx)?,
@@ -219,8 +292,9 @@ impl<'c> Renderer<'c> {
 
     /// Bytes of GPU memory held by this renderer's buffers.
     pub fn memory_bytes(&self) -> u64 {
-        [&self.globals, &self.spheres, &self.attrs, &self.vis, &self.gpos, &self.gnorm, &self.shadow, &self.ambient, &self.color]
+        [&self.globals, &self.spheres, &self.attrs, &self.vis, &self.gpos, &self.gnorm, &self.gregion, &self.shadow, &self.ambient, &self.color]
             .iter()
+            .chain(self.blurred.iter().collect::<Vec<_>>().iter())
             .map(|b| b.size)
             .sum::<u64>()
             + self.raster.memory_bytes()
@@ -312,7 +386,8 @@ impl<'c> Renderer<'c> {
         }
 
         prof.begin(ctx, cmd, ResolvePass::NAME)?;
-        self.resolve.record(ctx, cmd, &self.globals, &self.spheres, &self.vis, &self.gpos, &self.gnorm, pixels)?;
+        let (g, s, v, gp, gn) = (&self.globals, &self.spheres, &self.vis, &self.gpos, &self.gnorm);
+        self.resolve.record(ctx, cmd, g, s, v, gp, gn, &self.attrs, &self.gregion, pixels)?;
         prof.end(ctx, cmd)?;
         barrier(&ctx.device, cmd);
 
@@ -329,18 +404,52 @@ impl<'c> Renderer<'c> {
             barrier(&ctx.device, cmd);
         }
 
+        let exact_shadows = self.issm.is_some() || self.deep.is_some();
+        let (mut amb_final, mut shadow_final) = (&self.ambient, &self.shadow);
+        if let Some(st) = &self.ssdo {
+            let gb = GBuffer { attrs: &self.attrs, vis: &self.vis, gpos: &self.gpos, gnorm: &self.gnorm, gregion: &self.gregion };
+            if !exact_shadows {
+                // Screen-space key shadows stand in for the exact techniques.
+                prof.begin(ctx, cmd, SsdoPass::KEY_SHADOW)?;
+                st.pass.record_key_shadow(ctx, cmd, &self.globals, &gb, &self.shadow, &st.key_shadow, pixels)?;
+                prof.end(ctx, cmd)?;
+                barrier(&ctx.device, cmd);
+            }
+            prof.begin(ctx, cmd, SsdoPass::NAME)?;
+            st.pass.record_ssdo(ctx, cmd, &self.globals, &gb, &self.shadow, &self.ambient, &st.push, pixels)?;
+            prof.end(ctx, cmd)?;
+            barrier(&ctx.device, cmd);
+            if self.settings.blur {
+                // Exact (ISSM/deep) shadows are smooth already: only the
+                // noisy screen-space ones are blurred.
+                let push = BlurPush { blur_shadow: (!exact_shadows) as u32, ..st.blur_push };
+                let geo = [&self.gpos, &self.gnorm, &self.gregion];
+                let [a_tmp, s_tmp, a_out, s_out] = &self.blurred;
+                for (axis, input, output) in
+                    [(Axis::Horizontal, [&self.ambient, &self.shadow], [a_tmp, s_tmp]), (Axis::Vertical, [a_tmp, s_tmp], [a_out, s_out])]
+                {
+                    prof.begin(ctx, cmd, axis.name())?;
+                    st.blur.record(ctx, cmd, axis, &self.globals, geo, input, output, &push, pixels)?;
+                    prof.end(ctx, cmd)?;
+                    barrier(&ctx.device, cmd);
+                }
+                (amb_final, shadow_final) = (a_out, s_out);
+            }
+        }
+
         prof.begin(ctx, cmd, CompositePass::NAME)?;
         let io = CompositeInputs {
             attrs: &self.attrs,
             vis: &self.vis,
             gpos: &self.gpos,
             gnorm: &self.gnorm,
-            shadow: &self.shadow,
-            ambient: &self.ambient,
+            shadow: shadow_final,
+            ambient: amb_final,
             color: &self.color,
         };
-        let use_shadow = (self.issm.is_some() || self.deep.is_some()) as u32;
-        let push = CompositePush { use_shadow, use_ambient: 0, shadow_diffuse: 0.0, pad: 0.0 };
+        let use_shadow = (exact_shadows || self.ssdo.is_some()) as u32;
+        let use_ambient = self.ssdo.is_some() as u32;
+        let push = CompositePush { use_shadow, use_ambient, shadow_diffuse: 0.0, pad: 0.0 };
         self.composite.record(ctx, cmd, &self.globals, &io, &push, pixels)?;
         prof.end(ctx, cmd)?;
         barrier(&ctx.device, cmd);
@@ -387,9 +496,33 @@ impl<'c> Renderer<'c> {
         self.shadow.download_pod(self.ctx, 0, self.pixels())
     }
 
-    pub fn read_ambient(&self) -> Result<Vec<[f32; 4]>> {
+    /// Ambient visibility (x) and bounce (yzw) before the blur.
+    pub fn read_ambient_raw(&self) -> Result<Vec<[f32; 4]>> {
         self.ambient.download_pod(self.ctx, 0, self.pixels())
     }
+
+    /// Ambient visibility (x) and bounce (yzw) as the composite uses it
+    /// (after the blur when it is on).
+    pub fn read_ambient(&self) -> Result<Vec<[f32; 4]>> {
+        let b = if self.ssdo.is_some() && self.settings.blur { &self.blurred[2] } else { &self.ambient };
+        b.download_pod(self.ctx, 0, self.pixels())
+    }
+
+    /// The semantic level choice of this frame, when SSDO runs.
+    pub fn level_choice(&self) -> Option<LevelChoice> {
+        self.ssdo.as_ref().map(|s| LevelChoice { level_a: s.push.level_a, level_b: s.push.level_b, blend: s.push.blend })
+    }
+}
+
+/// Useful hierarchy levels and the choice for this camera (thresholds from
+/// `--semantic-levels` or the defaults relative to the scene size).
+pub fn level_choice(scene: &Scene, cam: &Camera, thresholds: &Option<Vec<f64>>) -> (Vec<u32>, LevelChoice) {
+    let levels = semantic::useful_levels(scene);
+    let (c, r) = scene.bounding_sphere();
+    let full = 2.0 * r as f64 * 1.05;
+    let t = thresholds.clone().unwrap_or_else(|| semantic::default_thresholds(levels.len(), full));
+    let choice = semantic::choose(semantic::zoom_distance(cam, c.as_dvec3()), &t, &levels);
+    (levels, choice)
 }
 
 impl Drop for Renderer<'_> {
@@ -411,6 +544,10 @@ impl Drop for Renderer<'_> {
         if let Some(d) = &mut self.deep {
             d.destroy(ctx);
         }
+        if let Some(st) = &mut self.ssdo {
+            st.pass.destroy(ctx);
+            st.blur.destroy(ctx);
+        }
         for b in [
             &mut self.globals,
             &mut self.spheres,
@@ -418,10 +555,14 @@ impl Drop for Renderer<'_> {
             &mut self.vis,
             &mut self.gpos,
             &mut self.gnorm,
+            &mut self.gregion,
             &mut self.shadow,
             &mut self.ambient,
             &mut self.color,
         ] {
+            b.destroy(ctx);
+        }
+        for b in &mut self.blurred {
             b.destroy(ctx);
         }
     }

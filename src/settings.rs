@@ -85,4 +85,7 @@ pub struct RenderSettings {
     pub raster: RasterMode,
     /// Initial deep-list pool size in chunks (None = estimate from the scene).
     pub deep_pool_chunks: Option<u32>,
+    /// Zoom thresholds (visible height in world units, descending) where the
+    /// next finer region level takes over; None = relative to scene size.
+    pub semantic_levels: Option<Vec<f64>>,
 }

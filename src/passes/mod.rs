@@ -1,11 +1,13 @@
 //! One file per pass. Each pass owns its pipelines (and private buffers),
 //! exposes `NAME` (its debug label and timestamp scope) and a `record()`.
 
+pub mod blur;
 pub mod composite;
 pub mod deep;
 pub mod issm;
 pub mod raster;
 pub mod resolve;
+pub mod ssdo;
 
 use crate::vk::Context;
 

@@ -106,7 +106,7 @@ fn blob_radius(beads: usize) -> f32 {
     (3.0 * ATOM_VOLUME * beads as f32 / (4.0 * std::f32::consts::PI)).cbrt()
 }
 
-/// One bead of a template molecule, in its local frame.
+/// One bead of a generated protein (world coordinates of its copy).
 #[derive(Clone, Copy)]
 struct Bead {
     pos: Vec3,

@@ -56,6 +56,7 @@ pub fn settings(camera: Camera, shadows: ShadowMode) -> RenderSettings {
         blur: false,
         raster: RasterMode::Compute,
         deep_pool_chunks: None,
+        semantic_levels: None,
     }
 }
 
