@@ -1,0 +1,249 @@
+//! Semantic SSDO (seed 001): sample distribution of the shader's own
+//! Halton/Malley code, occlusion on flat vs. creviced geometry, the semantic
+//! region rule against plain mode, the bilateral blur on a synthetic
+//! G-buffer, and the zoom-driven level choice. All under validation.
+
+mod common;
+
+use common::*;
+use glam::DVec3;
+use sphereshade::camera::Camera;
+use sphereshade::gpu::Globals;
+use sphereshade::passes::blur::{Axis, BlurPass, BlurPush};
+use sphereshade::passes::spirv;
+use sphereshade::render::{Renderer, level_choice};
+use sphereshade::scene::{self, Scene, Sphere};
+use sphereshade::settings::{ShadowMode, SsdoMode};
+use sphereshade::vk::pipeline::{PipelineDesc, STORAGE};
+use sphereshade::vk::{Buffer, ComputePipeline, Context};
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct SamplePush {
+    normal: [f32; 4],
+    count: u32,
+    rot: f32,
+    pad: [u32; 2],
+}
+
+#[test]
+fn hemisphere_samples_are_cosine_weighted() {
+    let ctx = validated_context();
+    let p = ComputePipeline::new(
+        &ctx,
+        &PipelineDesc {
+            name: "sample probe",
+            spirv: spirv::TEST_SAMPLES_COMP,
+            bindings: &[STORAGE],
+            push_size: 32,
+            local_size: 64,
+            constants: &[],
+        },
+    )
+    .expect("pipeline");
+    let n = 8192u32;
+    let mut out = Buffer::storage(&ctx, "samples", n as u64 * 16).expect("buffer");
+    for (normal, rot) in [([0.0f32, 0.0, 1.0], 0.0f32), ([0.3, -0.8, 0.2], 0.37), ([0.0, 0.0, -1.0], 0.81)] {
+        let len = (normal[0] * normal[0] + normal[1] * normal[1] + normal[2] * normal[2]).sqrt();
+        let nn = [normal[0] / len, normal[1] / len, normal[2] / len];
+        let push = SamplePush { normal: [normal[0], normal[1], normal[2], 0.0], count: n, rot, pad: [0; 2] };
+        ctx.one_shot("samples", |cmd| p.dispatch_groups(&ctx, cmd, &[&out], &push, [n / 64, 1, 1])).expect("run");
+        let d: Vec<[f32; 4]> = out.download_pod(&ctx, 0, n as u64).expect("read");
+        let cos: Vec<f64> = d.iter().map(|v| (v[0] * nn[0] + v[1] * nn[1] + v[2] * nn[2]) as f64).collect();
+        assert!(cos.iter().all(|&c| c >= -1e-5), "a sample left the upper hemisphere");
+        assert!(d.iter().all(|v| ((v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt() - 1.0).abs() < 1e-4));
+        let mean = cos.iter().sum::<f64>() / n as f64;
+        // cosine-weighted: E[cos] = 2/3 (uniform would give 1/2)
+        eprintln!("normal {normal:?}: mean cos = {mean:.4}");
+        assert!((mean - 2.0 / 3.0).abs() < 0.01, "mean cos {mean} is not 2/3");
+    }
+    out.destroy(&ctx);
+    p.destroy(&ctx);
+    assert_no_validation_messages(&ctx);
+}
+
+fn with_region(mut s: Sphere, r: u32) -> Sphere {
+    s.region = [r, 0, 0, 0];
+    s
+}
+
+/// A flat layer (region 0) plus two pits: a small sphere surrounded by big
+/// wall spheres, the first pit's walls in the receiver's region (1), the
+/// second's in another (2, 3). Camera and light straight down.
+fn pits_scene() -> (Scene, Camera, [DVec3; 2]) {
+    let mut s = Vec::new();
+    for iz in 0..12 {
+        for ix in 0..12 {
+            s.push(with_region(sphere([ix as f32 * 1.8 - 40.0, 0.0, iz as f32 * 1.8 - 10.0], 1.0), 0));
+        }
+    }
+    let pits = [DVec3::new(0.0, 0.0, 0.0), DVec3::new(14.0, 0.0, 0.0)];
+    for (k, c) in pits.iter().enumerate() {
+        let recv = 1 + 2 * k as u32;
+        s.push(with_region(sphere([c.x as f32, 0.0, 0.0], 1.0), recv));
+        let wall = if k == 0 { recv } else { recv + 1 };
+        for j in 0..8 {
+            let a = j as f32 * std::f32::consts::TAU / 8.0;
+            s.push(with_region(sphere([c.x as f32 + 3.0 * a.cos(), 1.5, 3.0 * a.sin()], 2.4), wall));
+        }
+    }
+    let mut scene = scene_of(s, "pits");
+    scene.level_names = vec!["group".into()];
+    let cam = Camera::new(DVec3::new(-5.0, 0.0, 0.0), DVec3::new(0.0, -1.0, 0.0), DVec3::new(0.0, 0.0, -1.0), 30.0, None, 400, 200)
+        .expect("camera");
+    (scene, cam, pits)
+}
+
+fn ambient(ctx: &Context, scene: &Scene, cam: Camera, mode: SsdoMode, blur: bool) -> Vec<f32> {
+    let mut s = settings(cam, ShadowMode::None);
+    s.ssdo = mode;
+    s.blur = blur;
+    s.light = DVec3::new(0.0, -1.0, 0.0);
+    let mut r = Renderer::new(ctx, scene, s).expect("renderer");
+    r.render_frame().expect("frame");
+    r.read_ambient().expect("ambient").iter().map(|a| a[0]).collect()
+}
+
+/// Mean of `ao` over a small disk of pixels around the world point p.
+fn ao_at(ao: &[f32], cam: &Camera, p: DVec3, radius_px: i64) -> f32 {
+    let q = p - cam.center;
+    let ppu = cam.pixels_per_unit();
+    let px = (q.dot(cam.right) * ppu + 0.5 * cam.width as f64 - 0.5).round() as i64;
+    let py = (0.5 * cam.height as f64 - q.dot(cam.up) * ppu - 0.5).round() as i64;
+    let mut sum = 0.0;
+    let mut n = 0;
+    for dy in -radius_px..=radius_px {
+        for dx in -radius_px..=radius_px {
+            if dx * dx + dy * dy <= radius_px * radius_px {
+                sum += ao[((py + dy) * cam.width as i64 + px + dx) as usize];
+                n += 1;
+            }
+        }
+    }
+    sum / n as f32
+}
+
+#[test]
+fn flat_layer_is_open_crevice_is_occluded_and_semantic_ignores_own_region() {
+    let ctx = validated_context();
+    let (scene, cam, pits) = pits_scene();
+    let plain = ambient(&ctx, &scene, cam, SsdoMode::Plain, false);
+    let semantic = ambient(&ctx, &scene, cam, SsdoMode::Semantic, false);
+    let top = |c: DVec3| c + DVec3::new(0.0, 1.0, 0.0);
+    // sphere tops in the middle of the flat layer
+    let mut flat = 0.0;
+    let mut k = 0;
+    for iz in 4..8 {
+        for ix in 4..8 {
+            flat += ao_at(&plain, &cam, top(DVec3::new(ix as f64 * 1.8 - 40.0, 0.0, iz as f64 * 1.8 - 10.0)), 1);
+            k += 1;
+        }
+    }
+    let flat = flat / k as f32;
+    let (p_same, p_diff) = (ao_at(&plain, &cam, top(pits[0]), 1), ao_at(&plain, &cam, top(pits[1]), 1));
+    let (s_same, s_diff) = (ao_at(&semantic, &cam, top(pits[0]), 1), ao_at(&semantic, &cam, top(pits[1]), 1));
+    eprintln!("flat {flat:.3}; plain pits {p_same:.3} {p_diff:.3}; semantic pits (same region) {s_same:.3} (other region) {s_diff:.3}");
+    assert!(flat > 0.8, "a flat layer is occluded: {flat}");
+    assert!(p_same < flat - 0.2 && p_diff < flat - 0.2, "crevices are not darker than the flat layer");
+    assert!(s_same > 0.95, "semantic mode counts occluders of the receiver's own region: {s_same}");
+    assert!((s_diff - p_diff).abs() < 0.05, "semantic mode drops occluders of other regions: {s_diff} vs {p_diff}");
+    assert_no_validation_messages(&ctx);
+}
+
+#[test]
+fn bilateral_blur_keeps_depth_edges_and_smooths_flat_areas() {
+    let ctx = validated_context();
+    let (w, h) = (64u32, 32u32);
+    let n = (w * h) as usize;
+    let cam = Camera::new(DVec3::ZERO, DVec3::new(0.0, 0.0, -1.0), DVec3::Y, 32.0, None, w, h).expect("camera");
+    let globals = Globals { cam: cam.to_gpu(100.0), light: cam.to_gpu(100.0), ..Default::default() };
+    let mut gpos = vec![[0.0f32; 4]; n];
+    let gnorm = vec![[0.0f32, 0.0, 1.0, 1.0]; n];
+    let mut amb = vec![[0.0f32; 4]; n];
+    let mut seed = 12345u32;
+    let mut noise = || {
+        seed = seed.wrapping_mul(1664525).wrapping_add(1013904223);
+        (seed >> 8) as f32 / (1 << 24) as f32 - 0.5
+    };
+    for y in 0..h {
+        for x in 0..w {
+            let i = (y * w + x) as usize;
+            let (px, py) = cam.plane(x as f64, y as f64);
+            let left = x < w / 2;
+            gpos[i] = [px as f32, py as f32, if left { 0.0 } else { -50.0 }, 0.0];
+            amb[i] = [if left { 0.2 } else { 0.9 } + 0.2 * noise(), 0.0, 0.0, 0.0];
+        }
+    }
+    let up = |name: &str, data: &[u8], usage| {
+        let b = Buffer::new(&ctx, name, data.len() as u64, usage, gpu_allocator::MemoryLocation::GpuOnly).expect("buffer");
+        b.upload(&ctx, 0, data).expect("upload");
+        b
+    };
+    let st = ash::vk::BufferUsageFlags::STORAGE_BUFFER;
+    let mut bufs = vec![
+        up("globals", bytemuck::bytes_of(&globals), ash::vk::BufferUsageFlags::UNIFORM_BUFFER),
+        up("gpos", bytemuck::cast_slice(&gpos), st),
+        up("gnorm", bytemuck::cast_slice(&gnorm), st),
+        up("gregion", &vec![0u8; n * 16], st),
+        up("ambient", bytemuck::cast_slice(&amb), st),
+        up("shadow", &vec![0u8; n * 4], st),
+        up("a tmp", &vec![0u8; n * 16], st),
+        up("s tmp", &vec![0u8; n * 4], st),
+        up("a out", &vec![0u8; n * 16], st),
+        up("s out", &vec![0u8; n * 4], st),
+    ];
+    let mut blur = BlurPass::new(&ctx).expect("blur");
+    let push = BlurPush { radius: 4, sigma_z: 1.0, semantic: 0, level: 0, blur_shadow: 0, pad: [0.0; 3] };
+    ctx.one_shot("blur", |cmd| {
+        let b = &bufs;
+        let geo = [&b[1], &b[2], &b[3]];
+        blur.record(&ctx, cmd, Axis::Horizontal, &b[0], geo, [&b[4], &b[5]], [&b[6], &b[7]], &push, n as u64)?;
+        sphereshade::vk::barrier(&ctx.device, cmd);
+        blur.record(&ctx, cmd, Axis::Vertical, &b[0], geo, [&b[6], &b[7]], [&b[8], &b[9]], &push, n as u64)
+    })
+    .expect("run");
+    let out: Vec<[f32; 4]> = bufs[8].download_pod(&ctx, 0, n as u64).expect("read");
+    blur.destroy(&ctx);
+    for b in &mut bufs {
+        b.destroy(&ctx);
+    }
+    let col = |x: u32, src: &[[f32; 4]]| -> Vec<f32> { (4..h - 4).map(|y| src[(y * w + x) as usize][0]).collect() };
+    let mean = |v: &[f32]| v.iter().sum::<f32>() / v.len() as f32;
+    let var = |v: &[f32]| {
+        let m = mean(v);
+        v.iter().map(|x| (x - m) * (x - m)).sum::<f32>() / v.len() as f32
+    };
+    let (edge_l, edge_r) = (mean(&col(w / 2 - 1, &out)), mean(&col(w / 2, &out)));
+    eprintln!("edge means after blur: left {edge_l:.3} right {edge_r:.3}");
+    assert!((edge_l - 0.2).abs() < 0.05 && (edge_r - 0.9).abs() < 0.05, "the blur bled across the depth edge");
+    let inner: Vec<f32> = (8..24).flat_map(|x| col(x, &out)).collect();
+    let inner_before: Vec<f32> = (8..24).flat_map(|x| col(x, &amb)).collect();
+    eprintln!("flat-area variance {:.5} -> {:.5}", var(&inner_before), var(&inner));
+    assert!(var(&inner) < 0.3 * var(&inner_before), "the blur does not reduce noise on a flat area");
+    assert_no_validation_messages(&ctx);
+}
+
+#[test]
+fn zooming_changes_the_semantic_level_through_a_blend() {
+    let scene = scene::procedural("capsid", 20000, 2).expect("capsid");
+    let (_, r) = scene.bounding_sphere();
+    let full = 2.0 * r as f64 * 1.05;
+    let mut seen = Vec::new();
+    let mut blended = false;
+    for i in 0..60 {
+        let h = full * 0.93f64.powi(i);
+        let cam = Camera::new(DVec3::ZERO, DVec3::new(0.0, 0.0, -1.0), DVec3::Y, h, None, 64, 64).expect("camera");
+        let (levels, c) = level_choice(&scene, &cam, &None);
+        assert!(levels.len() >= 3, "capsid should have several useful levels: {levels:?}");
+        if c.blend > 0.0 && c.blend < 1.0 {
+            blended = true;
+            assert_ne!(c.level_a, c.level_b);
+        }
+        if seen.last() != Some(&c.level_a) {
+            seen.push(c.level_a);
+        }
+    }
+    eprintln!("levels while zooming in: {seen:?}");
+    assert!(seen.len() >= 3 && seen.windows(2).all(|w| w[1] > w[0]), "levels do not refine with zoom: {seen:?}");
+    assert!(blended, "no blended range between levels");
+}
