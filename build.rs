@@ -23,7 +23,9 @@ fn main() {
     let mut failures = Vec::new();
     for path in entries {
         println!("cargo:rerun-if-changed={}", path.display());
-        let Some(ext) = path.extension().and_then(|e| e.to_str()) else { continue };
+        let Some(ext) = path.extension().and_then(|e| e.to_str()) else {
+            continue;
+        };
         let kind = match ext {
             "comp" => shaderc::ShaderKind::Compute,
             "vert" => shaderc::ShaderKind::Vertex,
@@ -34,7 +36,10 @@ fn main() {
         let source = fs::read_to_string(&path).expect("read shader");
 
         let mut options = shaderc::CompileOptions::new().unwrap();
-        options.set_target_env(shaderc::TargetEnv::Vulkan, shaderc::EnvVersion::Vulkan1_2 as u32);
+        options.set_target_env(
+            shaderc::TargetEnv::Vulkan,
+            shaderc::EnvVersion::Vulkan1_2 as u32,
+        );
         options.set_target_spirv(shaderc::SpirvVersion::V1_5);
         if debug {
             options.set_generate_debug_info();
@@ -46,15 +51,29 @@ fn main() {
         options.set_include_callback(move |name, _ty, _from, _depth| {
             let p = dir.join(name);
             let content = fs::read_to_string(&p).map_err(|e| format!("{}: {e}", p.display()))?;
-            Ok(shaderc::ResolvedInclude { resolved_name: p.display().to_string(), content })
+            Ok(shaderc::ResolvedInclude {
+                resolved_name: p.display().to_string(),
+                content,
+            })
         });
 
-        match compiler.compile_into_spirv(&source, kind, &path.display().to_string(), "main", Some(&options)) {
+        match compiler.compile_into_spirv(
+            &source,
+            kind,
+            &path.display().to_string(),
+            "main",
+            Some(&options),
+        ) {
             Ok(artifact) => {
                 let stem = file_name.replace('.', "_").to_uppercase();
                 let spv = out_dir.join(format!("{file_name}.spv"));
                 fs::write(&spv, artifact.as_binary_u8()).expect("write spv");
-                writeln!(index, "pub const {stem}: &[u8] = include_bytes!({:?});", spv.display().to_string()).unwrap();
+                writeln!(
+                    index,
+                    "pub const {stem}: &[u8] = include_bytes!({:?});",
+                    spv.display().to_string()
+                )
+                .unwrap();
             }
             // shaderc's message already reads "glsl/x.comp:LINE: error: ...".
             Err(e) => failures.push(e.to_string()),

@@ -34,32 +34,51 @@ impl Camera {
         height: u32,
     ) -> Result<Self> {
         if !(view_dir.length() > 0.0) || !view_dir.is_finite() {
-            return Err(Error::Invalid("--view-dir must be a non-zero vector".into()));
+            return Err(Error::Invalid(
+                "--view-dir must be a non-zero vector".into(),
+            ));
         }
         let dir = view_dir.normalize();
         let r = dir.cross(up_hint);
         if !(r.length() > 1e-9) {
-            return Err(Error::Invalid("--up must not be parallel to --view-dir".into()));
+            return Err(Error::Invalid(
+                "--up must not be parallel to --view-dir".into(),
+            ));
         }
         if !(view_height > 0.0) || !view_height.is_finite() {
             return Err(Error::Invalid("--view-height must be positive".into()));
         }
-        if let Some(f) = fov_deg {
-            if !(f > 0.0 && f < 179.0) {
-                return Err(Error::Invalid("--fov must be between 0 and 179 degrees".into()));
-            }
+        if let Some(f) = fov_deg
+            && !(f > 0.0 && f < 179.0)
+        {
+            return Err(Error::Invalid(
+                "--fov must be between 0 and 179 degrees".into(),
+            ));
         }
         if width == 0 || height == 0 || width > 16384 || height > 16384 {
-            return Err(Error::Invalid("--width/--height must be between 1 and 16384".into()));
+            return Err(Error::Invalid(
+                "--width/--height must be between 1 and 16384".into(),
+            ));
         }
         let right = r.normalize();
         let up = right.cross(dir);
-        Ok(Camera { center, dir, right, up, view_height, fov_deg, width, height })
+        Ok(Camera {
+            center,
+            dir,
+            right,
+            up,
+            view_height,
+            fov_deg,
+            width,
+            height,
+        })
     }
 
     /// Eye distance from the view centre (0 for orthographic).
     pub fn eye_distance(&self) -> f64 {
-        self.fov_deg.map_or(0.0, |f| 0.5 * self.view_height / (0.5 * f.to_radians()).tan())
+        self.fov_deg.map_or(0.0, |f| {
+            0.5 * self.view_height / (0.5 * f.to_radians()).tan()
+        })
     }
 
     pub fn eye(&self) -> DVec3 {
@@ -79,10 +98,16 @@ impl Camera {
     pub fn ray(&self, px: u32, py: u32) -> (DVec3, DVec3) {
         let (x, y) = self.plane(px as f64, py as f64);
         match self.fov_deg {
-            None => (self.center + x * self.right + y * self.up - 1e6 * self.dir, self.dir),
+            None => (
+                self.center + x * self.right + y * self.up - 1e6 * self.dir,
+                self.dir,
+            ),
             Some(_) => {
                 let dist = self.eye_distance();
-                (self.eye(), (dist * self.dir + x * self.right + y * self.up).normalize())
+                (
+                    self.eye(),
+                    (dist * self.dir + x * self.right + y * self.up).normalize(),
+                )
             }
         }
     }
@@ -107,9 +132,15 @@ impl Camera {
 
 /// An orthographic square view along `light_dir`, fitted tightly to the
 /// spheres' extent across the light (not to the camera frustum).
-pub fn light_view(spheres: impl Iterator<Item = ([f32; 3], f32)> + Clone, light_dir: DVec3, size: u32) -> Result<Camera> {
+pub fn light_view(
+    spheres: impl Iterator<Item = ([f32; 3], f32)> + Clone,
+    light_dir: DVec3,
+    size: u32,
+) -> Result<Camera> {
     if !(light_dir.length() > 0.0) || !light_dir.is_finite() {
-        return Err(Error::Invalid("--light must be a non-zero direction".into()));
+        return Err(Error::Invalid(
+            "--light must be a non-zero direction".into(),
+        ));
     }
     let d = light_dir.normalize();
     // Any up not parallel to d.

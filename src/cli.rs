@@ -13,7 +13,11 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 #[derive(Parser, Debug)]
-#[command(name = "sphereshade", version, about = "Vulkan compute renderer for millions of spheres")]
+#[command(
+    name = "sphereshade",
+    version,
+    about = "Vulkan compute renderer for millions of spheres"
+)]
 pub struct Cli {
     #[command(subcommand)]
     pub command: Command,
@@ -146,7 +150,10 @@ pub fn parse_vec3(s: &str) -> std::result::Result<DVec3, String> {
     }
     let mut v = [0.0; 3];
     for (o, p) in v.iter_mut().zip(&parts) {
-        *o = p.trim().parse::<f64>().map_err(|_| format!("'{s}': '{p}' is not a number"))?;
+        *o = p
+            .trim()
+            .parse::<f64>()
+            .map_err(|_| format!("'{s}': '{p}' is not a number"))?;
         if !o.is_finite() {
             return Err(format!("'{s}': components must be finite"));
         }
@@ -161,7 +168,10 @@ pub fn parse_replicate(s: &str) -> std::result::Result<[u32; 3], String> {
     }
     let mut v = [0u32; 3];
     for (o, p) in v.iter_mut().zip(&parts) {
-        *o = p.trim().parse().map_err(|_| format!("'{s}': '{p}' is not a positive integer"))?;
+        *o = p
+            .trim()
+            .parse()
+            .map_err(|_| format!("'{s}': '{p}' is not a positive integer"))?;
         if *o == 0 {
             return Err(format!("'{s}': counts must be at least 1"));
         }
@@ -174,25 +184,33 @@ pub fn parse_replicate(s: &str) -> std::result::Result<[u32; 3], String> {
 pub fn load_scene(args: &SceneArgs) -> Result<(Scene, f64)> {
     let t0 = Instant::now();
     let mut scene = match (&args.input, &args.scene) {
-        (Some(_), Some(_)) => return Err(Error::Invalid("give an input file or --scene, not both".into())),
+        (Some(_), Some(_)) => {
+            return Err(Error::Invalid(
+                "give an input file or --scene, not both".into(),
+            ));
+        }
         (Some(path), None) => {
             let model = match args.model.as_deref() {
                 None => ModelSelect::First,
                 Some("all") => ModelSelect::All,
-                Some(n) => ModelSelect::Index(
-                    n.parse().map_err(|_| Error::Invalid(format!("--model {n}: expected a number or `all`")))?,
-                ),
+                Some(n) => ModelSelect::Index(n.parse().map_err(|_| {
+                    Error::Invalid(format!("--model {n}: expected a number or `all`"))
+                })?),
             };
             let opts = LoadOptions {
                 model,
                 assembly: args.assembly,
-                color_by: if args.color == "chain" { ColorBy::Chain } else { ColorBy::Element },
+                color_by: if args.color == "chain" {
+                    ColorBy::Chain
+                } else {
+                    ColorBy::Element
+                },
             };
             let size = std::fs::metadata(path).map(|m| m.len()).unwrap_or(0);
             let show = size > 8 << 20;
             let mut last = 0u64;
             let mut progress = |done: u64, total: u64| {
-                let pct = if total > 0 { done * 100 / total } else { 0 };
+                let pct = (done * 100).checked_div(total).unwrap_or(0);
                 if show && pct >= last + 5 {
                     last = pct;
                     eprint!("\rloading {}: {pct:3}%", path.display());
@@ -200,13 +218,19 @@ pub fn load_scene(args: &SceneArgs) -> Result<(Scene, f64)> {
             };
             let s = scene::load(path, &opts, &mut progress)?;
             if show {
-                eprintln!("\rloading {}: done, {} spheres", path.display(), s.spheres.len());
+                eprintln!(
+                    "\rloading {}: done, {} spheres",
+                    path.display(),
+                    s.spheres.len()
+                );
             }
             s
         }
         (None, name) => {
             if args.model.is_some() || args.assembly.is_some() {
-                return Err(Error::Invalid("--model/--assembly apply to input files only".into()));
+                return Err(Error::Invalid(
+                    "--model/--assembly apply to input files only".into(),
+                ));
             }
             let name = name.as_deref().unwrap_or(scene::DEFAULT_SCENE);
             let atoms = args.atoms.unwrap_or(scene::DEFAULT_ATOMS);
@@ -217,9 +241,19 @@ pub fn load_scene(args: &SceneArgs) -> Result<(Scene, f64)> {
         }
     };
     if args.atoms.is_some() && args.input.is_some() {
-        return Err(Error::Invalid("--atoms applies to procedural scenes (--scene) only".into()));
+        return Err(Error::Invalid(
+            "--atoms applies to procedural scenes (--scene) only".into(),
+        ));
     }
     if let Some(n) = args.replicate {
+        // Refuse before allocating: sphere ids are 24-bit in the id AOV.
+        let total = scene.spheres.len() as u64 * n.iter().map(|&k| k as u64).product::<u64>();
+        if total >= 1 << 24 {
+            return Err(Error::Invalid(format!(
+                "--replicate {}x{}x{}: {total} spheres; at most 16,777,215 are supported",
+                n[0], n[1], n[2]
+            )));
+        }
         scene = scene.replicate(n);
     }
     if !(args.radius_scale > 0.0 && args.radius_scale.is_finite()) {
@@ -233,27 +267,40 @@ pub fn load_scene(args: &SceneArgs) -> Result<(Scene, f64)> {
 
 /// Resolves the view arguments against a scene into render settings.
 pub fn settings_for(scene: &Scene, v: &ViewArgs) -> Result<RenderSettings> {
-    let camera: Camera =
-        default_camera(scene, v.width, v.height, v.view_dir, v.up, v.view_center, v.view_height, v.fov)?;
+    let camera: Camera = default_camera(
+        scene,
+        v.width,
+        v.height,
+        v.view_dir,
+        v.up,
+        v.view_center,
+        v.view_height,
+        v.fov,
+    )?;
     if !(0.0..=1.0).contains(&v.opacity) {
         return Err(Error::Invalid("--opacity must be between 0 and 1".into()));
     }
     if !(v.light.length() > 0.0) {
-        return Err(Error::Invalid("--light must be a non-zero direction".into()));
+        return Err(Error::Invalid(
+            "--light must be a non-zero direction".into(),
+        ));
     }
     if !(16..=8192).contains(&v.issm_size) {
-        return Err(Error::Invalid("--issm-size must be between 16 and 8192".into()));
+        return Err(Error::Invalid(
+            "--issm-size must be between 16 and 8192".into(),
+        ));
     }
-    let mut issm = IssmParams { size: v.issm_size, ..Default::default() };
-    issm.t = match v.issm_t.as_str() {
-        "auto" => None,
-        t => Some(
-            t.parse::<u32>()
-                .ok()
-                .filter(|t| *t <= 32)
-                .ok_or_else(|| Error::Invalid(format!("--issm-t {t}: expected 0..32 or `auto`")))?,
-        ),
+    let mut issm = IssmParams {
+        size: v.issm_size,
+        ..Default::default()
     };
+    issm.t =
+        match v.issm_t.as_str() {
+            "auto" => None,
+            t => Some(t.parse::<u32>().ok().filter(|t| *t <= 32).ok_or_else(|| {
+                Error::Invalid(format!("--issm-t {t}: expected 0..32 or `auto`"))
+            })?),
+        };
     for (val, slot, name) in [
         (v.soft_s, &mut issm.soft_s, "--soft-s"),
         (v.soft_x, &mut issm.soft_x, "--soft-x"),
@@ -281,11 +328,20 @@ pub fn settings_for(scene: &Scene, v: &ViewArgs) -> Result<RenderSettings> {
             Some(s) => {
                 let t: Vec<f64> = s
                     .split(',')
-                    .map(|p| p.trim().parse::<f64>().ok().filter(|x| *x > 0.0 && x.is_finite()))
+                    .map(|p| {
+                        p.trim()
+                            .parse::<f64>()
+                            .ok()
+                            .filter(|x| *x > 0.0 && x.is_finite())
+                    })
                     .collect::<Option<_>>()
-                    .ok_or_else(|| Error::Invalid(format!("--semantic-levels {s}: expected positive numbers")))?;
+                    .ok_or_else(|| {
+                        Error::Invalid(format!("--semantic-levels {s}: expected positive numbers"))
+                    })?;
                 if t.windows(2).any(|w| w[1] >= w[0]) {
-                    return Err(Error::Invalid(format!("--semantic-levels {s}: thresholds must descend")));
+                    return Err(Error::Invalid(format!(
+                        "--semantic-levels {s}: thresholds must descend"
+                    )));
                 }
                 Some(t)
             }
@@ -294,7 +350,11 @@ pub fn settings_for(scene: &Scene, v: &ViewArgs) -> Result<RenderSettings> {
 }
 
 pub fn context_for(v: &ViewArgs) -> Result<Context> {
-    Context::new(&ContextOptions { validate: v.validate, device_index: v.device, ..Default::default() })
+    Context::new(&ContextOptions {
+        validate: v.validate,
+        device_index: v.device,
+        ..Default::default()
+    })
 }
 
 /// Renders `frames` measured frames after `warmup` ones.
@@ -316,7 +376,11 @@ pub fn aov_image(r: &Renderer, aov: Aov) -> Result<output::AovImage> {
             output::depth_image(w, h, &d)
         }
         Aov::Shadow | Aov::Ao => {
-            let covered: Vec<bool> = r.read_vis()?.iter().map(|&k| k != crate::gpu::VIS_EMPTY).collect();
+            let covered: Vec<bool> = r
+                .read_vis()?
+                .iter()
+                .map(|&k| k != crate::gpu::VIS_EMPTY)
+                .collect();
             if aov == Aov::Shadow {
                 output::unit_image(w, h, r.read_shadow()?.into_iter(), &covered)
             } else {
@@ -340,6 +404,7 @@ pub struct RunOutcome {
 
 /// Loads nothing: renders an already loaded scene with settings, returning
 /// the stats record and the AOV image.
+#[allow(clippy::too_many_arguments)]
 pub fn render_run(
     ctx: &Context,
     scene: &Scene,
@@ -397,7 +462,11 @@ pub fn run(cli: Cli) -> Result<Exit> {
         Command::Render(args) => render(args),
         Command::Bench(args) => {
             let n = crate::bench::main(&args)?;
-            Ok(if n > 0 { Exit::ValidationMessages(n) } else { Exit::Ok })
+            Ok(if n > 0 {
+                Exit::ValidationMessages(n)
+            } else {
+                Exit::Ok
+            })
         }
     }
 }
@@ -408,15 +477,26 @@ fn info(device: Option<usize>) -> Result<Exit> {
         return Err(Error::NoDevice);
     }
     for (d, l) in devices.iter().zip(&limits) {
-        println!("[{}] {} ({}), Vulkan {}, driver {}", d.index, d.name, d.kind, d.api_version, d.driver);
+        println!(
+            "[{}] {} ({}), Vulkan {}, driver {}",
+            d.index, d.name, d.kind, d.api_version, d.driver
+        );
         println!("    limits: {l}");
         if d.missing_features.is_empty() {
-            println!("    required features: all present (shaderInt64, shaderBufferInt64Atomics, synchronization2, timestamps)");
+            println!(
+                "    required features: all present (shaderInt64, shaderBufferInt64Atomics, synchronization2, timestamps)"
+            );
         } else {
-            println!("    missing required features: {}", d.missing_features.join(", "));
+            println!(
+                "    missing required features: {}",
+                d.missing_features.join(", ")
+            );
         }
     }
-    let ctx = Context::new(&ContextOptions { device_index: device, ..Default::default() })?;
+    let ctx = Context::new(&ContextOptions {
+        device_index: device,
+        ..Default::default()
+    })?;
     println!("chosen device: [{}] {}", ctx.info.index, ctx.info.name);
     Ok(Exit::Ok)
 }
@@ -427,7 +507,16 @@ fn render(args: RenderArgs) -> Result<Exit> {
     let settings = settings_for(&scene, &args.view)?;
     let ctx = context_for(&args.view)?;
     let input = input_name(&args.scene);
-    let outcome = render_run(&ctx, &scene, &input, settings, args.aov, args.warmup, args.frames, load_ms)?;
+    let outcome = render_run(
+        &ctx,
+        &scene,
+        &input,
+        settings,
+        args.aov,
+        args.warmup,
+        args.frames,
+        load_ms,
+    )?;
     let mut stats = outcome.stats;
     stats.validation_messages = ctx.validation_messages();
     outcome.image.save_png(&args.out)?;
@@ -445,18 +534,32 @@ fn render(args: RenderArgs) -> Result<Exit> {
         args.out.display()
     );
     let n = ctx.validation_messages();
-    Ok(if n > 0 { Exit::ValidationMessages(n) } else { Exit::Ok })
+    Ok(if n > 0 {
+        Exit::ValidationMessages(n)
+    } else {
+        Exit::Ok
+    })
 }
 
 fn check_out_path(p: &Path) -> Result<()> {
-    let ext = p.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
+    let ext = p
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase());
     if ext.as_deref() != Some("png") {
-        return Err(Error::Invalid(format!("--out {}: expected a .png file name", p.display())));
+        return Err(Error::Invalid(format!(
+            "--out {}: expected a .png file name",
+            p.display()
+        )));
     }
-    if let Some(dir) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
-        if !dir.is_dir() {
-            return Err(Error::Invalid(format!("--out {}: directory {} does not exist", p.display(), dir.display())));
-        }
+    if let Some(dir) = p.parent().filter(|d| !d.as_os_str().is_empty())
+        && !dir.is_dir()
+    {
+        return Err(Error::Invalid(format!(
+            "--out {}: directory {} does not exist",
+            p.display(),
+            dir.display()
+        )));
     }
     Ok(())
 }

@@ -11,19 +11,33 @@ pub enum Error {
     #[error("--device {index}: only {count} Vulkan device(s) present (see `sphereshade info`)")]
     BadDeviceIndex { index: usize, count: usize },
     #[error("device '{device}' lacks required Vulkan feature {feature}")]
-    MissingFeature { device: String, feature: &'static str },
-    #[error("--validate needs VK_LAYER_KHRONOS_validation (apt-get install vulkan-validationlayers)")]
+    MissingFeature {
+        device: String,
+        feature: &'static str,
+    },
+    #[error(
+        "--validate needs VK_LAYER_KHRONOS_validation (apt-get install vulkan-validationlayers)"
+    )]
     NoValidationLayer,
     #[error("Vulkan call {call} failed: {result}")]
-    Vk { call: &'static str, result: vk::Result },
+    Vk {
+        call: &'static str,
+        result: vk::Result,
+    },
     #[error("GPU memory allocation for '{name}' failed: {source}")]
-    Alloc { name: String, source: gpu_allocator::AllocationError },
+    Alloc {
+        name: String,
+        source: gpu_allocator::AllocationError,
+    },
     #[error(transparent)]
     Scene(#[from] crate::scene::SceneError),
     #[error("{0}")]
     Invalid(String),
     #[error("{path}: {source}")]
-    Io { path: String, source: std::io::Error },
+    Io {
+        path: String,
+        source: std::io::Error,
+    },
 }
 
 pub type Result<T, E = Error> = std::result::Result<T, E>;

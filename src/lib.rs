@@ -4,6 +4,9 @@
 //! scenes, `passes` holds one file per GPU pass, `render` is the frame graph,
 //! `reference` the independent CPU references the tests compare against.
 
+// `!(x > 0.0)` is used on purpose: unlike `x <= 0.0` it also rejects NaN.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 pub mod bench;
 pub mod camera;
 pub mod cli;

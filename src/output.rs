@@ -29,8 +29,13 @@ impl AovImage {
 
     /// Writes a PNG to a temporary name and renames it into place.
     pub fn save_png(&self, path: &Path) -> Result<()> {
-        let io_err = |e: std::io::Error| Error::Io { path: path.display().to_string(), source: e };
-        let file_name = path.file_name().ok_or_else(|| Error::Invalid(format!("{}: not a file name", path.display())))?;
+        let io_err = |e: std::io::Error| Error::Io {
+            path: path.display().to_string(),
+            source: e,
+        };
+        let file_name = path
+            .file_name()
+            .ok_or_else(|| Error::Invalid(format!("{}: not a file name", path.display())))?;
         let tmp = path.with_file_name(format!(".{}.tmp", file_name.to_string_lossy()));
         let saved = match self {
             AovImage::Rgba8(i) => i.save_with_format(&tmp, image::ImageFormat::Png),
@@ -39,7 +44,10 @@ impl AovImage {
         };
         if let Err(e) = saved {
             let _ = std::fs::remove_file(&tmp);
-            return Err(Error::Invalid(format!("{}: cannot write PNG: {e}", path.display())));
+            return Err(Error::Invalid(format!(
+                "{}: cannot write PNG: {e}",
+                path.display()
+            )));
         }
         std::fs::rename(&tmp, path).map_err(io_err)
     }
@@ -48,12 +56,16 @@ impl AovImage {
 /// `color`: RGBA8 from the composite buffer.
 pub fn color_image(w: u32, h: u32, color: &[u32]) -> AovImage {
     let bytes: Vec<u8> = color.iter().flat_map(|c| c.to_le_bytes()).collect();
-    AovImage::Rgba8(image::RgbaImage::from_raw(w, h, bytes).unwrap_or_else(|| image::RgbaImage::new(w, h)))
+    AovImage::Rgba8(
+        image::RgbaImage::from_raw(w, h, bytes).unwrap_or_else(|| image::RgbaImage::new(w, h)),
+    )
 }
 
 /// Sphere index per pixel from the visibility buffer (None = background).
 pub fn ids_from_vis(vis: &[u64]) -> Vec<Option<u32>> {
-    vis.iter().map(|&k| (k != VIS_EMPTY).then_some((k & 0xFFFF_FFFF) as u32)).collect()
+    vis.iter()
+        .map(|&k| (k != VIS_EMPTY).then_some((k & 0xFFFF_FFFF) as u32))
+        .collect()
 }
 
 /// `id`: (index + 1) little-endian in R, G, B; A = 255; background 0,0,0,255.
@@ -61,7 +73,12 @@ pub fn id_image(w: u32, h: u32, vis: &[u64]) -> AovImage {
     let mut img = image::RgbaImage::new(w, h);
     for (p, id) in img.pixels_mut().zip(ids_from_vis(vis)) {
         let v = id.map_or(0, |i| i + 1);
-        *p = image::Rgba([(v & 0xFF) as u8, ((v >> 8) & 0xFF) as u8, ((v >> 16) & 0xFF) as u8, 255]);
+        *p = image::Rgba([
+            (v & 0xFF) as u8,
+            ((v >> 8) & 0xFF) as u8,
+            ((v >> 16) & 0xFF) as u8,
+            255,
+        ]);
     }
     AovImage::Rgba8(img)
 }
@@ -77,18 +94,34 @@ pub fn depth_image(w: u32, h: u32, depth: &[f32]) -> AovImage {
     let span = (hi - lo).max(f32::MIN_POSITIVE);
     let data = depth
         .iter()
-        .map(|&d| if d < 0.0 { 65535 } else { (((d - lo) / span) * 65534.0).round().clamp(0.0, 65534.0) as u16 })
+        .map(|&d| {
+            if d < 0.0 {
+                65535
+            } else {
+                (((d - lo) / span) * 65534.0).round().clamp(0.0, 65534.0) as u16
+            }
+        })
         .collect();
-    AovImage::Gray16(image::ImageBuffer::from_raw(w, h, data).unwrap_or_else(|| image::ImageBuffer::new(w, h)))
+    AovImage::Gray16(
+        image::ImageBuffer::from_raw(w, h, data).unwrap_or_else(|| image::ImageBuffer::new(w, h)),
+    )
 }
 
 /// 8-bit grayscale of a [0,1] quantity, background (mask false) = 255.
 pub fn unit_image(w: u32, h: u32, values: impl Iterator<Item = f32>, covered: &[bool]) -> AovImage {
     let data = values
         .zip(covered)
-        .map(|(v, &c)| if c { (v.clamp(0.0, 1.0) * 255.0).round() as u8 } else { 255 })
+        .map(|(v, &c)| {
+            if c {
+                (v.clamp(0.0, 1.0) * 255.0).round() as u8
+            } else {
+                255
+            }
+        })
         .collect();
-    AovImage::Gray8(image::GrayImage::from_raw(w, h, data).unwrap_or_else(|| image::GrayImage::new(w, h)))
+    AovImage::Gray8(
+        image::GrayImage::from_raw(w, h, data).unwrap_or_else(|| image::GrayImage::new(w, h)),
+    )
 }
 
 pub fn aov_name(aov: Aov) -> String {
@@ -160,27 +193,55 @@ pub fn summarize(frames: &[crate::render::PassTimes]) -> (Vec<PassStats>, TotalS
     let mut passes = Vec::new();
     if let Some(first) = frames.first() {
         for (name, _) in first {
-            let mut v: Vec<f64> =
-                frames.iter().filter_map(|f| f.iter().find(|(n, _)| n == name).map(|(_, t)| *t)).collect();
-            let (mn, mx) = (v.iter().cloned().fold(f64::MAX, f64::min), v.iter().cloned().fold(f64::MIN, f64::max));
-            passes.push(PassStats { name: name.to_string(), median_ms: median(&mut v), min_ms: mn, max_ms: mx });
+            let mut v: Vec<f64> = frames
+                .iter()
+                .filter_map(|f| f.iter().find(|(n, _)| n == name).map(|(_, t)| *t))
+                .collect();
+            let (mn, mx) = (
+                v.iter().cloned().fold(f64::MAX, f64::min),
+                v.iter().cloned().fold(f64::MIN, f64::max),
+            );
+            passes.push(PassStats {
+                name: name.to_string(),
+                median_ms: median(&mut v),
+                min_ms: mn,
+                max_ms: mx,
+            });
         }
     }
-    let mut totals: Vec<f64> = frames.iter().map(|f| f.iter().map(|(_, t)| t).sum()).collect();
-    let (mn, mx) = (totals.iter().cloned().fold(f64::MAX, f64::min), totals.iter().cloned().fold(f64::MIN, f64::max));
+    let mut totals: Vec<f64> = frames
+        .iter()
+        .map(|f| f.iter().map(|(_, t)| t).sum())
+        .collect();
+    let (mn, mx) = (
+        totals.iter().cloned().fold(f64::MAX, f64::min),
+        totals.iter().cloned().fold(f64::MIN, f64::max),
+    );
     let total = if totals.is_empty() {
-        TotalStats { median: 0.0, min: 0.0, max: 0.0 }
+        TotalStats {
+            median: 0.0,
+            min: 0.0,
+            max: 0.0,
+        }
     } else {
-        TotalStats { median: median(&mut totals), min: mn, max: mx }
+        TotalStats {
+            median: median(&mut totals),
+            min: mn,
+            max: mx,
+        }
     };
     (passes, total)
 }
 
 /// Writes JSON to a temporary file and renames it into place.
 pub fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<()> {
-    let text = serde_json::to_string_pretty(value).map_err(|e| Error::Invalid(format!("JSON: {e}")))?;
+    let text =
+        serde_json::to_string_pretty(value).map_err(|e| Error::Invalid(format!("JSON: {e}")))?;
     let tmp = path.with_extension("json.tmp");
-    let io_err = |e: std::io::Error| Error::Io { path: path.display().to_string(), source: e };
+    let io_err = |e: std::io::Error| Error::Io {
+        path: path.display().to_string(),
+        source: e,
+    };
     std::fs::write(&tmp, text + "\n").map_err(io_err)?;
     std::fs::rename(&tmp, path).map_err(io_err)
 }

@@ -43,8 +43,16 @@ fn persp_extent(a: f64, z: f64, r: f64, dist: f64) -> (f64, f64) {
     let ang = a.atan2(z);
     let del = (r / l).asin();
     let hp = std::f64::consts::FRAC_PI_2;
-    let lo = if ang - del <= -hp { f64::NEG_INFINITY } else { dist * (ang - del).tan() };
-    let hi = if ang + del >= hp { f64::INFINITY } else { dist * (ang + del).tan() };
+    let lo = if ang - del <= -hp {
+        f64::NEG_INFINITY
+    } else {
+        dist * (ang - del).tan()
+    };
+    let hi = if ang + del >= hp {
+        f64::INFINITY
+    } else {
+        dist * (ang + del).tan()
+    };
     (lo, hi)
 }
 
@@ -58,7 +66,12 @@ impl Bins {
         let dist = cam.eye_distance();
         for (i, s) in spheres.iter().enumerate() {
             let r = s.radius as f64;
-            let q = c64(s) - if cam.fov_deg.is_some() { cam.eye() } else { cam.center };
+            let q = c64(s)
+                - if cam.fov_deg.is_some() {
+                    cam.eye()
+                } else {
+                    cam.center
+                };
             let (cx, cy, cz) = (q.dot(cam.right), q.dot(cam.up), q.dot(cam.dir));
             let (xr, yr) = if cam.fov_deg.is_none() {
                 ((cx - r, cx + r), (cy - r, cy + r))
@@ -84,7 +97,12 @@ impl Bins {
                 }
             }
         }
-        Bins { cam: *cam, tiles_x, tiles_y, bins }
+        Bins {
+            cam: *cam,
+            tiles_x,
+            tiles_y,
+            bins,
+        }
     }
 
     /// Candidates for the ray through pixel (px, py).
@@ -137,7 +155,8 @@ pub fn cast(spheres: &[Sphere], cam: &Camera, tolerance: f64) -> RefImage {
     for py in 0..cam.height {
         for px in 0..cam.width {
             let (o, d) = cam.ray(px, py);
-            let (mut best, mut second, mut id, mut graze) = (f64::INFINITY, f64::INFINITY, u32::MAX, false);
+            let (mut best, mut second, mut id, mut graze) =
+                (f64::INFINITY, f64::INFINITY, u32::MAX, false);
             for &i in bins.at_pixel(px, py) {
                 let s = &spheres[i as usize];
                 let r = s.radius as f64;
@@ -171,7 +190,14 @@ pub fn cast(spheres: &[Sphere], cam: &Camera, tolerance: f64) -> RefImage {
 /// Exact key-light visibility of point `p` on sphere `self_id`: the product
 /// of (1 - opacity) over every other sphere the ray toward the light crosses
 /// (opacity 1 = hard shadow). `light_bins` must come from `light_view`.
-pub fn shadow_ray(spheres: &[Sphere], light_bins: &Bins, light_dir: DVec3, p: DVec3, self_id: u32, opacity: f64) -> f64 {
+pub fn shadow_ray(
+    spheres: &[Sphere],
+    light_bins: &Bins,
+    light_dir: DVec3,
+    p: DVec3,
+    self_id: u32,
+    opacity: f64,
+) -> f64 {
     let d = -light_dir.normalize();
     let mut vis = 1.0;
     for &i in light_bins.along_dir(p) {

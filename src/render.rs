@@ -7,13 +7,14 @@ use crate::gpu::{Globals, GpuSphere, SphereAttr};
 use crate::output::DeepStats;
 use crate::passes::blur::{Axis, BlurPass, BlurPush};
 use crate::passes::composite::{CompositeInputs, CompositePass, CompositePush};
-use crate::passes::ssdo::{GBuffer, KeyShadowPush, SsdoPass, SsdoPush};
-use crate::semantic::{self, LevelChoice};
 use crate::passes::deep::DeepShadows;
 use crate::passes::issm::{self, IssmPush, IssmShadowPass};
 use crate::passes::raster::{self, RasterPass, ViewIndex};
+use crate::passes::raster_graphics::GraphicsRasterPass;
 use crate::passes::resolve::ResolvePass;
+use crate::passes::ssdo::{GBuffer, KeyShadowPush, SsdoPass, SsdoPush};
 use crate::scene::Scene;
+use crate::semantic::{self, LevelChoice};
 use crate::settings::{RasterMode, RenderSettings, ShadowMode, SsdoMode};
 use crate::vk::{Buffer, Context, Profiler, barrier};
 use ash::vk;
@@ -41,6 +42,8 @@ pub struct Renderer<'c> {
     color: Buffer,
     ssdo: Option<SsdoState>,
     raster: RasterPass,
+    /// The vertex/fragment baseline, when `--raster graphics`.
+    raster_graphics: Option<GraphicsRasterPass>,
     resolve: ResolvePass,
     composite: CompositePass,
     issm: Option<IssmState>,
@@ -64,7 +67,12 @@ struct SsdoState {
 /// Typical sphere radius (median of a sample) to scale screen-space effects.
 fn typical_radius(scene: &Scene) -> f32 {
     let step = (scene.spheres.len() / 4096).max(1);
-    let mut r: Vec<f32> = scene.spheres.iter().step_by(step).map(|s| s.radius).collect();
+    let mut r: Vec<f32> = scene
+        .spheres
+        .iter()
+        .step_by(step)
+        .map(|s| s.radius)
+        .collect();
     r.sort_by(|a, b| a.total_cmp(b));
     r.get(r.len() / 2).copied().unwrap_or(1.0)
 }
@@ -78,6 +86,7 @@ struct IssmState {
 }
 
 /// Builds the DESIGN.md default camera for a scene, overridable per field.
+#[allow(clippy::too_many_arguments)]
 pub fn default_camera(
     scene: &Scene,
     width: u32,
@@ -97,7 +106,10 @@ pub fn default_camera(
 impl<'c> Renderer<'c> {
     pub fn new(ctx: &'c Context, scene: &Scene, settings: RenderSettings) -> Result<Self> {
         if scene.spheres.is_empty() {
-            return Err(Error::Invalid(format!("{}: no spheres to render", scene.source)));
+            return Err(Error::Invalid(format!(
+                "{}: no spheres to render",
+                scene.source
+            )));
         }
         if scene.spheres.len() >= (1 << 24) {
             return Err(Error::Invalid(format!(
@@ -105,17 +117,21 @@ impl<'c> Renderer<'c> {
                 scene.spheres.len()
             )));
         }
-        if settings.raster != RasterMode::Compute {
-            return Err(Error::Invalid("--raster graphics: not implemented yet".into()));
-        }
         let cam = &settings.camera;
         let pixels = cam.width as u64 * cam.height as u64;
-        let geom: Vec<GpuSphere> =
-            scene.spheres.iter().map(|s| [s.center[0], s.center[1], s.center[2], s.radius]).collect();
+        let geom: Vec<GpuSphere> = scene
+            .spheres
+            .iter()
+            .map(|s| [s.center[0], s.center[1], s.center[2], s.radius])
+            .collect();
         let attrs: Vec<SphereAttr> = scene
             .spheres
             .iter()
-            .map(|s| SphereAttr { region: s.region, color: u32::from_le_bytes(s.color), ..Default::default() })
+            .map(|s| SphereAttr {
+                region: s.region,
+                color: u32::from_le_bytes(s.color),
+                ..Default::default()
+            })
             .collect();
 
         let globals = Buffer::new(
@@ -159,8 +175,16 @@ impl<'c> Renderer<'c> {
                 let (t, stride) = match p.t {
                     Some(t) => (t, 1),
                     None => {
-                        let min_r = scene.spheres.iter().map(|s| s.radius).fold(f32::MAX, f32::min);
-                        let t = issm::auto_t(scene.max_radius(), if soft { p.soft_s } else { 0.0 }, texel);
+                        let min_r = scene
+                            .spheres
+                            .iter()
+                            .map(|s| s.radius)
+                            .fold(f32::MAX, f32::min);
+                        let t = issm::auto_t(
+                            scene.max_radius(),
+                            if soft { p.soft_s } else { 0.0 },
+                            texel,
+                        );
                         (t, issm::auto_stride(min_r, texel))
                     }
                 };
@@ -182,11 +206,19 @@ impl<'c> Renderer<'c> {
                     settings.light,
                     p.size,
                 )?;
-                Some(DeepShadows::new(ctx, light, geom.len() as u32, settings.deep_pool_chunks)?)
+                Some(DeepShadows::new(
+                    ctx,
+                    light,
+                    geom.len() as u32,
+                    settings.deep_pool_chunks,
+                )?)
             }
             _ => None,
         };
-        let light_cam = issm.as_ref().map(|s| s.light).or(deep.as_ref().map(|d| d.light));
+        let light_cam = issm
+            .as_ref()
+            .map(|s| s.light)
+            .or(deep.as_ref().map(|d| d.light));
         let light_gpu = match light_cam {
             Some(l) => {
                 let off = (bs_center.as_dvec3() - l.center).length() + bs_radius as f64 + 1.0;
@@ -240,7 +272,11 @@ impl<'c> Renderer<'c> {
                         radius: 4,
                         sigma_z: (0.5 * r).max(px) as f32,
                         semantic,
-                        level: if choice.blend >= 0.5 { choice.level_b } else { choice.level_a },
+                        level: if choice.blend >= 0.5 {
+                            choice.level_b
+                        } else {
+                            choice.level_a
+                        },
                         blur_shadow: 0,
                         pad: [0.0; 3],
                     },
@@ -250,12 +286,23 @@ impl<'c> Renderer<'c> {
 
         // Without a shadow pass, key-light visibility is 1 everywhere.
         ctx.one_shot("init shadow", |cmd| {
-            unsafe { ctx.device.cmd_fill_buffer(cmd, shadow.raw, 0, vk::WHOLE_SIZE, 1.0f32.to_bits()) };
+            unsafe {
+                ctx.device
+                    .cmd_fill_buffer(cmd, shadow.raw, 0, vk::WHOLE_SIZE, 1.0f32.to_bits())
+            };
             Ok(())
         })?;
 
+        let raster_graphics = match settings.raster {
+            RasterMode::Graphics => Some(GraphicsRasterPass::new(ctx)?),
+            RasterMode::Compute => None,
+        };
         let cmd = ctx.command_buffer("frame")?;
-        let fence = unsafe { ctx.device.create_fence(&vk::FenceCreateInfo::default(), None) }.vk("vkCreateFence")?;
+        let fence = unsafe {
+            ctx.device
+                .create_fence(&vk::FenceCreateInfo::default(), None)
+        }
+        .vk("vkCreateFence")?;
         ctx.name(fence, "frame fence");
         Ok(Renderer {
             ctx,
@@ -275,6 +322,7 @@ impl<'c> Renderer<'c> {
             color,
             ssdo,
             raster: RasterPass::new(ctx)?,
+            raster_graphics,
             resolve: ResolvePass::new(ctx)?,
             composite: CompositePass::new(ctx)?,
             issm,
@@ -292,11 +340,22 @@ impl<'c> Renderer<'c> {
 
     /// Bytes of GPU memory held by this renderer's buffers.
     pub fn memory_bytes(&self) -> u64 {
-        [&self.globals, &self.spheres, &self.attrs, &self.vis, &self.gpos, &self.gnorm, &self.gregion, &self.shadow, &self.ambient, &self.color]
-            .iter()
-            .chain(self.blurred.iter().collect::<Vec<_>>().iter())
-            .map(|b| b.size)
-            .sum::<u64>()
+        [
+            &self.globals,
+            &self.spheres,
+            &self.attrs,
+            &self.vis,
+            &self.gpos,
+            &self.gnorm,
+            &self.gregion,
+            &self.shadow,
+            &self.ambient,
+            &self.color,
+        ]
+        .iter()
+        .chain(self.blurred.iter().collect::<Vec<_>>().iter())
+        .map(|b| b.size)
+        .sum::<u64>()
             + self.raster.memory_bytes()
             + self.issm.as_ref().map_or(0, |s| s.map.size)
             + self.deep.as_ref().map_or(0, |d| d.memory_bytes())
@@ -306,7 +365,9 @@ impl<'c> Renderer<'c> {
     /// renders the frame again (the overflowed frame's image is discarded).
     pub fn render_frame(&mut self) -> Result<PassTimes> {
         let mut times = self.submit_frame()?;
-        let Some(deep) = &self.deep else { return Ok(times) };
+        let Some(deep) = &self.deep else {
+            return Ok(times);
+        };
         let mut stats = deep.read_stats(self.ctx)?;
         let overflowed = stats.overflowed;
         for _ in 0..4 {
@@ -318,10 +379,17 @@ impl<'c> Renderer<'c> {
                 d.grow(self.ctx, needed)?;
             }
             times = self.submit_frame()?;
-            stats = self.deep.as_ref().map(|d| d.read_stats(self.ctx)).transpose()?.unwrap_or(stats);
+            stats = self
+                .deep
+                .as_ref()
+                .map(|d| d.read_stats(self.ctx))
+                .transpose()?
+                .unwrap_or(stats);
         }
         if stats.overflowed {
-            return Err(Error::Invalid("deep shadow list pool still overflows after growing it".into()));
+            return Err(Error::Invalid(
+                "deep shadow list pool still overflows after growing it".into(),
+            ));
         }
         // Report that this frame needed a retry even though the final one fit.
         stats.overflowed = overflowed;
@@ -336,14 +404,18 @@ impl<'c> Renderer<'c> {
         if let Some(m) = self.globals.mapped_mut() {
             m.copy_from_slice(bytemuck::bytes_of(&self.globals_data));
         } else {
-            self.globals.upload(ctx, 0, bytemuck::bytes_of(&self.globals_data))?;
+            self.globals
+                .upload(ctx, 0, bytemuck::bytes_of(&self.globals_data))?;
         }
         // The previous frame's fence was waited on: its descriptor sets are free.
         ctx.reset_descriptors()?;
         unsafe {
-            dev.reset_command_buffer(self.cmd, vk::CommandBufferResetFlags::empty()).vk("vkResetCommandBuffer")?;
-            let begin = vk::CommandBufferBeginInfo::default().flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
-            dev.begin_command_buffer(self.cmd, &begin).vk("vkBeginCommandBuffer")?;
+            dev.reset_command_buffer(self.cmd, vk::CommandBufferResetFlags::empty())
+                .vk("vkResetCommandBuffer")?;
+            let begin = vk::CommandBufferBeginInfo::default()
+                .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
+            dev.begin_command_buffer(self.cmd, &begin)
+                .vk("vkBeginCommandBuffer")?;
         }
         let recorded = self.record(self.cmd);
         unsafe { dev.end_command_buffer(self.cmd) }.vk("vkEndCommandBuffer")?;
@@ -352,8 +424,10 @@ impl<'c> Renderer<'c> {
         let submit = [vk::SubmitInfo::default().command_buffers(&cmds)];
         unsafe {
             dev.reset_fences(&[self.fence]).vk("vkResetFences")?;
-            dev.queue_submit(ctx.queue, &submit, self.fence).vk("vkQueueSubmit")?;
-            dev.wait_for_fences(&[self.fence], true, u64::MAX).vk("vkWaitForFences")?;
+            dev.queue_submit(ctx.queue, &submit, self.fence)
+                .vk("vkQueueSubmit")?;
+            dev.wait_for_fences(&[self.fence], true, u64::MAX)
+                .vk("vkWaitForFences")?;
         }
         self.profiler.results(ctx)
     }
@@ -365,41 +439,113 @@ impl<'c> Renderer<'c> {
         prof.begin_frame(ctx, cmd);
         barrier(&ctx.device, cmd);
 
-        self.raster.record_scoped(
-            ctx,
-            cmd,
-            prof,
-            "raster",
-            &self.globals,
-            &self.spheres,
-            self.sphere_count,
-            &self.vis,
-            pixels,
-            ViewIndex::Camera,
-        )?;
+        if let Some(gr) = &self.raster_graphics {
+            let size = (self.settings.camera.width, self.settings.camera.height);
+            prof.begin(ctx, cmd, "raster")?;
+            gr.record(
+                ctx,
+                cmd,
+                &self.globals,
+                &self.spheres,
+                self.sphere_count,
+                &self.vis,
+                size,
+            )?;
+            prof.end(ctx, cmd)?;
+            barrier(&ctx.device, cmd);
+        } else {
+            self.raster.record_scoped(
+                ctx,
+                cmd,
+                prof,
+                "raster",
+                &self.globals,
+                &self.spheres,
+                self.sphere_count,
+                &self.vis,
+                pixels,
+                ViewIndex::Camera,
+            )?;
+        }
 
         if let Some(st) = &self.issm {
             let n = st.light.width as u64 * st.light.height as u64;
             let name = IssmShadowPass::RASTER_NAME;
             let (g, s, c) = (&self.globals, &self.spheres, self.sphere_count);
-            self.raster.record_scoped(ctx, cmd, prof, name, g, s, c, &st.map, n, ViewIndex::Light)?;
+            self.raster.record_scoped(
+                ctx,
+                cmd,
+                prof,
+                name,
+                g,
+                s,
+                c,
+                &st.map,
+                n,
+                ViewIndex::Light,
+            )?;
         }
 
         prof.begin(ctx, cmd, ResolvePass::NAME)?;
-        let (g, s, v, gp, gn) = (&self.globals, &self.spheres, &self.vis, &self.gpos, &self.gnorm);
-        self.resolve.record(ctx, cmd, g, s, v, gp, gn, &self.attrs, &self.gregion, pixels)?;
+        let (g, s, v, gp, gn) = (
+            &self.globals,
+            &self.spheres,
+            &self.vis,
+            &self.gpos,
+            &self.gnorm,
+        );
+        self.resolve.record(
+            ctx,
+            cmd,
+            g,
+            s,
+            v,
+            gp,
+            gn,
+            &self.attrs,
+            &self.gregion,
+            pixels,
+        )?;
         prof.end(ctx, cmd)?;
         barrier(&ctx.device, cmd);
 
         if let Some(d) = &self.deep {
-            let (g, s, v, gp, sh) = (&self.globals, &self.spheres, &self.vis, &self.gpos, &self.shadow);
-            d.record(ctx, cmd, prof, g, s, v, gp, sh, self.settings.opacity, pixels)?;
+            let (g, s, v, gp, sh) = (
+                &self.globals,
+                &self.spheres,
+                &self.vis,
+                &self.gpos,
+                &self.shadow,
+            );
+            d.record(
+                ctx,
+                cmd,
+                prof,
+                g,
+                s,
+                v,
+                gp,
+                sh,
+                self.settings.opacity,
+                pixels,
+            )?;
         }
 
         if let Some(st) = &self.issm {
             prof.begin(ctx, cmd, IssmShadowPass::NAME)?;
             let (g, s) = (&self.globals, &self.spheres);
-            st.pass.record(ctx, cmd, g, s, &self.vis, &self.gpos, &st.map, &self.shadow, &st.push, pixels)?;
+            st.pass.record(
+                ctx,
+                cmd,
+                g,
+                s,
+                &self.vis,
+                &self.gpos,
+                &st.map,
+                &self.shadow,
+                &st.push,
+                pixels,
+            )?;
             prof.end(ctx, cmd)?;
             barrier(&ctx.device, cmd);
         }
@@ -407,29 +553,70 @@ impl<'c> Renderer<'c> {
         let exact_shadows = self.issm.is_some() || self.deep.is_some();
         let (mut amb_final, mut shadow_final) = (&self.ambient, &self.shadow);
         if let Some(st) = &self.ssdo {
-            let gb = GBuffer { attrs: &self.attrs, vis: &self.vis, gpos: &self.gpos, gnorm: &self.gnorm, gregion: &self.gregion };
+            let gb = GBuffer {
+                attrs: &self.attrs,
+                vis: &self.vis,
+                gpos: &self.gpos,
+                gnorm: &self.gnorm,
+                gregion: &self.gregion,
+            };
             if !exact_shadows {
                 // Screen-space key shadows stand in for the exact techniques.
                 prof.begin(ctx, cmd, SsdoPass::KEY_SHADOW)?;
-                st.pass.record_key_shadow(ctx, cmd, &self.globals, &gb, &self.shadow, &st.key_shadow, pixels)?;
+                st.pass.record_key_shadow(
+                    ctx,
+                    cmd,
+                    &self.globals,
+                    &gb,
+                    &self.shadow,
+                    &st.key_shadow,
+                    pixels,
+                )?;
                 prof.end(ctx, cmd)?;
                 barrier(&ctx.device, cmd);
             }
             prof.begin(ctx, cmd, SsdoPass::NAME)?;
-            st.pass.record_ssdo(ctx, cmd, &self.globals, &gb, &self.shadow, &self.ambient, &st.push, pixels)?;
+            st.pass.record_ssdo(
+                ctx,
+                cmd,
+                &self.globals,
+                &gb,
+                &self.shadow,
+                &self.ambient,
+                &st.push,
+                pixels,
+            )?;
             prof.end(ctx, cmd)?;
             barrier(&ctx.device, cmd);
             if self.settings.blur {
                 // Exact (ISSM/deep) shadows are smooth already: only the
                 // noisy screen-space ones are blurred.
-                let push = BlurPush { blur_shadow: (!exact_shadows) as u32, ..st.blur_push };
+                let push = BlurPush {
+                    blur_shadow: (!exact_shadows) as u32,
+                    ..st.blur_push
+                };
                 let geo = [&self.gpos, &self.gnorm, &self.gregion];
                 let [a_tmp, s_tmp, a_out, s_out] = &self.blurred;
-                for (axis, input, output) in
-                    [(Axis::Horizontal, [&self.ambient, &self.shadow], [a_tmp, s_tmp]), (Axis::Vertical, [a_tmp, s_tmp], [a_out, s_out])]
-                {
+                for (axis, input, output) in [
+                    (
+                        Axis::Horizontal,
+                        [&self.ambient, &self.shadow],
+                        [a_tmp, s_tmp],
+                    ),
+                    (Axis::Vertical, [a_tmp, s_tmp], [a_out, s_out]),
+                ] {
                     prof.begin(ctx, cmd, axis.name())?;
-                    st.blur.record(ctx, cmd, axis, &self.globals, geo, input, output, &push, pixels)?;
+                    st.blur.record(
+                        ctx,
+                        cmd,
+                        axis,
+                        &self.globals,
+                        geo,
+                        input,
+                        output,
+                        &push,
+                        pixels,
+                    )?;
                     prof.end(ctx, cmd)?;
                     barrier(&ctx.device, cmd);
                 }
@@ -449,8 +636,14 @@ impl<'c> Renderer<'c> {
         };
         let use_shadow = (exact_shadows || self.ssdo.is_some()) as u32;
         let use_ambient = self.ssdo.is_some() as u32;
-        let push = CompositePush { use_shadow, use_ambient, shadow_diffuse: 0.0, pad: 0.0 };
-        self.composite.record(ctx, cmd, &self.globals, &io, &push, pixels)?;
+        let push = CompositePush {
+            use_shadow,
+            use_ambient,
+            shadow_diffuse: 0.0,
+            pad: 0.0,
+        };
+        self.composite
+            .record(ctx, cmd, &self.globals, &io, &push, pixels)?;
         prof.end(ctx, cmd)?;
         barrier(&ctx.device, cmd);
         Ok(())
@@ -463,7 +656,8 @@ impl<'c> Renderer<'c> {
 
     /// The guard words after the visibility buffer (must stay GUARD_PATTERN).
     pub fn read_vis_guard(&self) -> Result<Vec<u64>> {
-        self.vis.download_pod(self.ctx, self.pixels(), raster::VIS_GUARD_WORDS)
+        self.vis
+            .download_pod(self.ctx, self.pixels(), raster::VIS_GUARD_WORDS)
     }
 
     pub fn read_color(&self) -> Result<Vec<u32>> {
@@ -482,7 +676,11 @@ impl<'c> Renderer<'c> {
 
     pub fn read_issm(&self) -> Result<Option<Vec<u64>>> {
         match &self.issm {
-            Some(st) => Ok(Some(st.map.download_pod(self.ctx, 0, st.light.width as u64 * st.light.height as u64)?)),
+            Some(st) => Ok(Some(st.map.download_pod(
+                self.ctx,
+                0,
+                st.light.width as u64 * st.light.height as u64,
+            )?)),
             None => Ok(None),
         }
     }
@@ -504,23 +702,37 @@ impl<'c> Renderer<'c> {
     /// Ambient visibility (x) and bounce (yzw) as the composite uses it
     /// (after the blur when it is on).
     pub fn read_ambient(&self) -> Result<Vec<[f32; 4]>> {
-        let b = if self.ssdo.is_some() && self.settings.blur { &self.blurred[2] } else { &self.ambient };
+        let b = if self.ssdo.is_some() && self.settings.blur {
+            &self.blurred[2]
+        } else {
+            &self.ambient
+        };
         b.download_pod(self.ctx, 0, self.pixels())
     }
 
     /// The semantic level choice of this frame, when SSDO runs.
     pub fn level_choice(&self) -> Option<LevelChoice> {
-        self.ssdo.as_ref().map(|s| LevelChoice { level_a: s.push.level_a, level_b: s.push.level_b, blend: s.push.blend })
+        self.ssdo.as_ref().map(|s| LevelChoice {
+            level_a: s.push.level_a,
+            level_b: s.push.level_b,
+            blend: s.push.blend,
+        })
     }
 }
 
 /// Useful hierarchy levels and the choice for this camera (thresholds from
 /// `--semantic-levels` or the defaults relative to the scene size).
-pub fn level_choice(scene: &Scene, cam: &Camera, thresholds: &Option<Vec<f64>>) -> (Vec<u32>, LevelChoice) {
+pub fn level_choice(
+    scene: &Scene,
+    cam: &Camera,
+    thresholds: &Option<Vec<f64>>,
+) -> (Vec<u32>, LevelChoice) {
     let levels = semantic::useful_levels(scene);
     let (c, r) = scene.bounding_sphere();
     let full = 2.0 * r as f64 * 1.05;
-    let t = thresholds.clone().unwrap_or_else(|| semantic::default_thresholds(levels.len(), full));
+    let t = thresholds
+        .clone()
+        .unwrap_or_else(|| semantic::default_thresholds(levels.len(), full));
     let choice = semantic::choose(semantic::zoom_distance(cam, c.as_dvec3()), &t, &levels);
     (levels, choice)
 }
@@ -531,10 +743,14 @@ impl Drop for Renderer<'_> {
         ctx.wait_idle();
         unsafe {
             ctx.device.destroy_fence(self.fence, None);
-            ctx.device.free_command_buffers(ctx.command_pool, &[self.cmd]);
+            ctx.device
+                .free_command_buffers(ctx.command_pool, &[self.cmd]);
         }
         self.profiler.destroy(ctx);
         self.raster.destroy(ctx);
+        if let Some(gr) = &mut self.raster_graphics {
+            gr.destroy(ctx);
+        }
         self.resolve.destroy(ctx);
         self.composite.destroy(ctx);
         if let Some(st) = &mut self.issm {

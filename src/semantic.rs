@@ -42,7 +42,9 @@ pub fn useful_levels(scene: &Scene) -> Vec<u32> {
 /// Default thresholds (world units of visible height): the first at 60% of
 /// the full view, then each STEP times the previous.
 pub fn default_thresholds(levels: usize, full_view_height: f64) -> Vec<f64> {
-    (0..levels.saturating_sub(1)).map(|k| full_view_height * 0.6 * STEP.powi(k as i32)).collect()
+    (0..levels.saturating_sub(1))
+        .map(|k| full_view_height * 0.6 * STEP.powi(k as i32))
+        .collect()
 }
 
 /// How much of the world the camera shows vertically around the scene
@@ -62,16 +64,31 @@ pub fn choose(d: f64, thresholds: &[f64], levels: &[u32]) -> LevelChoice {
     let last = *levels.last().unwrap_or(&0);
     for (k, &t) in thresholds.iter().enumerate() {
         let (hi, lo) = (t * (1.0 + BAND), t * (1.0 - BAND));
-        let (a, b) = (levels.get(k).copied().unwrap_or(last), levels.get(k + 1).copied().unwrap_or(last));
+        let (a, b) = (
+            levels.get(k).copied().unwrap_or(last),
+            levels.get(k + 1).copied().unwrap_or(last),
+        );
         if d >= hi {
-            return LevelChoice { level_a: a, level_b: a, blend: 0.0 };
+            return LevelChoice {
+                level_a: a,
+                level_b: a,
+                blend: 0.0,
+            };
         }
         if d > lo {
-            return LevelChoice { level_a: a, level_b: b, blend: ((hi - d) / (hi - lo)) as f32 };
+            return LevelChoice {
+                level_a: a,
+                level_b: b,
+                blend: ((hi - d) / (hi - lo)) as f32,
+            };
         }
     }
     let l = levels.get(thresholds.len()).copied().unwrap_or(last);
-    LevelChoice { level_a: l, level_b: l, blend: 0.0 }
+    LevelChoice {
+        level_a: l,
+        level_b: l,
+        blend: 0.0,
+    }
 }
 
 #[cfg(test)]
@@ -83,7 +100,14 @@ mod tests {
         let levels = [1, 2, 3];
         let t = default_thresholds(levels.len(), 100.0);
         assert_eq!(t.len(), 2);
-        assert_eq!(choose(100.0, &t, &levels), LevelChoice { level_a: 1, level_b: 1, blend: 0.0 });
+        assert_eq!(
+            choose(100.0, &t, &levels),
+            LevelChoice {
+                level_a: 1,
+                level_b: 1,
+                blend: 0.0
+            }
+        );
         let mid = choose(t[0], &t, &levels);
         assert_eq!((mid.level_a, mid.level_b), (1, 2));
         assert!((mid.blend - 0.5).abs() < 1e-6);
@@ -92,16 +116,43 @@ mod tests {
         for i in 0..=20 {
             let d = t[0] * (1.0 + BAND) - i as f64 * (2.0 * BAND * t[0]) / 20.0;
             let c = choose(d, &t, &levels);
-            let eff = if c.level_a == 1 && c.level_b == 1 { 0.0 } else if c.level_a == 2 { 1.0 } else { c.blend };
+            let eff = if c.level_a == 1 && c.level_b == 1 {
+                0.0
+            } else if c.level_a == 2 {
+                1.0
+            } else {
+                c.blend
+            };
             assert!(eff + 1e-6 >= prev, "blend not monotone at {d}: {c:?}");
             prev = eff;
         }
-        assert_eq!(choose(t[0] * 0.7, &t, &levels), LevelChoice { level_a: 2, level_b: 2, blend: 0.0 });
-        assert_eq!(choose(t[1] * 0.5, &t, &levels), LevelChoice { level_a: 3, level_b: 3, blend: 0.0 });
+        assert_eq!(
+            choose(t[0] * 0.7, &t, &levels),
+            LevelChoice {
+                level_a: 2,
+                level_b: 2,
+                blend: 0.0
+            }
+        );
+        assert_eq!(
+            choose(t[1] * 0.5, &t, &levels),
+            LevelChoice {
+                level_a: 3,
+                level_b: 3,
+                blend: 0.0
+            }
+        );
     }
 
     #[test]
     fn single_level_never_blends() {
-        assert_eq!(choose(5.0, &[], &[2]), LevelChoice { level_a: 2, level_b: 2, blend: 0.0 });
+        assert_eq!(
+            choose(5.0, &[], &[2]),
+            LevelChoice {
+                level_a: 2,
+                level_b: 2,
+                blend: 0.0
+            }
+        );
     }
 }

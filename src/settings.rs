@@ -43,7 +43,9 @@ macro_rules! value_name {
         impl $t {
             /// The command-line spelling (also used in JSON).
             pub fn name(self) -> String {
-                clap::ValueEnum::to_possible_value(&self).map(|v| v.get_name().to_string()).unwrap_or_default()
+                clap::ValueEnum::to_possible_value(&self)
+                    .map(|v| v.get_name().to_string())
+                    .unwrap_or_default()
             }
         }
     };
@@ -69,7 +71,13 @@ pub struct IssmParams {
 
 impl Default for IssmParams {
     fn default() -> Self {
-        IssmParams { size: 512, t: None, soft_s: 2.0, soft_x: 2.0, soft_b: 20.0 }
+        IssmParams {
+            size: 512,
+            t: None,
+            soft_s: 2.0,
+            soft_x: 2.0,
+            soft_b: 20.0,
+        }
     }
 }
 

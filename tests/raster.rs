@@ -11,16 +11,24 @@ use sphereshade::passes::raster::{GUARD_PATTERN, VIS_GUARD_WORDS};
 use sphereshade::reference;
 use sphereshade::render::Renderer;
 use sphereshade::scene::{self, LoadOptions, Scene};
-use sphereshade::settings::ShadowMode;
+use sphereshade::settings::{RasterMode, ShadowMode};
 
 /// Renders `scene` with `cam`, compares with the reference, checks guards.
-fn check_against_reference(ctx: &sphereshade::vk::Context, name: &str, scene: &Scene, cam: sphereshade::camera::Camera) -> f64 {
+fn check_against_reference(
+    ctx: &sphereshade::vk::Context,
+    name: &str,
+    scene: &Scene,
+    cam: sphereshade::camera::Camera,
+) -> f64 {
     let mut r = Renderer::new(ctx, scene, settings(cam, ShadowMode::None)).expect("renderer");
     r.render_frame().expect("frame");
     let vis = r.read_vis().expect("read vis");
     let guard = r.read_vis_guard().expect("read guard");
     assert_eq!(guard.len() as u64, VIS_GUARD_WORDS);
-    assert!(guard.iter().all(|&g| g == GUARD_PATTERN), "{name}: visibility guard words overwritten");
+    assert!(
+        guard.iter().all(|&g| g == GUARD_PATTERN),
+        "{name}: visibility guard words overwritten"
+    );
 
     let (_, radius) = scene.bounding_sphere();
     let tolerance = 2e-5 * (radius as f64).max(1.0);
@@ -35,8 +43,15 @@ fn check_against_reference(ctx: &sphereshade::vk::Context, name: &str, scene: &S
         m.mismatches,
         m.hard_mismatches
     );
-    assert!(hit > 0, "{name}: the reference sees no sphere; the test would prove nothing");
-    assert!(m.percent() >= 99.9, "{name}: only {:.3}% match", m.percent());
+    assert!(
+        hit > 0,
+        "{name}: the reference sees no sphere; the test would prove nothing"
+    );
+    assert!(
+        m.percent() >= 99.9,
+        "{name}: only {:.3}% match",
+        m.percent()
+    );
     // Mismatches must be explainable by float rounding (ties or silhouettes).
     assert!(
         m.hard_mismatches as f64 <= 1e-4 * m.pixels as f64,
@@ -67,7 +82,12 @@ fn capsid_scene_matches_reference() {
 #[test]
 fn pdb_1tii_matches_reference() {
     let ctx = validated_context();
-    let s = scene::load(&data_file("1tii.pdb"), &LoadOptions::default(), &mut |_, _| {}).expect("1tii");
+    let s = scene::load(
+        &data_file("1tii.pdb"),
+        &LoadOptions::default(),
+        &mut |_, _| {},
+    )
+    .expect("1tii");
     assert_eq!(s.spheres.len(), 5684);
     check_against_reference(&ctx, "1tii-ortho", &s, camera(&s, 300, 240, None));
     check_against_reference(&ctx, "1tii-persp", &s, camera(&s, 300, 240, Some(40.0)));
@@ -88,7 +108,10 @@ fn edge_cases_match_reference() {
     for i in 0..400 {
         // sub-pixel spheres (pixel = 0.5 units here)
         let (x, y) = ((i % 20) as f32 * 4.0 - 40.0, (i / 20) as f32 * 2.5 - 25.0);
-        spheres.push(sphere([x + 0.37, y + 0.11, 30.0], 0.08 + 0.001 * (i % 7) as f32));
+        spheres.push(sphere(
+            [x + 0.37, y + 0.11, 30.0],
+            0.08 + 0.001 * (i % 7) as f32,
+        ));
     }
     let s = scene_of(spheres, "edge cases");
     let cam = |fov| {
@@ -112,10 +135,18 @@ fn edge_cases_match_reference() {
 fn timestamps_report_every_pass() {
     let ctx = validated_context();
     let s = scene::procedural("capsid", 2000, 1).expect("scene");
-    let mut r = Renderer::new(&ctx, &s, settings(camera(&s, 128, 96, None), ShadowMode::None)).expect("renderer");
+    let mut r = Renderer::new(
+        &ctx,
+        &s,
+        settings(camera(&s, 128, 96, None), ShadowMode::None),
+    )
+    .expect("renderer");
     let times = r.render_frame().expect("frame");
     let names: Vec<&str> = times.iter().map(|(n, _)| *n).collect();
-    assert!(names.contains(&"raster") && names.contains(&"resolve") && names.contains(&"composite"), "{names:?}");
+    assert!(
+        names.contains(&"raster") && names.contains(&"resolve") && names.contains(&"composite"),
+        "{names:?}"
+    );
     let mut unique = names.clone();
     unique.sort();
     unique.dedup();
@@ -124,5 +155,50 @@ fn timestamps_report_every_pass() {
         assert!(*ms > 0.0 && ms.is_finite(), "pass {n} reported {ms} ms");
     }
     drop(r);
+    assert_no_validation_messages(&ctx);
+}
+
+/// The vertex/fragment baseline produces the same visibility as the compute
+/// rasterizer and matches the reference.
+#[test]
+fn graphics_raster_matches_compute_and_reference() {
+    let ctx = validated_context();
+    let s = scene::procedural("capsid", 5000, 9).expect("scene");
+    for fov in [None, Some(45.0)] {
+        let cam = camera(&s, 256, 192, fov);
+        let run = |mode| {
+            let mut st = settings(cam, ShadowMode::None);
+            st.raster = mode;
+            let mut r = Renderer::new(&ctx, &s, st).expect("renderer");
+            r.render_frame().expect("frame");
+            let guard = r.read_vis_guard().expect("guard");
+            assert!(
+                guard.iter().all(|&g| g == GUARD_PATTERN),
+                "guard words overwritten"
+            );
+            ids_from_vis(&r.read_vis().expect("vis"))
+        };
+        let (compute, graphics) = (run(RasterMode::Compute), run(RasterMode::Graphics));
+        let same = compute
+            .iter()
+            .zip(&graphics)
+            .filter(|(a, b)| a == b)
+            .count();
+        let pct = 100.0 * same as f64 / compute.len() as f64;
+        eprintln!("graphics vs compute ({fov:?}): {pct:.4}% identical ids");
+        assert!(
+            pct >= 99.99,
+            "graphics raster differs from compute on {:.4}% of pixels",
+            100.0 - pct
+        );
+        let (_, radius) = s.bounding_sphere();
+        let reference = reference::cast(&s.spheres, &cam, 2e-5 * (radius as f64).max(1.0));
+        let m = compare_ids("graphics", &graphics, &reference);
+        assert!(
+            m.percent() >= 99.9,
+            "graphics raster matches the reference on only {:.3}%",
+            m.percent()
+        );
+    }
     assert_no_validation_messages(&ctx);
 }

@@ -16,10 +16,20 @@ use sphereshade::vk::Context;
 
 /// Exact key-light visibility per pixel at the reference's visible points;
 /// None where the reference sees background or an ambiguous pixel.
-fn reference_shadow(scene: &Scene, cam: &Camera, light: DVec3, opacity: f64) -> (Vec<Option<f64>>, Vec<u32>) {
+fn reference_shadow(
+    scene: &Scene,
+    cam: &Camera,
+    light: DVec3,
+    opacity: f64,
+) -> (Vec<Option<f64>>, Vec<u32>) {
     let (_, radius) = scene.bounding_sphere();
     let img = reference::cast(&scene.spheres, cam, 2e-5 * (radius as f64).max(1.0));
-    let lv = light_view(scene.spheres.iter().map(|s| (s.center, s.radius)), light, 1024).expect("light view");
+    let lv = light_view(
+        scene.spheres.iter().map(|s| (s.center, s.radius)),
+        light,
+        1024,
+    )
+    .expect("light view");
     let bins = Bins::new(&scene.spheres, &lv);
     let mut out = vec![None; img.ids.len()];
     for (i, o) in out.iter_mut().enumerate() {
@@ -28,7 +38,14 @@ fn reference_shadow(scene: &Scene, cam: &Camera, light: DVec3, opacity: f64) -> 
         }
         let (orig, dir) = cam.ray(i as u32 % cam.width, i as u32 / cam.width);
         let p = orig + img.t[i] * dir;
-        *o = Some(reference::shadow_ray(&scene.spheres, &bins, light, p, img.ids[i], opacity));
+        *o = Some(reference::shadow_ray(
+            &scene.spheres,
+            &bins,
+            light,
+            p,
+            img.ids[i],
+            opacity,
+        ));
     }
     (out, img.ids)
 }
@@ -48,7 +65,10 @@ fn hard_mask_agreement(ctx: &Context, name: &str, scene: &Scene, s: RenderSettin
     let shadow = r.read_shadow().expect("shadow");
     let (t, map_size) = r.issm_info().map(|(l, t)| (t, l.width)).unwrap_or((0, 0));
     let (refs, ref_ids) = reference_shadow(scene, &cam, light, 1.0);
-    let mut m = MaskMatch { compared: 0, agree: 0 };
+    let mut m = MaskMatch {
+        compared: 0,
+        agree: 0,
+    };
     let mut diff = image::RgbImage::new(cam.width, cam.height);
     for i in 0..ids.len() {
         let Some(rv) = refs[i] else { continue };
@@ -60,14 +80,25 @@ fn hard_mask_agreement(ctx: &Context, name: &str, scene: &Scene, s: RenderSettin
         let px = diff.get_pixel_mut(i as u32 % cam.width, i as u32 / cam.width);
         if g_sh == r_sh {
             m.agree += 1;
-            *px = if r_sh { image::Rgb([30, 30, 60]) } else { image::Rgb([160, 160, 160]) };
+            *px = if r_sh {
+                image::Rgb([30, 30, 60])
+            } else {
+                image::Rgb([160, 160, 160])
+            };
         } else {
             // red: GPU shadowed but lit; green: light leaks where shadowed
-            *px = if g_sh { image::Rgb([255, 0, 0]) } else { image::Rgb([0, 255, 0]) };
+            *px = if g_sh {
+                image::Rgb([255, 0, 0])
+            } else {
+                image::Rgb([0, 255, 0])
+            };
         }
     }
     let pct = 100.0 * m.agree as f64 / m.compared.max(1) as f64;
-    eprintln!("{name}: hard mask agrees on {pct:.3}% of {} visible pixels (map {map_size}², t = {t})", m.compared);
+    eprintln!(
+        "{name}: hard mask agrees on {pct:.3}% of {} visible pixels (map {map_size}², t = {t})",
+        m.compared
+    );
     if pct < 99.5 {
         let p = out_dir().join(format!("{name}-shadow-diff.png"));
         let _ = diff.save(&p);
@@ -76,23 +107,50 @@ fn hard_mask_agreement(ctx: &Context, name: &str, scene: &Scene, s: RenderSettin
     m
 }
 
-fn issm_settings(scene: &Scene, w: u32, h: u32, mode: ShadowMode, t: Option<u32>) -> RenderSettings {
+fn issm_settings(
+    scene: &Scene,
+    w: u32,
+    h: u32,
+    mode: ShadowMode,
+    t: Option<u32>,
+) -> RenderSettings {
     let mut s = settings(camera(scene, w, h, None), mode);
-    s.issm = IssmParams { size: 512, t, ..Default::default() };
+    s.issm = IssmParams {
+        size: 512,
+        t,
+        ..Default::default()
+    };
     s
 }
 
 fn assert_mask(ctx: &Context, name: &str, scene: &Scene, t: Option<u32>) {
-    let m = hard_mask_agreement(ctx, name, scene, issm_settings(scene, 256, 200, ShadowMode::Issm, t));
-    assert!(m.compared > 5000, "{name}: too few comparable pixels ({})", m.compared);
+    let m = hard_mask_agreement(
+        ctx,
+        name,
+        scene,
+        issm_settings(scene, 256, 200, ShadowMode::Issm, t),
+    );
+    assert!(
+        m.compared > 5000,
+        "{name}: too few comparable pixels ({})",
+        m.compared
+    );
     let pct = 100.0 * m.agree as f64 / m.compared as f64;
-    assert!(pct >= 99.5, "{name}: hard ISSM mask agrees on only {pct:.3}%");
+    assert!(
+        pct >= 99.5,
+        "{name}: hard ISSM mask agrees on only {pct:.3}%"
+    );
 }
 
 #[test]
 fn issm_hard_matches_exact_shadows_1tii() {
     let ctx = validated_context();
-    let s = scene::load(&data_file("1tii.pdb"), &LoadOptions::default(), &mut |_, _| {}).expect("1tii");
+    let s = scene::load(
+        &data_file("1tii.pdb"),
+        &LoadOptions::default(),
+        &mut |_, _| {},
+    )
+    .expect("1tii");
     assert_mask(&ctx, "issm-1tii", &s, None);
     assert_no_validation_messages(&ctx);
 }
@@ -117,21 +175,38 @@ fn ground_scene() -> (Scene, Camera) {
     let mut spheres: Vec<Sphere> = Vec::new();
     for iz in 0..14 {
         for ix in 0..48 {
-            spheres.push(sphere([ix as f32 * 1.5 - 36.0, 0.0, iz as f32 * 1.5 - 10.5], 1.0));
+            spheres.push(sphere(
+                [ix as f32 * 1.5 - 36.0, 0.0, iz as f32 * 1.5 - 10.5],
+                1.0,
+            ));
         }
     }
     for (x, h) in OCCLUDER_X.iter().zip(HEIGHTS) {
         spheres.push(sphere([*x, h, 0.0], 2.0));
     }
-    let cam = Camera::new(DVec3::ZERO, DVec3::new(0.0, -1.0, 0.0), DVec3::new(0.0, 0.0, -1.0), 24.0, None, 288, 96)
-        .expect("camera");
+    let cam = Camera::new(
+        DVec3::ZERO,
+        DVec3::new(0.0, -1.0, 0.0),
+        DVec3::new(0.0, 0.0, -1.0),
+        24.0,
+        None,
+        288,
+        96,
+    )
+    .expect("camera");
     (scene_of(spheres, "ground"), cam)
 }
 
 fn shadow_of(ctx: &Context, scene: &Scene, cam: Camera, mode: ShadowMode, soft_s: f32) -> Vec<f32> {
     let mut s = settings(cam, mode);
     s.light = DVec3::new(1.0, -1.0, 0.0);
-    s.issm = IssmParams { size: 512, t: None, soft_s, soft_x: 2.0, soft_b: 10.0 };
+    s.issm = IssmParams {
+        size: 512,
+        t: None,
+        soft_s,
+        soft_x: 2.0,
+        soft_b: 10.0,
+    };
     let mut r = Renderer::new(ctx, scene, s).expect("renderer");
     r.render_frame().expect("frame");
     r.read_shadow().expect("shadow")
@@ -145,8 +220,15 @@ fn soft_shadow_limits_and_monotonicity() {
     // s -> 0 reproduces the hard result exactly.
     let hard = shadow_of(&ctx, &scene, cam, ShadowMode::Issm, 1.0);
     let tiny = shadow_of(&ctx, &scene, cam, ShadowMode::IssmSoft, 1e-6);
-    let differing = hard.iter().zip(&tiny).filter(|(a, b)| (*a - *b).abs() > 1e-6).count();
-    assert_eq!(differing, 0, "soft shadows with s -> 0 differ from hard on {differing} pixels");
+    let differing = hard
+        .iter()
+        .zip(&tiny)
+        .filter(|(a, b)| (*a - *b).abs() > 1e-6)
+        .count();
+    assert_eq!(
+        differing, 0,
+        "soft shadows with s -> 0 differ from hard on {differing} pixels"
+    );
 
     // Across each shadow (along z, on ground-sphere tops) visibility never
     // decreases away from the umbra, and at the same offset a farther
@@ -165,13 +247,21 @@ fn soft_shadow_limits_and_monotonicity() {
         let centre = (*x + h - 1.0) as f64; // where the ray through the occluder centre meets the tops
         let prof: Vec<f32> = (0..6).map(|j| at(centre, 1.5 * j as f64)).collect();
         for pair in prof.windows(2) {
-            assert!(pair[1] + 1e-4 >= pair[0], "penumbra not monotone for height {h}: {prof:?}");
+            assert!(
+                pair[1] + 1e-4 >= pair[0],
+                "penumbra not monotone for height {h}: {prof:?}"
+            );
         }
-        assert!(prof[0] < 0.05, "no umbra for the occluder at height {h}: {prof:?}");
+        assert!(
+            prof[0] < 0.05,
+            "no umbra for the occluder at height {h}: {prof:?}"
+        );
         assert!(prof[5] > 0.95, "shadow of height {h} never ends: {prof:?}");
         profiles.push(prof);
     }
-    eprintln!("soft profiles (visibility at 0, 1.5, ... 7.5 units across each shadow): {profiles:?}");
+    eprintln!(
+        "soft profiles (visibility at 0, 1.5, ... 7.5 units across each shadow): {profiles:?}"
+    );
     for j in 0..6 {
         assert!(
             profiles[1][j] <= profiles[0][j] + 1e-4 && profiles[2][j] <= profiles[1][j] + 1e-4,
@@ -179,7 +269,10 @@ fn soft_shadow_limits_and_monotonicity() {
         );
     }
     let wider = (0..6).any(|j| profiles[2][j] + 0.05 < profiles[0][j]);
-    assert!(wider, "the farthest occluder's penumbra is not wider: {profiles:?}");
+    assert!(
+        wider,
+        "the farthest occluder's penumbra is not wider: {profiles:?}"
+    );
     assert_no_validation_messages(&ctx);
 }
 
@@ -190,7 +283,10 @@ fn a_lone_sphere_never_shadows_itself() {
     let cam = camera(&scene, 64, 64, None);
     for mode in [ShadowMode::Issm, ShadowMode::IssmSoft] {
         let shadow = shadow_of(&ctx, &scene, cam, mode, 3.0);
-        assert!(shadow.iter().all(|&v| v == 1.0), "{mode:?}: a lone sphere shadows itself");
+        assert!(
+            shadow.iter().all(|&v| v == 1.0),
+            "{mode:?}: a lone sphere shadows itself"
+        );
     }
     assert_no_validation_messages(&ctx);
 }

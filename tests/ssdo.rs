@@ -43,19 +43,43 @@ fn hemisphere_samples_are_cosine_weighted() {
     .expect("pipeline");
     let n = 8192u32;
     let mut out = Buffer::storage(&ctx, "samples", n as u64 * 16).expect("buffer");
-    for (normal, rot) in [([0.0f32, 0.0, 1.0], 0.0f32), ([0.3, -0.8, 0.2], 0.37), ([0.0, 0.0, -1.0], 0.81)] {
+    for (normal, rot) in [
+        ([0.0f32, 0.0, 1.0], 0.0f32),
+        ([0.3, -0.8, 0.2], 0.37),
+        ([0.0, 0.0, -1.0], 0.81),
+    ] {
         let len = (normal[0] * normal[0] + normal[1] * normal[1] + normal[2] * normal[2]).sqrt();
         let nn = [normal[0] / len, normal[1] / len, normal[2] / len];
-        let push = SamplePush { normal: [normal[0], normal[1], normal[2], 0.0], count: n, rot, pad: [0; 2] };
-        ctx.one_shot("samples", |cmd| p.dispatch_groups(&ctx, cmd, &[&out], &push, [n / 64, 1, 1])).expect("run");
+        let push = SamplePush {
+            normal: [normal[0], normal[1], normal[2], 0.0],
+            count: n,
+            rot,
+            pad: [0; 2],
+        };
+        ctx.one_shot("samples", |cmd| {
+            p.dispatch_groups(&ctx, cmd, &[&out], &push, [n / 64, 1, 1])
+        })
+        .expect("run");
         let d: Vec<[f32; 4]> = out.download_pod(&ctx, 0, n as u64).expect("read");
-        let cos: Vec<f64> = d.iter().map(|v| (v[0] * nn[0] + v[1] * nn[1] + v[2] * nn[2]) as f64).collect();
-        assert!(cos.iter().all(|&c| c >= -1e-5), "a sample left the upper hemisphere");
-        assert!(d.iter().all(|v| ((v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt() - 1.0).abs() < 1e-4));
+        let cos: Vec<f64> = d
+            .iter()
+            .map(|v| (v[0] * nn[0] + v[1] * nn[1] + v[2] * nn[2]) as f64)
+            .collect();
+        assert!(
+            cos.iter().all(|&c| c >= -1e-5),
+            "a sample left the upper hemisphere"
+        );
+        assert!(
+            d.iter()
+                .all(|v| ((v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt() - 1.0).abs() < 1e-4)
+        );
         let mean = cos.iter().sum::<f64>() / n as f64;
         // cosine-weighted: E[cos] = 2/3 (uniform would give 1/2)
         eprintln!("normal {normal:?}: mean cos = {mean:.4}");
-        assert!((mean - 2.0 / 3.0).abs() < 0.01, "mean cos {mean} is not 2/3");
+        assert!(
+            (mean - 2.0 / 3.0).abs() < 0.01,
+            "mean cos {mean} is not 2/3"
+        );
     }
     out.destroy(&ctx);
     p.destroy(&ctx);
@@ -74,7 +98,10 @@ fn pits_scene() -> (Scene, Camera, [DVec3; 2]) {
     let mut s = Vec::new();
     for iz in 0..12 {
         for ix in 0..12 {
-            s.push(with_region(sphere([ix as f32 * 1.8 - 40.0, 0.0, iz as f32 * 1.8 - 10.0], 1.0), 0));
+            s.push(with_region(
+                sphere([ix as f32 * 1.8 - 40.0, 0.0, iz as f32 * 1.8 - 10.0], 1.0),
+                0,
+            ));
         }
     }
     let pits = [DVec3::new(0.0, 0.0, 0.0), DVec3::new(14.0, 0.0, 0.0)];
@@ -84,13 +111,24 @@ fn pits_scene() -> (Scene, Camera, [DVec3; 2]) {
         let wall = if k == 0 { recv } else { recv + 1 };
         for j in 0..8 {
             let a = j as f32 * std::f32::consts::TAU / 8.0;
-            s.push(with_region(sphere([c.x as f32 + 3.0 * a.cos(), 1.5, 3.0 * a.sin()], 2.4), wall));
+            s.push(with_region(
+                sphere([c.x as f32 + 3.0 * a.cos(), 1.5, 3.0 * a.sin()], 2.4),
+                wall,
+            ));
         }
     }
     let mut scene = scene_of(s, "pits");
     scene.level_names = vec!["group".into()];
-    let cam = Camera::new(DVec3::new(-5.0, 0.0, 0.0), DVec3::new(0.0, -1.0, 0.0), DVec3::new(0.0, 0.0, -1.0), 30.0, None, 400, 200)
-        .expect("camera");
+    let cam = Camera::new(
+        DVec3::new(-5.0, 0.0, 0.0),
+        DVec3::new(0.0, -1.0, 0.0),
+        DVec3::new(0.0, 0.0, -1.0),
+        30.0,
+        None,
+        400,
+        200,
+    )
+    .expect("camera");
     (scene, cam, pits)
 }
 
@@ -101,7 +139,11 @@ fn ambient(ctx: &Context, scene: &Scene, cam: Camera, mode: SsdoMode, blur: bool
     s.light = DVec3::new(0.0, -1.0, 0.0);
     let mut r = Renderer::new(ctx, scene, s).expect("renderer");
     r.render_frame().expect("frame");
-    r.read_ambient().expect("ambient").iter().map(|a| a[0]).collect()
+    r.read_ambient()
+        .expect("ambient")
+        .iter()
+        .map(|a| a[0])
+        .collect()
 }
 
 /// Mean of `ao` over a small disk of pixels around the world point p.
@@ -135,18 +177,44 @@ fn flat_layer_is_open_crevice_is_occluded_and_semantic_ignores_own_region() {
     let mut k = 0;
     for iz in 4..8 {
         for ix in 4..8 {
-            flat += ao_at(&plain, &cam, top(DVec3::new(ix as f64 * 1.8 - 40.0, 0.0, iz as f64 * 1.8 - 10.0)), 1);
+            flat += ao_at(
+                &plain,
+                &cam,
+                top(DVec3::new(
+                    ix as f64 * 1.8 - 40.0,
+                    0.0,
+                    iz as f64 * 1.8 - 10.0,
+                )),
+                1,
+            );
             k += 1;
         }
     }
     let flat = flat / k as f32;
-    let (p_same, p_diff) = (ao_at(&plain, &cam, top(pits[0]), 1), ao_at(&plain, &cam, top(pits[1]), 1));
-    let (s_same, s_diff) = (ao_at(&semantic, &cam, top(pits[0]), 1), ao_at(&semantic, &cam, top(pits[1]), 1));
-    eprintln!("flat {flat:.3}; plain pits {p_same:.3} {p_diff:.3}; semantic pits (same region) {s_same:.3} (other region) {s_diff:.3}");
+    let (p_same, p_diff) = (
+        ao_at(&plain, &cam, top(pits[0]), 1),
+        ao_at(&plain, &cam, top(pits[1]), 1),
+    );
+    let (s_same, s_diff) = (
+        ao_at(&semantic, &cam, top(pits[0]), 1),
+        ao_at(&semantic, &cam, top(pits[1]), 1),
+    );
+    eprintln!(
+        "flat {flat:.3}; plain pits {p_same:.3} {p_diff:.3}; semantic pits (same region) {s_same:.3} (other region) {s_diff:.3}"
+    );
     assert!(flat > 0.8, "a flat layer is occluded: {flat}");
-    assert!(p_same < flat - 0.2 && p_diff < flat - 0.2, "crevices are not darker than the flat layer");
-    assert!(s_same > 0.95, "semantic mode counts occluders of the receiver's own region: {s_same}");
-    assert!((s_diff - p_diff).abs() < 0.05, "semantic mode drops occluders of other regions: {s_diff} vs {p_diff}");
+    assert!(
+        p_same < flat - 0.2 && p_diff < flat - 0.2,
+        "crevices are not darker than the flat layer"
+    );
+    assert!(
+        s_same > 0.95,
+        "semantic mode counts occluders of the receiver's own region: {s_same}"
+    );
+    assert!(
+        (s_diff - p_diff).abs() < 0.05,
+        "semantic mode drops occluders of other regions: {s_diff} vs {p_diff}"
+    );
     assert_no_validation_messages(&ctx);
 }
 
@@ -155,8 +223,21 @@ fn bilateral_blur_keeps_depth_edges_and_smooths_flat_areas() {
     let ctx = validated_context();
     let (w, h) = (64u32, 32u32);
     let n = (w * h) as usize;
-    let cam = Camera::new(DVec3::ZERO, DVec3::new(0.0, 0.0, -1.0), DVec3::Y, 32.0, None, w, h).expect("camera");
-    let globals = Globals { cam: cam.to_gpu(100.0), light: cam.to_gpu(100.0), ..Default::default() };
+    let cam = Camera::new(
+        DVec3::ZERO,
+        DVec3::new(0.0, 0.0, -1.0),
+        DVec3::Y,
+        32.0,
+        None,
+        w,
+        h,
+    )
+    .expect("camera");
+    let globals = Globals {
+        cam: cam.to_gpu(100.0),
+        light: cam.to_gpu(100.0),
+        ..Default::default()
+    };
     let mut gpos = vec![[0.0f32; 4]; n];
     let gnorm = vec![[0.0f32, 0.0, 1.0, 1.0]; n];
     let mut amb = vec![[0.0f32; 4]; n];
@@ -175,13 +256,24 @@ fn bilateral_blur_keeps_depth_edges_and_smooths_flat_areas() {
         }
     }
     let up = |name: &str, data: &[u8], usage| {
-        let b = Buffer::new(&ctx, name, data.len() as u64, usage, gpu_allocator::MemoryLocation::GpuOnly).expect("buffer");
+        let b = Buffer::new(
+            &ctx,
+            name,
+            data.len() as u64,
+            usage,
+            gpu_allocator::MemoryLocation::GpuOnly,
+        )
+        .expect("buffer");
         b.upload(&ctx, 0, data).expect("upload");
         b
     };
     let st = ash::vk::BufferUsageFlags::STORAGE_BUFFER;
     let mut bufs = vec![
-        up("globals", bytemuck::bytes_of(&globals), ash::vk::BufferUsageFlags::UNIFORM_BUFFER),
+        up(
+            "globals",
+            bytemuck::bytes_of(&globals),
+            ash::vk::BufferUsageFlags::UNIFORM_BUFFER,
+        ),
         up("gpos", bytemuck::cast_slice(&gpos), st),
         up("gnorm", bytemuck::cast_slice(&gnorm), st),
         up("gregion", &vec![0u8; n * 16], st),
@@ -193,13 +285,40 @@ fn bilateral_blur_keeps_depth_edges_and_smooths_flat_areas() {
         up("s out", &vec![0u8; n * 4], st),
     ];
     let mut blur = BlurPass::new(&ctx).expect("blur");
-    let push = BlurPush { radius: 4, sigma_z: 1.0, semantic: 0, level: 0, blur_shadow: 0, pad: [0.0; 3] };
+    let push = BlurPush {
+        radius: 4,
+        sigma_z: 1.0,
+        semantic: 0,
+        level: 0,
+        blur_shadow: 0,
+        pad: [0.0; 3],
+    };
     ctx.one_shot("blur", |cmd| {
         let b = &bufs;
         let geo = [&b[1], &b[2], &b[3]];
-        blur.record(&ctx, cmd, Axis::Horizontal, &b[0], geo, [&b[4], &b[5]], [&b[6], &b[7]], &push, n as u64)?;
+        blur.record(
+            &ctx,
+            cmd,
+            Axis::Horizontal,
+            &b[0],
+            geo,
+            [&b[4], &b[5]],
+            [&b[6], &b[7]],
+            &push,
+            n as u64,
+        )?;
         sphereshade::vk::barrier(&ctx.device, cmd);
-        blur.record(&ctx, cmd, Axis::Vertical, &b[0], geo, [&b[6], &b[7]], [&b[8], &b[9]], &push, n as u64)
+        blur.record(
+            &ctx,
+            cmd,
+            Axis::Vertical,
+            &b[0],
+            geo,
+            [&b[6], &b[7]],
+            [&b[8], &b[9]],
+            &push,
+            n as u64,
+        )
     })
     .expect("run");
     let out: Vec<[f32; 4]> = bufs[8].download_pod(&ctx, 0, n as u64).expect("read");
@@ -207,7 +326,9 @@ fn bilateral_blur_keeps_depth_edges_and_smooths_flat_areas() {
     for b in &mut bufs {
         b.destroy(&ctx);
     }
-    let col = |x: u32, src: &[[f32; 4]]| -> Vec<f32> { (4..h - 4).map(|y| src[(y * w + x) as usize][0]).collect() };
+    let col = |x: u32, src: &[[f32; 4]]| -> Vec<f32> {
+        (4..h - 4).map(|y| src[(y * w + x) as usize][0]).collect()
+    };
     let mean = |v: &[f32]| v.iter().sum::<f32>() / v.len() as f32;
     let var = |v: &[f32]| {
         let m = mean(v);
@@ -215,11 +336,21 @@ fn bilateral_blur_keeps_depth_edges_and_smooths_flat_areas() {
     };
     let (edge_l, edge_r) = (mean(&col(w / 2 - 1, &out)), mean(&col(w / 2, &out)));
     eprintln!("edge means after blur: left {edge_l:.3} right {edge_r:.3}");
-    assert!((edge_l - 0.2).abs() < 0.05 && (edge_r - 0.9).abs() < 0.05, "the blur bled across the depth edge");
+    assert!(
+        (edge_l - 0.2).abs() < 0.05 && (edge_r - 0.9).abs() < 0.05,
+        "the blur bled across the depth edge"
+    );
     let inner: Vec<f32> = (8..24).flat_map(|x| col(x, &out)).collect();
     let inner_before: Vec<f32> = (8..24).flat_map(|x| col(x, &amb)).collect();
-    eprintln!("flat-area variance {:.5} -> {:.5}", var(&inner_before), var(&inner));
-    assert!(var(&inner) < 0.3 * var(&inner_before), "the blur does not reduce noise on a flat area");
+    eprintln!(
+        "flat-area variance {:.5} -> {:.5}",
+        var(&inner_before),
+        var(&inner)
+    );
+    assert!(
+        var(&inner) < 0.3 * var(&inner_before),
+        "the blur does not reduce noise on a flat area"
+    );
     assert_no_validation_messages(&ctx);
 }
 
@@ -232,9 +363,21 @@ fn zooming_changes_the_semantic_level_through_a_blend() {
     let mut blended = false;
     for i in 0..60 {
         let h = full * 0.93f64.powi(i);
-        let cam = Camera::new(DVec3::ZERO, DVec3::new(0.0, 0.0, -1.0), DVec3::Y, h, None, 64, 64).expect("camera");
+        let cam = Camera::new(
+            DVec3::ZERO,
+            DVec3::new(0.0, 0.0, -1.0),
+            DVec3::Y,
+            h,
+            None,
+            64,
+            64,
+        )
+        .expect("camera");
         let (levels, c) = level_choice(&scene, &cam, &None);
-        assert!(levels.len() >= 3, "capsid should have several useful levels: {levels:?}");
+        assert!(
+            levels.len() >= 3,
+            "capsid should have several useful levels: {levels:?}"
+        );
         if c.blend > 0.0 && c.blend < 1.0 {
             blended = true;
             assert_ne!(c.level_a, c.level_b);
@@ -244,6 +387,9 @@ fn zooming_changes_the_semantic_level_through_a_blend() {
         }
     }
     eprintln!("levels while zooming in: {seen:?}");
-    assert!(seen.len() >= 3 && seen.windows(2).all(|w| w[1] > w[0]), "levels do not refine with zoom: {seen:?}");
+    assert!(
+        seen.len() >= 3 && seen.windows(2).all(|w| w[1] > w[0]),
+        "levels do not refine with zoom: {seen:?}"
+    );
     assert!(blended, "no blended range between levels");
 }

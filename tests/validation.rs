@@ -27,13 +27,22 @@ fn out_of_bounds_store_is_reported_by_gpu_av() {
     )
     .expect("pipeline");
     let mut buf = Buffer::storage(&ctx, "oob target", 64).expect("buffer");
-    ctx.one_shot("oob", |cmd| p.dispatch_groups(&ctx, cmd, &[&buf], &16u32, [1, 1, 1])).expect("dispatch");
+    ctx.one_shot("oob", |cmd| {
+        p.dispatch_groups(&ctx, cmd, &[&buf], &16u32, [1, 1, 1])
+    })
+    .expect("dispatch");
     let after = ctx.validation_messages();
     let msgs = ctx.messages.messages().join("\n");
     buf.destroy(&ctx);
     p.destroy(&ctx);
-    assert!(after > before, "GPU-assisted validation missed an out-of-bounds store");
-    assert!(msgs.contains("02706") || msgs.to_lowercase().contains("out of bounds"), "unexpected message: {msgs}");
+    assert!(
+        after > before,
+        "GPU-assisted validation missed an out-of-bounds store"
+    );
+    assert!(
+        msgs.contains("02706") || msgs.to_lowercase().contains("out of bounds"),
+        "unexpected message: {msgs}"
+    );
 }
 
 const BASE: u32 = 0x4000_0000;
@@ -46,11 +55,17 @@ fn gpu_struct_layout_matches_glsl() {
     // BASE makes every word a normal float (denormals may be flushed).
     let gwords = std::mem::size_of::<Globals>() / 4;
     let mut globals = Globals::default();
-    for (i, w) in bytemuck::cast_slice_mut::<Globals, u32>(std::slice::from_mut(&mut globals)).iter_mut().enumerate() {
+    for (i, w) in bytemuck::cast_slice_mut::<Globals, u32>(std::slice::from_mut(&mut globals))
+        .iter_mut()
+        .enumerate()
+    {
         *w = BASE + i as u32;
     }
     let mut attrs = [SphereAttr::default(); 2];
-    for (i, w) in bytemuck::cast_slice_mut::<SphereAttr, u32>(&mut attrs).iter_mut().enumerate() {
+    for (i, w) in bytemuck::cast_slice_mut::<SphereAttr, u32>(&mut attrs)
+        .iter_mut()
+        .enumerate()
+    {
         *w = BASE + (gwords + i) as u32;
     }
     let total = gwords + 2 * std::mem::size_of::<SphereAttr>() / 4;
@@ -62,9 +77,11 @@ fn gpu_struct_layout_matches_glsl() {
         gpu_allocator::MemoryLocation::GpuOnly,
     )
     .expect("globals");
-    gbuf.upload(&ctx, 0, bytemuck::bytes_of(&globals)).expect("upload");
+    gbuf.upload(&ctx, 0, bytemuck::bytes_of(&globals))
+        .expect("upload");
     let mut abuf = Buffer::storage(&ctx, "probe attrs", 64).expect("attrs");
-    abuf.upload(&ctx, 0, bytemuck::cast_slice(&attrs)).expect("upload");
+    abuf.upload(&ctx, 0, bytemuck::cast_slice(&attrs))
+        .expect("upload");
     let mut out = Buffer::storage(&ctx, "probe out", (total * 4) as u64).expect("out");
     let p = ComputePipeline::new(
         &ctx,
@@ -78,13 +95,19 @@ fn gpu_struct_layout_matches_glsl() {
         },
     )
     .expect("pipeline");
-    ctx.one_shot("probe", |cmd| p.dispatch_groups(&ctx, cmd, &[&gbuf, &abuf, &out], &(), [1, 1, 1])).expect("run");
+    ctx.one_shot("probe", |cmd| {
+        p.dispatch_groups(&ctx, cmd, &[&gbuf, &abuf, &out], &(), [1, 1, 1])
+    })
+    .expect("run");
     let words: Vec<u32> = out.download_pod(&ctx, 0, total as u64).expect("read");
     let expected: Vec<u32> = (0..total as u32).map(|i| BASE + i).collect();
     p.destroy(&ctx);
     for b in [&mut gbuf, &mut abuf, &mut out] {
         b.destroy(&ctx);
     }
-    assert_eq!(words, expected, "GLSL and Rust disagree on a shared struct layout");
+    assert_eq!(
+        words, expected,
+        "GLSL and Rust disagree on a shared struct layout"
+    );
     assert_no_validation_messages(&ctx);
 }

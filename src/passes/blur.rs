@@ -48,14 +48,19 @@ impl BlurPass {
                 &PipelineDesc {
                     name: axis.name(),
                     spirv: spirv::BLUR_COMP,
-                    bindings: &[UNIFORM, STORAGE, STORAGE, STORAGE, STORAGE, STORAGE, STORAGE, STORAGE],
+                    bindings: &[
+                        UNIFORM, STORAGE, STORAGE, STORAGE, STORAGE, STORAGE, STORAGE, STORAGE,
+                    ],
                     push_size: std::mem::size_of::<BlurPush>() as u32,
                     local_size: LOCAL_SIZE,
                     constants: &[(axis == Axis::Vertical) as u32],
                 },
             )
         };
-        Ok(BlurPass { h: make(Axis::Horizontal)?, v: make(Axis::Vertical)? })
+        Ok(BlurPass {
+            h: make(Axis::Horizontal)?,
+            v: make(Axis::Vertical)?,
+        })
     }
 
     /// Blurs (ambient, shadow) into (out_ambient, out_shadow) along `axis`;
@@ -73,8 +78,21 @@ impl BlurPass {
         push: &BlurPush,
         pixels: u64,
     ) -> Result<()> {
-        let p = if axis == Axis::Horizontal { &self.h } else { &self.v };
-        let bufs = [globals, geometry[0], geometry[1], geometry[2], input[0], input[1], output[0], output[1]];
+        let p = if axis == Axis::Horizontal {
+            &self.h
+        } else {
+            &self.v
+        };
+        let bufs = [
+            globals,
+            geometry[0],
+            geometry[1],
+            geometry[2],
+            input[0],
+            input[1],
+            output[0],
+            output[1],
+        ];
         p.dispatch(ctx, cmd, &bufs, push, pixels)
     }
 

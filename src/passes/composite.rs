@@ -42,7 +42,9 @@ impl CompositePass {
             &PipelineDesc {
                 name: Self::NAME,
                 spirv: spirv::COMPOSITE_COMP,
-                bindings: &[UNIFORM, STORAGE, STORAGE, STORAGE, STORAGE, STORAGE, STORAGE, STORAGE],
+                bindings: &[
+                    UNIFORM, STORAGE, STORAGE, STORAGE, STORAGE, STORAGE, STORAGE, STORAGE,
+                ],
                 push_size: std::mem::size_of::<CompositePush>() as u32,
                 local_size: LOCAL_SIZE,
                 constants: &[],
@@ -60,7 +62,9 @@ impl CompositePass {
         push: &CompositePush,
         pixels: u64,
     ) -> Result<()> {
-        let bufs = [globals, io.attrs, io.vis, io.gpos, io.gnorm, io.shadow, io.ambient, io.color];
+        let bufs = [
+            globals, io.attrs, io.vis, io.gpos, io.gnorm, io.shadow, io.ambient, io.color,
+        ];
         self.pipeline.dispatch(ctx, cmd, &bufs, push, pixels)
     }
 

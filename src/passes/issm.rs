@@ -90,7 +90,13 @@ impl IssmShadowPass {
         push: &IssmPush,
         pixels: u64,
     ) -> Result<()> {
-        self.pipeline.dispatch(ctx, cmd, &[globals, spheres, vis, gpos, issm, shadow], push, pixels)
+        self.pipeline.dispatch(
+            ctx,
+            cmd,
+            &[globals, spheres, vis, gpos, issm, shadow],
+            push,
+            pixels,
+        )
     }
 
     pub fn destroy(&mut self, ctx: &Context) {

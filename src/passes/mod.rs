@@ -6,6 +6,7 @@ pub mod composite;
 pub mod deep;
 pub mod issm;
 pub mod raster;
+pub mod raster_graphics;
 pub mod resolve;
 pub mod ssdo;
 

@@ -107,7 +107,13 @@ impl RasterPass {
             vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::INDIRECT_BUFFER,
             MemoryLocation::GpuOnly,
         )?;
-        Ok(RasterPass { spheres, args, bands, jobs, counters })
+        Ok(RasterPass {
+            spheres,
+            args,
+            bands,
+            jobs,
+            counters,
+        })
     }
 
     pub fn memory_bytes(&self) -> u64 {
@@ -141,13 +147,29 @@ impl RasterPass {
             job_capacity: JOB_CAPACITY,
             sphere_count,
         };
-        self.spheres.dispatch(ctx, cmd, &bufs, &push, sphere_count as u64)?;
+        self.spheres
+            .dispatch(ctx, cmd, &bufs, &push, sphere_count as u64)?;
         barrier(dev, cmd);
-        self.args
-            .dispatch_groups(ctx, cmd, &[&self.counters], &ArgsPush { job_capacity: JOB_CAPACITY }, [1, 1, 1])?;
+        self.args.dispatch_groups(
+            ctx,
+            cmd,
+            &[&self.counters],
+            &ArgsPush {
+                job_capacity: JOB_CAPACITY,
+            },
+            [1, 1, 1],
+        )?;
         barrier(dev, cmd);
-        self.bands
-            .dispatch_indirect(ctx, cmd, &bufs, &BandsPush { view_index: view as u32 }, &self.counters, 16)?;
+        self.bands.dispatch_indirect(
+            ctx,
+            cmd,
+            &bufs,
+            &BandsPush {
+                view_index: view as u32,
+            },
+            &self.counters,
+            16,
+        )?;
         Ok(())
     }
 

@@ -19,7 +19,9 @@ impl ResolvePass {
             &PipelineDesc {
                 name: Self::NAME,
                 spirv: spirv::RESOLVE_COMP,
-                bindings: &[UNIFORM, STORAGE, STORAGE, STORAGE, STORAGE, STORAGE, STORAGE],
+                bindings: &[
+                    UNIFORM, STORAGE, STORAGE, STORAGE, STORAGE, STORAGE, STORAGE,
+                ],
                 push_size: 0,
                 local_size: LOCAL_SIZE,
                 constants: &[],
@@ -42,7 +44,13 @@ impl ResolvePass {
         gregion: &Buffer,
         pixels: u64,
     ) -> Result<()> {
-        self.pipeline.dispatch(ctx, cmd, &[globals, spheres, vis, gpos, gnorm, attrs, gregion], &(), pixels)
+        self.pipeline.dispatch(
+            ctx,
+            cmd,
+            &[globals, spheres, vis, gpos, gnorm, attrs, gregion],
+            &(),
+            pixels,
+        )
     }
 
     pub fn destroy(&mut self, ctx: &Context) {

@@ -56,7 +56,9 @@ impl SsdoPass {
             &PipelineDesc {
                 name: Self::NAME,
                 spirv: spirv::SSDO_COMP,
-                bindings: &[UNIFORM, STORAGE, STORAGE, STORAGE, STORAGE, STORAGE, STORAGE, STORAGE],
+                bindings: &[
+                    UNIFORM, STORAGE, STORAGE, STORAGE, STORAGE, STORAGE, STORAGE, STORAGE,
+                ],
                 push_size: std::mem::size_of::<SsdoPush>() as u32,
                 local_size: LOCAL_SIZE,
                 constants: &[],
@@ -88,7 +90,9 @@ impl SsdoPass {
         push: &SsdoPush,
         pixels: u64,
     ) -> Result<()> {
-        let bufs = [globals, gb.attrs, gb.vis, gb.gpos, gb.gnorm, gb.gregion, shadow, ambient];
+        let bufs = [
+            globals, gb.attrs, gb.vis, gb.gpos, gb.gnorm, gb.gregion, shadow, ambient,
+        ];
         self.ssdo.dispatch(ctx, cmd, &bufs, push, pixels)
     }
 
@@ -103,7 +107,13 @@ impl SsdoPass {
         push: &KeyShadowPush,
         pixels: u64,
     ) -> Result<()> {
-        self.key_shadow.dispatch(ctx, cmd, &[globals, gb.vis, gb.gpos, gb.gnorm, shadow], push, pixels)
+        self.key_shadow.dispatch(
+            ctx,
+            cmd,
+            &[globals, gb.vis, gb.gpos, gb.gnorm, shadow],
+            push,
+            pixels,
+        )
     }
 
     pub fn destroy(&mut self, ctx: &Context) {

@@ -15,7 +15,13 @@ pub struct Buffer {
 }
 
 impl Buffer {
-    pub fn new(ctx: &Context, name: &str, size: u64, usage: vk::BufferUsageFlags, location: MemoryLocation) -> Result<Self> {
+    pub fn new(
+        ctx: &Context,
+        name: &str,
+        size: u64,
+        usage: vk::BufferUsageFlags,
+        location: MemoryLocation,
+    ) -> Result<Self> {
         let size = size.max(16);
         let info = vk::BufferCreateInfo::default()
             .size(size)
@@ -35,7 +41,10 @@ impl Buffer {
                     linear: true,
                     allocation_scheme: AllocationScheme::GpuAllocatorManaged,
                 })
-                .map_err(|source| Error::Alloc { name: name.to_string(), source })
+                .map_err(|source| Error::Alloc {
+                    name: name.to_string(),
+                    source,
+                })
             });
         let allocation = match alloc {
             Ok(a) => a,
@@ -44,11 +53,22 @@ impl Buffer {
                 return Err(e);
             }
         };
-        let bound = unsafe { ctx.device.bind_buffer_memory(raw, allocation.memory(), allocation.offset()) };
-        let mut buffer = Buffer { raw, size, name: name.to_string(), allocation: Some(allocation) };
+        let bound = unsafe {
+            ctx.device
+                .bind_buffer_memory(raw, allocation.memory(), allocation.offset())
+        };
+        let mut buffer = Buffer {
+            raw,
+            size,
+            name: name.to_string(),
+            allocation: Some(allocation),
+        };
         if let Err(result) = bound {
             buffer.destroy(ctx);
-            return Err(Error::Vk { call: "vkBindBufferMemory", result });
+            return Err(Error::Vk {
+                call: "vkBindBufferMemory",
+                result,
+            });
         }
         ctx.name(raw, name);
         Ok(buffer)
@@ -56,17 +76,29 @@ impl Buffer {
 
     /// A device-local storage buffer.
     pub fn storage(ctx: &Context, name: &str, size: u64) -> Result<Self> {
-        Self::new(ctx, name, size, vk::BufferUsageFlags::STORAGE_BUFFER, MemoryLocation::GpuOnly)
+        Self::new(
+            ctx,
+            name,
+            size,
+            vk::BufferUsageFlags::STORAGE_BUFFER,
+            MemoryLocation::GpuOnly,
+        )
     }
 
     /// Host-visible bytes (mapped), if this buffer lives in host memory.
     pub fn mapped(&self) -> Option<&[u8]> {
-        self.allocation.as_ref().and_then(|a| a.mapped_slice()).map(|s| &s[..self.size as usize])
+        self.allocation
+            .as_ref()
+            .and_then(|a| a.mapped_slice())
+            .map(|s| &s[..self.size as usize])
     }
 
     pub fn mapped_mut(&mut self) -> Option<&mut [u8]> {
         let size = self.size as usize;
-        self.allocation.as_mut().and_then(|a| a.mapped_slice_mut()).map(|s| &mut s[..size])
+        self.allocation
+            .as_mut()
+            .and_then(|a| a.mapped_slice_mut())
+            .map(|s| &mut s[..size])
     }
 
     /// Copies `data` into this buffer at `offset` through a staging buffer.
@@ -75,7 +107,10 @@ impl Buffer {
             return Ok(());
         }
         if offset + data.len() as u64 > self.size {
-            return Err(Error::Invalid(format!("upload past the end of {}", self.name)));
+            return Err(Error::Invalid(format!(
+                "upload past the end of {}",
+                self.name
+            )));
         }
         let mut staging = Buffer::new(
             ctx,
@@ -85,11 +120,20 @@ impl Buffer {
             MemoryLocation::CpuToGpu,
         )?;
         let result = (|| {
-            let dst = staging.mapped_mut().ok_or_else(|| Error::Invalid("staging buffer not mapped".into()))?;
+            let dst = staging
+                .mapped_mut()
+                .ok_or_else(|| Error::Invalid("staging buffer not mapped".into()))?;
             dst[..data.len()].copy_from_slice(data);
             ctx.one_shot("upload", |cmd| {
-                let region = [vk::BufferCopy { src_offset: 0, dst_offset: offset, size: data.len() as u64 }];
-                unsafe { ctx.device.cmd_copy_buffer(cmd, staging.raw, self.raw, &region) };
+                let region = [vk::BufferCopy {
+                    src_offset: 0,
+                    dst_offset: offset,
+                    size: data.len() as u64,
+                }];
+                unsafe {
+                    ctx.device
+                        .cmd_copy_buffer(cmd, staging.raw, self.raw, &region)
+                };
                 Ok(())
             })
         })();
@@ -100,7 +144,10 @@ impl Buffer {
     /// Reads `len` bytes at `offset` back to the host (waits for the queue).
     pub fn download(&self, ctx: &Context, offset: u64, len: u64) -> Result<Vec<u8>> {
         if offset + len > self.size {
-            return Err(Error::Invalid(format!("download past the end of {}", self.name)));
+            return Err(Error::Invalid(format!(
+                "download past the end of {}",
+                self.name
+            )));
         }
         let mut staging = Buffer::new(
             ctx,
@@ -112,8 +159,15 @@ impl Buffer {
         let result = ctx
             .one_shot("readback", |cmd| {
                 super::barrier(&ctx.device, cmd);
-                let region = [vk::BufferCopy { src_offset: offset, dst_offset: 0, size: len }];
-                unsafe { ctx.device.cmd_copy_buffer(cmd, self.raw, staging.raw, &region) };
+                let region = [vk::BufferCopy {
+                    src_offset: offset,
+                    dst_offset: 0,
+                    size: len,
+                }];
+                unsafe {
+                    ctx.device
+                        .cmd_copy_buffer(cmd, self.raw, staging.raw, &region)
+                };
                 Ok(())
             })
             .and_then(|_| {
@@ -127,14 +181,23 @@ impl Buffer {
     }
 
     /// Reads the whole buffer as a vector of `T`.
-    pub fn download_pod<T: bytemuck::Pod>(&self, ctx: &Context, first: u64, count: u64) -> Result<Vec<T>> {
+    pub fn download_pod<T: bytemuck::Pod>(
+        &self,
+        ctx: &Context,
+        first: u64,
+        count: u64,
+    ) -> Result<Vec<T>> {
         let sz = std::mem::size_of::<T>() as u64;
         let bytes = self.download(ctx, first * sz, count * sz)?;
         Ok(bytemuck::pod_collect_to_vec(&bytes))
     }
 
     pub fn descriptor(&self) -> vk::DescriptorBufferInfo {
-        vk::DescriptorBufferInfo { buffer: self.raw, offset: 0, range: vk::WHOLE_SIZE }
+        vk::DescriptorBufferInfo {
+            buffer: self.raw,
+            offset: 0,
+            range: vk::WHOLE_SIZE,
+        }
     }
 
     /// Frees the buffer; idempotent, so owners may call it from `Drop`.

@@ -27,14 +27,16 @@ impl MessageLog {
 
     fn record(&self, text: String) {
         self.count.fetch_add(1, Ordering::SeqCst);
-        if let Ok(mut m) = self.messages.lock() {
-            if m.len() < 64 {
-                m.push(text);
-            }
+        if let Ok(mut m) = self.messages.lock()
+            && m.len() < 64
+        {
+            m.push(text);
         }
     }
 }
 
+/// # Safety
+/// Called by the Vulkan loader only, with `user` = the context's `MessageLog`.
 pub unsafe extern "system" fn messenger_callback(
     severity: vk::DebugUtilsMessageSeverityFlagsEXT,
     _types: vk::DebugUtilsMessageTypeFlagsEXT,
@@ -53,7 +55,8 @@ pub unsafe extern "system" fn messenger_callback(
         (text, &*(user as *const MessageLog))
     };
     if severity.intersects(
-        vk::DebugUtilsMessageSeverityFlagsEXT::WARNING | vk::DebugUtilsMessageSeverityFlagsEXT::ERROR,
+        vk::DebugUtilsMessageSeverityFlagsEXT::WARNING
+            | vk::DebugUtilsMessageSeverityFlagsEXT::ERROR,
     ) {
         log::warn!("validation: {text}");
         log.record(text);

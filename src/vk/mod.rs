@@ -79,7 +79,12 @@ fn device_kind(t: vk::PhysicalDeviceType) -> (&'static str, u32) {
 }
 
 fn version_string(v: u32) -> String {
-    format!("{}.{}.{}", vk::api_version_major(v), vk::api_version_minor(v), vk::api_version_patch(v))
+    format!(
+        "{}.{}.{}",
+        vk::api_version_major(v),
+        vk::api_version_minor(v),
+        vk::api_version_patch(v)
+    )
 }
 
 /// Features the renderer cannot work without, checked per device.
@@ -105,8 +110,24 @@ fn missing_features(instance: &ash::Instance, pd: vk::PhysicalDevice) -> Vec<&'s
     if f13.synchronization2 == vk::FALSE {
         missing.push("synchronization2");
     }
+    if f13.dynamic_rendering == vk::FALSE {
+        missing.push("dynamicRendering");
+    }
     if compute_queue_family(instance, pd).is_none() {
         missing.push("a compute queue with timestamps (timestampValidBits > 0)");
+    }
+    // Test seam: pretend the device lacks a feature, so the failure path can
+    // be exercised on lavapipe (which has them all).
+    if let Ok(denied) = std::env::var("SPHERESHADE_DENY_FEATURE") {
+        for name in [
+            "shaderInt64",
+            "shaderBufferInt64Atomics",
+            "synchronization2",
+        ] {
+            if denied.split(',').any(|d| d == name) && !missing.contains(&name) {
+                missing.push(name);
+            }
+        }
     }
     missing
 }
@@ -114,7 +135,9 @@ fn missing_features(instance: &ash::Instance, pd: vk::PhysicalDevice) -> Vec<&'s
 fn compute_queue_family(instance: &ash::Instance, pd: vk::PhysicalDevice) -> Option<u32> {
     let families = unsafe { instance.get_physical_device_queue_family_properties(pd) };
     // Prefer a graphics+compute family (the viewer presents from it too).
-    let ok = |f: &vk::QueueFamilyProperties| f.queue_flags.contains(vk::QueueFlags::COMPUTE) && f.timestamp_valid_bits > 0;
+    let ok = |f: &vk::QueueFamilyProperties| {
+        f.queue_flags.contains(vk::QueueFlags::COMPUTE) && f.timestamp_valid_bits > 0
+    };
     families
         .iter()
         .position(|f| ok(f) && f.queue_flags.contains(vk::QueueFlags::GRAPHICS))
@@ -126,8 +149,14 @@ fn driver_string(instance: &ash::Instance, pd: vk::PhysicalDevice) -> String {
     let mut drv = vk::PhysicalDeviceDriverProperties::default();
     let mut p2 = vk::PhysicalDeviceProperties2::default().push_next(&mut drv);
     unsafe { instance.get_physical_device_properties2(pd, &mut p2) };
-    let name = drv.driver_name_as_c_str().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
-    let info = drv.driver_info_as_c_str().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let name = drv
+        .driver_name_as_c_str()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let info = drv
+        .driver_info_as_c_str()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
     format!("{name} {info}").trim().to_string()
 }
 
@@ -137,24 +166,36 @@ fn create_instance(
     entry: &ash::Entry,
     opts: &ContextOptions,
 ) -> Result<(ash::Instance, bool /*debug utils*/)> {
-    let layers = unsafe { entry.enumerate_instance_layer_properties() }.vk("vkEnumerateInstanceLayerProperties")?;
-    let has_validation = layers.iter().any(|l| l.layer_name_as_c_str() == Ok(VALIDATION_LAYER));
+    let layers = unsafe { entry.enumerate_instance_layer_properties() }
+        .vk("vkEnumerateInstanceLayerProperties")?;
+    let has_validation = layers
+        .iter()
+        .any(|l| l.layer_name_as_c_str() == Ok(VALIDATION_LAYER));
     if opts.validate && !has_validation {
         return Err(Error::NoValidationLayer);
     }
-    let exts = unsafe { entry.enumerate_instance_extension_properties(None) }.vk("vkEnumerateInstanceExtensionProperties")?;
+    let exts = unsafe { entry.enumerate_instance_extension_properties(None) }
+        .vk("vkEnumerateInstanceExtensionProperties")?;
     let has_ext = |n: &CStr| exts.iter().any(|e| e.extension_name_as_c_str() == Ok(n));
     // The validation layer provides debug utils itself.
     let debug_utils = opts.validate || has_ext(ash::ext::debug_utils::NAME);
 
-    let mut ext_names: Vec<*const c_char> = opts.instance_extensions.iter().map(|e| e.as_ptr()).collect();
+    let mut ext_names: Vec<*const c_char> = opts
+        .instance_extensions
+        .iter()
+        .map(|e| e.as_ptr())
+        .collect();
     if debug_utils {
         ext_names.push(ash::ext::debug_utils::NAME.as_ptr());
     }
     if opts.validate {
         ext_names.push(ash::ext::validation_features::NAME.as_ptr());
     }
-    let layer_names: Vec<*const c_char> = if opts.validate { vec![VALIDATION_LAYER.as_ptr()] } else { vec![] };
+    let layer_names: Vec<*const c_char> = if opts.validate {
+        vec![VALIDATION_LAYER.as_ptr()]
+    } else {
+        vec![]
+    };
 
     let app = vk::ApplicationInfo::default()
         .application_name(c"sphereshade")
@@ -216,7 +257,10 @@ fn describe(instance: &ash::Instance, pd: vk::PhysicalDevice, index: usize) -> D
     let p = unsafe { instance.get_physical_device_properties(pd) };
     DeviceInfo {
         index,
-        name: p.device_name_as_c_str().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default(),
+        name: p
+            .device_name_as_c_str()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default(),
         kind: device_kind(p.device_type).0.to_string(),
         api_version: version_string(p.api_version),
         driver: driver_string(instance, pd),
@@ -229,7 +273,8 @@ impl Context {
         let entry = load_entry()?;
         let (instance, debug_utils) = create_instance(&entry, opts)?;
         // From here on, failures must destroy the instance.
-        match Self::with_instance(entry, instance.clone(), debug_utils, opts) {
+        // `entry` must outlive the instance: dropping it unloads libvulkan.
+        match Self::with_instance(entry.clone(), instance.clone(), debug_utils, opts) {
             Ok(ctx) => Ok(ctx),
             Err(e) => {
                 unsafe { instance.destroy_instance(None) };
@@ -238,7 +283,12 @@ impl Context {
         }
     }
 
-    fn with_instance(entry: ash::Entry, instance: ash::Instance, debug_utils: bool, opts: &ContextOptions) -> Result<Self> {
+    fn with_instance(
+        entry: ash::Entry,
+        instance: ash::Instance,
+        debug_utils: bool,
+        opts: &ContextOptions,
+    ) -> Result<Self> {
         let messages = Box::<MessageLog>::default();
         let (debug_instance, messenger) = if debug_utils {
             let di = ash::ext::debug_utils::Instance::new(&entry, &instance);
@@ -255,7 +305,8 @@ impl Context {
                 )
                 .pfn_user_callback(Some(debug::messenger_callback))
                 .user_data(&*messages as *const MessageLog as *mut std::ffi::c_void);
-            let m = unsafe { di.create_debug_utils_messenger(&info, None) }.vk("vkCreateDebugUtilsMessengerEXT")?;
+            let m = unsafe { di.create_debug_utils_messenger(&info, None) }
+                .vk("vkCreateDebugUtilsMessengerEXT")?;
             (Some(di), m)
         } else {
             (None, vk::DebugUtilsMessengerEXT::null())
@@ -276,7 +327,8 @@ impl Context {
         };
         let props = unsafe { instance.get_physical_device_properties(physical) };
         let queue = unsafe { device.get_device_queue(queue_family, 0) };
-        let debug_device = debug_utils.then(|| ash::ext::debug_utils::Device::new(&instance, &device));
+        let debug_device =
+            debug_utils.then(|| ash::ext::debug_utils::Device::new(&instance, &device));
 
         let allocator = Allocator::new(&AllocatorCreateDesc {
             instance: instance.clone(),
@@ -286,12 +338,16 @@ impl Context {
             buffer_device_address: false,
             allocation_sizes: Default::default(),
         })
-        .map_err(|source| Error::Alloc { name: "allocator".into(), source })?;
+        .map_err(|source| Error::Alloc {
+            name: "allocator".into(),
+            source,
+        })?;
 
         let pool_info = vk::CommandPoolCreateInfo::default()
             .queue_family_index(queue_family)
             .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER);
-        let command_pool = unsafe { device.create_command_pool(&pool_info, None) }.vk("vkCreateCommandPool")?;
+        let command_pool =
+            unsafe { device.create_command_pool(&pool_info, None) }.vk("vkCreateCommandPool")?;
 
         let ctx = Context {
             entry,
@@ -321,19 +377,28 @@ impl Context {
         instance: &ash::Instance,
         opts: &ContextOptions,
     ) -> Result<(vk::PhysicalDevice, DeviceInfo, ash::Device, u32)> {
-        let pds = unsafe { instance.enumerate_physical_devices() }.vk("vkEnumeratePhysicalDevices")?;
+        let pds =
+            unsafe { instance.enumerate_physical_devices() }.vk("vkEnumeratePhysicalDevices")?;
         if pds.is_empty() {
             return Err(Error::NoDevice);
         }
         let index = match opts.device_index {
-            Some(i) if i >= pds.len() => return Err(Error::BadDeviceIndex { index: i, count: pds.len() }),
+            Some(i) if i >= pds.len() => {
+                return Err(Error::BadDeviceIndex {
+                    index: i,
+                    count: pds.len(),
+                });
+            }
             Some(i) => i,
             None => {
                 // Best kind first; among equals, a device with everything we need.
                 let mut order: Vec<usize> = (0..pds.len()).collect();
                 order.sort_by_key(|&i| {
                     let p = unsafe { instance.get_physical_device_properties(pds[i]) };
-                    (!missing_features(instance, pds[i]).is_empty(), device_kind(p.device_type).1)
+                    (
+                        !missing_features(instance, pds[i]).is_empty(),
+                        device_kind(p.device_type).1,
+                    )
                 });
                 order[0]
             }
@@ -341,14 +406,18 @@ impl Context {
         let pd = pds[index];
         let info = describe(instance, pd, index);
         if let Some(&feature) = info.missing_features.first() {
-            return Err(Error::MissingFeature { device: info.name.clone(), feature });
+            return Err(Error::MissingFeature {
+                device: info.name.clone(),
+                feature,
+            });
         }
         let queue_family = compute_queue_family(instance, pd).ok_or(Error::MissingFeature {
             device: info.name.clone(),
             feature: "compute queue with timestamps",
         })?;
 
-        let mut f12 = vk::PhysicalDeviceVulkan12Features::default().shader_buffer_int64_atomics(true);
+        let mut f12 =
+            vk::PhysicalDeviceVulkan12Features::default().shader_buffer_int64_atomics(true);
         let mut sup12 = vk::PhysicalDeviceVulkan12Features::default();
         let sup_base = {
             let mut sup = vk::PhysicalDeviceFeatures2::default().push_next(&mut sup12);
@@ -362,16 +431,25 @@ impl Context {
         let base = vk::PhysicalDeviceFeatures::default()
             .shader_int64(true)
             .fragment_stores_and_atomics(sup_base.fragment_stores_and_atomics == vk::TRUE)
-            .vertex_pipeline_stores_and_atomics(sup_base.vertex_pipeline_stores_and_atomics == vk::TRUE);
-        let mut f13 = vk::PhysicalDeviceVulkan13Features::default().synchronization2(true);
-        let mut f2 = vk::PhysicalDeviceFeatures2::default().features(base).push_next(&mut f12).push_next(&mut f13);
+            .vertex_pipeline_stores_and_atomics(
+                sup_base.vertex_pipeline_stores_and_atomics == vk::TRUE,
+            );
+        let mut f13 = vk::PhysicalDeviceVulkan13Features::default()
+            .synchronization2(true)
+            .dynamic_rendering(true);
+        let mut f2 = vk::PhysicalDeviceFeatures2::default()
+            .features(base)
+            .push_next(&mut f12)
+            .push_next(&mut f13);
 
         let mut exts: Vec<*const c_char> = vec![];
         if opts.swapchain {
             exts.push(ash::khr::swapchain::NAME.as_ptr());
         }
         let prio = [1.0f32];
-        let qinfo = [vk::DeviceQueueCreateInfo::default().queue_family_index(queue_family).queue_priorities(&prio)];
+        let qinfo = [vk::DeviceQueueCreateInfo::default()
+            .queue_family_index(queue_family)
+            .queue_priorities(&prio)];
         let dinfo = vk::DeviceCreateInfo::default()
             .queue_create_infos(&qinfo)
             .enabled_extension_names(&exts)
@@ -383,8 +461,12 @@ impl Context {
     /// Attaches a debug name to any Vulkan handle (no-op without debug utils).
     pub fn name<H: vk::Handle>(&self, handle: H, name: &str) {
         if let Some(dd) = &self.debug_device {
-            let Ok(cname) = CString::new(name) else { return };
-            let info = vk::DebugUtilsObjectNameInfoEXT::default().object_handle(handle).object_name(&cname);
+            let Ok(cname) = CString::new(name) else {
+                return;
+            };
+            let info = vk::DebugUtilsObjectNameInfoEXT::default()
+                .object_handle(handle)
+                .object_name(&cname);
             // Naming is best effort: a failure only loses a label.
             let _ = unsafe { dd.set_debug_utils_object_name(&info) };
         }
@@ -392,7 +474,9 @@ impl Context {
 
     pub fn begin_label(&self, cmd: vk::CommandBuffer, name: &str) {
         if let Some(dd) = &self.debug_device {
-            let Ok(cname) = CString::new(name) else { return };
+            let Ok(cname) = CString::new(name) else {
+                return;
+            };
             let label = vk::DebugUtilsLabelEXT::default().label_name(&cname);
             unsafe { dd.cmd_begin_debug_utils_label(cmd, &label) };
         }
@@ -415,25 +499,36 @@ impl Context {
             .command_pool(self.command_pool)
             .level(vk::CommandBufferLevel::PRIMARY)
             .command_buffer_count(1);
-        let cmd = unsafe { self.device.allocate_command_buffers(&info) }.vk("vkAllocateCommandBuffers")?[0];
+        let cmd = unsafe { self.device.allocate_command_buffers(&info) }
+            .vk("vkAllocateCommandBuffers")?[0];
         self.name(cmd, name);
         Ok(cmd)
     }
 
     /// Records with `f` into a fresh command buffer, submits and waits.
-    pub fn one_shot<T>(&self, name: &str, f: impl FnOnce(vk::CommandBuffer) -> Result<T>) -> Result<T> {
+    pub fn one_shot<T>(
+        &self,
+        name: &str,
+        f: impl FnOnce(vk::CommandBuffer) -> Result<T>,
+    ) -> Result<T> {
         let cmd = self.command_buffer(name)?;
-        let fence = unsafe { self.device.create_fence(&vk::FenceCreateInfo::default(), None) }.vk("vkCreateFence")?;
+        let fence = unsafe {
+            self.device
+                .create_fence(&vk::FenceCreateInfo::default(), None)
+        }
+        .vk("vkCreateFence")?;
         self.name(fence, name);
         let result = (|| {
-            let begin = vk::CommandBufferBeginInfo::default().flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
+            let begin = vk::CommandBufferBeginInfo::default()
+                .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
             unsafe { self.device.begin_command_buffer(cmd, &begin) }.vk("vkBeginCommandBuffer")?;
             let value = f(cmd)?;
             unsafe { self.device.end_command_buffer(cmd) }.vk("vkEndCommandBuffer")?;
             let cmds = [cmd];
             let submit = [vk::SubmitInfo::default().command_buffers(&cmds)];
             unsafe { self.device.queue_submit(self.queue, &submit, fence) }.vk("vkQueueSubmit")?;
-            unsafe { self.device.wait_for_fences(&[fence], true, u64::MAX) }.vk("vkWaitForFences")?;
+            unsafe { self.device.wait_for_fences(&[fence], true, u64::MAX) }
+                .vk("vkWaitForFences")?;
             Ok(value)
         })();
         unsafe {
@@ -445,33 +540,60 @@ impl Context {
 
     /// Total bytes of device memory the allocator holds for us.
     pub fn allocated_bytes(&self) -> u64 {
-        self.allocator.lock().map(|a| a.generate_report().total_allocated_bytes).unwrap_or(0)
+        self.allocator
+            .lock()
+            .map(|a| a.generate_report().total_allocated_bytes)
+            .unwrap_or(0)
     }
 
     /// Allocates a descriptor set for one dispatch. Sets live until
     /// `reset_descriptors`, which callers invoke only when no submitted work
     /// can still use them (every submission here waits for its fence).
-    pub fn allocate_descriptor_set(&self, layout: vk::DescriptorSetLayout) -> Result<vk::DescriptorSet> {
-        let mut arena = self.descriptors.lock().map_err(|_| Error::Invalid("descriptor arena poisoned".into()))?;
+    pub fn allocate_descriptor_set(
+        &self,
+        layout: vk::DescriptorSetLayout,
+    ) -> Result<vk::DescriptorSet> {
+        let mut arena = self
+            .descriptors
+            .lock()
+            .map_err(|_| Error::Invalid("descriptor arena poisoned".into()))?;
         loop {
             if let Some(&pool) = arena.pools.get(arena.current) {
                 let layouts = [layout];
-                let info = vk::DescriptorSetAllocateInfo::default().descriptor_pool(pool).set_layouts(&layouts);
+                let info = vk::DescriptorSetAllocateInfo::default()
+                    .descriptor_pool(pool)
+                    .set_layouts(&layouts);
                 match unsafe { self.device.allocate_descriptor_sets(&info) } {
                     Ok(sets) => return Ok(sets[0]),
-                    Err(vk::Result::ERROR_OUT_OF_POOL_MEMORY | vk::Result::ERROR_FRAGMENTED_POOL) => {
+                    Err(
+                        vk::Result::ERROR_OUT_OF_POOL_MEMORY | vk::Result::ERROR_FRAGMENTED_POOL,
+                    ) => {
                         arena.current += 1;
                         continue;
                     }
-                    Err(result) => return Err(Error::Vk { call: "vkAllocateDescriptorSets", result }),
+                    Err(result) => {
+                        return Err(Error::Vk {
+                            call: "vkAllocateDescriptorSets",
+                            result,
+                        });
+                    }
                 }
             }
             let sizes = [
-                vk::DescriptorPoolSize { ty: vk::DescriptorType::STORAGE_BUFFER, descriptor_count: 4096 },
-                vk::DescriptorPoolSize { ty: vk::DescriptorType::UNIFORM_BUFFER, descriptor_count: 512 },
+                vk::DescriptorPoolSize {
+                    ty: vk::DescriptorType::STORAGE_BUFFER,
+                    descriptor_count: 4096,
+                },
+                vk::DescriptorPoolSize {
+                    ty: vk::DescriptorType::UNIFORM_BUFFER,
+                    descriptor_count: 512,
+                },
             ];
-            let info = vk::DescriptorPoolCreateInfo::default().max_sets(512).pool_sizes(&sizes);
-            let pool = unsafe { self.device.create_descriptor_pool(&info, None) }.vk("vkCreateDescriptorPool")?;
+            let info = vk::DescriptorPoolCreateInfo::default()
+                .max_sets(512)
+                .pool_sizes(&sizes);
+            let pool = unsafe { self.device.create_descriptor_pool(&info, None) }
+                .vk("vkCreateDescriptorPool")?;
             self.name(pool, "frame descriptors");
             arena.pools.push(pool);
             arena.current = arena.pools.len() - 1;
@@ -480,10 +602,16 @@ impl Context {
 
     /// Frees every descriptor set handed out so far.
     pub fn reset_descriptors(&self) -> Result<()> {
-        let mut arena = self.descriptors.lock().map_err(|_| Error::Invalid("descriptor arena poisoned".into()))?;
+        let mut arena = self
+            .descriptors
+            .lock()
+            .map_err(|_| Error::Invalid("descriptor arena poisoned".into()))?;
         for &pool in &arena.pools {
-            unsafe { self.device.reset_descriptor_pool(pool, vk::DescriptorPoolResetFlags::empty()) }
-                .vk("vkResetDescriptorPool")?;
+            unsafe {
+                self.device
+                    .reset_descriptor_pool(pool, vk::DescriptorPoolResetFlags::empty())
+            }
+            .vk("vkResetDescriptorPool")?;
         }
         arena.current = 0;
         Ok(())
@@ -525,24 +653,15 @@ struct DescriptorArena {
     current: usize,
 }
 
-/// A full compute→compute/transfer memory barrier. Passes are short and
-/// mostly serial, so one global barrier between them is both simple and right.
+/// A full memory barrier between passes (any stage, any access). Passes are
+/// short and mostly serial, so one global barrier between them is both
+/// simple and right, also around the graphics raster baseline.
 pub fn barrier(device: &ash::Device, cmd: vk::CommandBuffer) {
     let mb = [vk::MemoryBarrier2::default()
-        .src_stage_mask(vk::PipelineStageFlags2::COMPUTE_SHADER | vk::PipelineStageFlags2::TRANSFER)
-        .src_access_mask(vk::AccessFlags2::SHADER_WRITE | vk::AccessFlags2::TRANSFER_WRITE)
-        .dst_stage_mask(
-            vk::PipelineStageFlags2::COMPUTE_SHADER
-                | vk::PipelineStageFlags2::TRANSFER
-                | vk::PipelineStageFlags2::DRAW_INDIRECT,
-        )
-        .dst_access_mask(
-            vk::AccessFlags2::SHADER_READ
-                | vk::AccessFlags2::SHADER_WRITE
-                | vk::AccessFlags2::TRANSFER_READ
-                | vk::AccessFlags2::TRANSFER_WRITE
-                | vk::AccessFlags2::INDIRECT_COMMAND_READ,
-        )];
+        .src_stage_mask(vk::PipelineStageFlags2::ALL_COMMANDS)
+        .src_access_mask(vk::AccessFlags2::MEMORY_WRITE)
+        .dst_stage_mask(vk::PipelineStageFlags2::ALL_COMMANDS)
+        .dst_access_mask(vk::AccessFlags2::MEMORY_READ | vk::AccessFlags2::MEMORY_WRITE)];
     let dep = vk::DependencyInfo::default().memory_barriers(&mb);
     unsafe { device.cmd_pipeline_barrier2(cmd, &dep) };
 }

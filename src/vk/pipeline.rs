@@ -39,8 +39,10 @@ impl ComputePipeline {
         let dev = &ctx.device;
         let words = ash::util::read_spv(&mut std::io::Cursor::new(desc.spirv))
             .map_err(|e| Error::Invalid(format!("shader {}: bad SPIR-V: {e}", desc.name)))?;
-        let module = unsafe { dev.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&words), None) }
-            .vk("vkCreateShaderModule")?;
+        let module = unsafe {
+            dev.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&words), None)
+        }
+        .vk("vkCreateShaderModule")?;
         ctx.name(module, desc.name);
 
         let bindings: Vec<_> = desc
@@ -55,24 +57,33 @@ impl ComputePipeline {
                     .stage_flags(vk::ShaderStageFlags::COMPUTE)
             })
             .collect();
-        let set_info = vk::DescriptorSetLayoutCreateInfo::default()
-            .bindings(&bindings);
-        let set_layout = unsafe { dev.create_descriptor_set_layout(&set_info, None) }.vk("vkCreateDescriptorSetLayout")?;
+        let set_info = vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings);
+        let set_layout = unsafe { dev.create_descriptor_set_layout(&set_info, None) }
+            .vk("vkCreateDescriptorSetLayout")?;
         ctx.name(set_layout, desc.name);
 
-        let ranges = [vk::PushConstantRange { stage_flags: vk::ShaderStageFlags::COMPUTE, offset: 0, size: desc.push_size }];
+        let ranges = [vk::PushConstantRange {
+            stage_flags: vk::ShaderStageFlags::COMPUTE,
+            offset: 0,
+            size: desc.push_size,
+        }];
         let set_layouts = [set_layout];
         let mut layout_info = vk::PipelineLayoutCreateInfo::default().set_layouts(&set_layouts);
         if desc.push_size > 0 {
             layout_info = layout_info.push_constant_ranges(&ranges);
         }
-        let layout = unsafe { dev.create_pipeline_layout(&layout_info, None) }.vk("vkCreatePipelineLayout")?;
+        let layout = unsafe { dev.create_pipeline_layout(&layout_info, None) }
+            .vk("vkCreatePipelineLayout")?;
         ctx.name(layout, desc.name);
 
         let mut values = vec![desc.local_size];
         values.extend_from_slice(desc.constants);
         let entries: Vec<_> = (0..values.len())
-            .map(|i| vk::SpecializationMapEntry { constant_id: i as u32, offset: 4 * i as u32, size: 4 })
+            .map(|i| vk::SpecializationMapEntry {
+                constant_id: i as u32,
+                offset: 4 * i as u32,
+                size: 4,
+            })
             .collect();
         let spec = vk::SpecializationInfo::default()
             .map_entries(&entries)
@@ -82,10 +93,16 @@ impl ComputePipeline {
             .module(module)
             .name(c"main")
             .specialization_info(&spec);
-        let info = [vk::ComputePipelineCreateInfo::default().stage(stage).layout(layout)];
-        let created = unsafe { dev.create_compute_pipelines(vk::PipelineCache::null(), &info, None) };
+        let info = [vk::ComputePipelineCreateInfo::default()
+            .stage(stage)
+            .layout(layout)];
+        let created =
+            unsafe { dev.create_compute_pipelines(vk::PipelineCache::null(), &info, None) };
         unsafe { dev.destroy_shader_module(module, None) };
-        let pipeline = created.map_err(|(_, result)| Error::Vk { call: "vkCreateComputePipelines", result })?[0];
+        let pipeline = created.map_err(|(_, result)| Error::Vk {
+            call: "vkCreateComputePipelines",
+            result,
+        })?[0];
         ctx.name(pipeline, desc.name);
         Ok(ComputePipeline {
             name: desc.name.to_string(),
@@ -99,7 +116,13 @@ impl ComputePipeline {
     }
 
     /// Binds the pipeline, its buffers (in binding order) and push constants.
-    pub fn bind<P: bytemuck::Pod>(&self, ctx: &Context, cmd: vk::CommandBuffer, buffers: &[&Buffer], push: &P) -> Result<()> {
+    pub fn bind<P: bytemuck::Pod>(
+        &self,
+        ctx: &Context,
+        cmd: vk::CommandBuffer,
+        buffers: &[&Buffer],
+        push: &P,
+    ) -> Result<()> {
         if std::mem::size_of::<P>() as u32 != self.push_size {
             return Err(Error::Invalid(format!(
                 "{}: push constants are {} bytes, the pipeline declares {}",
@@ -116,7 +139,8 @@ impl ComputePipeline {
                 self.bindings.len()
             )));
         }
-        let infos: Vec<[vk::DescriptorBufferInfo; 1]> = buffers.iter().map(|b| [b.descriptor()]).collect();
+        let infos: Vec<[vk::DescriptorBufferInfo; 1]> =
+            buffers.iter().map(|b| [b.descriptor()]).collect();
         let writes: Vec<_> = infos
             .iter()
             .enumerate()
@@ -131,9 +155,16 @@ impl ComputePipeline {
         let writes: Vec<_> = writes.into_iter().map(|w| w.dst_set(set)).collect();
         unsafe {
             ctx.device.update_descriptor_sets(&writes, &[]);
-            ctx.device.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::COMPUTE, self.pipeline);
             ctx.device
-                .cmd_bind_descriptor_sets(cmd, vk::PipelineBindPoint::COMPUTE, self.layout, 0, &[set], &[]);
+                .cmd_bind_pipeline(cmd, vk::PipelineBindPoint::COMPUTE, self.pipeline);
+            ctx.device.cmd_bind_descriptor_sets(
+                cmd,
+                vk::PipelineBindPoint::COMPUTE,
+                self.layout,
+                0,
+                &[set],
+                &[],
+            );
             if self.push_size > 0 {
                 ctx.device.cmd_push_constants(
                     cmd,
@@ -165,7 +196,10 @@ impl ComputePipeline {
         let x = groups.min(65535);
         let y = groups.div_ceil(x);
         if y > 65535 {
-            return Err(Error::Invalid(format!("{}: {invocations} invocations is too many", self.name)));
+            return Err(Error::Invalid(format!(
+                "{}: {invocations} invocations is too many",
+                self.name
+            )));
         }
         unsafe { ctx.device.cmd_dispatch(cmd, x as u32, y as u32, 1) };
         Ok(())
@@ -181,7 +215,10 @@ impl ComputePipeline {
         groups: [u32; 3],
     ) -> Result<()> {
         self.bind(ctx, cmd, buffers, push)?;
-        unsafe { ctx.device.cmd_dispatch(cmd, groups[0], groups[1], groups[2]) };
+        unsafe {
+            ctx.device
+                .cmd_dispatch(cmd, groups[0], groups[1], groups[2])
+        };
         Ok(())
     }
 
@@ -204,7 +241,8 @@ impl ComputePipeline {
         unsafe {
             ctx.device.destroy_pipeline(self.pipeline, None);
             ctx.device.destroy_pipeline_layout(self.layout, None);
-            ctx.device.destroy_descriptor_set_layout(self.set_layout, None);
+            ctx.device
+                .destroy_descriptor_set_layout(self.set_layout, None);
         }
     }
 }

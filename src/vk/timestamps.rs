@@ -22,7 +22,10 @@ impl Profiler {
             .query_count(2 * max_scopes);
         let pool = unsafe { ctx.device.create_query_pool(&info, None) }.vk("vkCreateQueryPool")?;
         ctx.name(pool, "pass timestamps");
-        let families = unsafe { ctx.instance.get_physical_device_queue_family_properties(ctx.physical) };
+        let families = unsafe {
+            ctx.instance
+                .get_physical_device_queue_family_properties(ctx.physical)
+        };
         let bits = families[ctx.queue_family as usize].timestamp_valid_bits;
         Ok(Profiler {
             pool,
@@ -30,24 +33,40 @@ impl Profiler {
             names: Vec::new(),
             open: None,
             period_ns: ctx.props.limits.timestamp_period as f64,
-            valid_mask: if bits >= 64 { u64::MAX } else { (1u64 << bits) - 1 },
+            valid_mask: if bits >= 64 {
+                u64::MAX
+            } else {
+                (1u64 << bits) - 1
+            },
         })
     }
 
     /// Starts a frame: resets the queries (recorded into `cmd`).
     pub fn begin_frame(&mut self, ctx: &Context, cmd: vk::CommandBuffer) {
-        unsafe { ctx.device.cmd_reset_query_pool(cmd, self.pool, 0, 2 * self.capacity) };
+        unsafe {
+            ctx.device
+                .cmd_reset_query_pool(cmd, self.pool, 0, 2 * self.capacity)
+        };
         self.names.clear();
         self.open = None;
     }
 
     /// Opens the scope of pass `name`.
-    pub fn begin(&mut self, ctx: &Context, cmd: vk::CommandBuffer, name: &'static str) -> Result<()> {
+    pub fn begin(
+        &mut self,
+        ctx: &Context,
+        cmd: vk::CommandBuffer,
+        name: &'static str,
+    ) -> Result<()> {
         if self.open.is_some() {
-            return Err(Error::Invalid(format!("pass scope '{name}' opened inside another")));
+            return Err(Error::Invalid(format!(
+                "pass scope '{name}' opened inside another"
+            )));
         }
         if self.names.contains(&name) {
-            return Err(Error::Invalid(format!("pass name '{name}' used twice in one frame")));
+            return Err(Error::Invalid(format!(
+                "pass name '{name}' used twice in one frame"
+            )));
         }
         if self.names.len() as u32 >= self.capacity {
             return Err(Error::Invalid("too many pass scopes in one frame".into()));
@@ -57,17 +76,28 @@ impl Profiler {
         self.open = Some(slot);
         ctx.begin_label(cmd, name);
         unsafe {
-            ctx.device
-                .cmd_write_timestamp2(cmd, vk::PipelineStageFlags2::ALL_COMMANDS, self.pool, 2 * slot as u32)
+            ctx.device.cmd_write_timestamp2(
+                cmd,
+                vk::PipelineStageFlags2::ALL_COMMANDS,
+                self.pool,
+                2 * slot as u32,
+            )
         };
         Ok(())
     }
 
     pub fn end(&mut self, ctx: &Context, cmd: vk::CommandBuffer) -> Result<()> {
-        let slot = self.open.take().ok_or_else(|| Error::Invalid("pass scope closed twice".into()))?;
+        let slot = self
+            .open
+            .take()
+            .ok_or_else(|| Error::Invalid("pass scope closed twice".into()))?;
         unsafe {
-            ctx.device
-                .cmd_write_timestamp2(cmd, vk::PipelineStageFlags2::ALL_COMMANDS, self.pool, 2 * slot as u32 + 1)
+            ctx.device.cmd_write_timestamp2(
+                cmd,
+                vk::PipelineStageFlags2::ALL_COMMANDS,
+                self.pool,
+                2 * slot as u32 + 1,
+            )
         };
         ctx.end_label(cmd);
         Ok(())
@@ -81,8 +111,12 @@ impl Profiler {
         }
         let mut data = vec![0u64; 2 * n];
         unsafe {
-            ctx.device
-                .get_query_pool_results(self.pool, 0, &mut data, vk::QueryResultFlags::TYPE_64 | vk::QueryResultFlags::WAIT)
+            ctx.device.get_query_pool_results(
+                self.pool,
+                0,
+                &mut data,
+                vk::QueryResultFlags::TYPE_64 | vk::QueryResultFlags::WAIT,
+            )
         }
         .vk("vkGetQueryPoolResults")?;
         Ok(self

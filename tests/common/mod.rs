@@ -15,19 +15,33 @@ use std::path::PathBuf;
 /// A context with the validation layer, GPU-assisted and synchronization
 /// validation on: every GPU test runs under it.
 pub fn validated_context() -> Context {
-    Context::new(&ContextOptions { validate: true, ..Default::default() })
-        .unwrap_or_else(|e| panic!("cannot create a validated Vulkan context: {e} (run tools/setup.sh)"))
+    Context::new(&ContextOptions {
+        validate: true,
+        ..Default::default()
+    })
+    .unwrap_or_else(|e| {
+        panic!("cannot create a validated Vulkan context: {e} (run tools/setup.sh)")
+    })
 }
 
 /// Fails the test if the validation layer reported anything.
 pub fn assert_no_validation_messages(ctx: &Context) {
     let n = ctx.validation_messages();
-    assert_eq!(n, 0, "validation reported {n} message(s):\n{}", ctx.messages.messages().join("\n---\n"));
+    assert_eq!(
+        n,
+        0,
+        "validation reported {n} message(s):\n{}",
+        ctx.messages.messages().join("\n---\n")
+    );
 }
 
 pub fn data_file(name: &str) -> PathBuf {
     let p = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/")).join(name);
-    assert!(p.exists(), "{} is missing: the tests need ../shared/data beside the checkout", p.display());
+    assert!(
+        p.exists(),
+        "{} is missing: the tests need ../shared/data beside the checkout",
+        p.display()
+    );
     p
 }
 
@@ -38,11 +52,20 @@ pub fn out_dir() -> PathBuf {
 }
 
 pub fn sphere(c: [f32; 3], r: f32) -> Sphere {
-    Sphere { center: c, radius: r, color: [200, 200, 200, 255], region: [0; 4] }
+    Sphere {
+        center: c,
+        radius: r,
+        color: [200, 200, 200, 255],
+        region: [0; 4],
+    }
 }
 
 pub fn scene_of(spheres: Vec<Sphere>, name: &str) -> Scene {
-    Scene { spheres, level_names: vec![], source: name.to_string() }
+    Scene {
+        spheres,
+        level_names: vec![],
+        source: name.to_string(),
+    }
 }
 
 pub fn settings(camera: Camera, shadows: ShadowMode) -> RenderSettings {
@@ -62,7 +85,17 @@ pub fn settings(camera: Camera, shadows: ShadowMode) -> RenderSettings {
 
 /// Default DESIGN camera for a scene (view along -z) at a test resolution.
 pub fn camera(scene: &Scene, w: u32, h: u32, fov: Option<f64>) -> Camera {
-    default_camera(scene, w, h, DVec3::new(0.0, 0.0, -1.0), DVec3::Y, None, None, fov).expect("camera")
+    default_camera(
+        scene,
+        w,
+        h,
+        DVec3::new(0.0, 0.0, -1.0),
+        DVec3::Y,
+        None,
+        None,
+        fov,
+    )
+    .expect("camera")
 }
 
 /// Result of comparing GPU ids with the reference.
@@ -82,7 +115,11 @@ impl IdMatch {
 /// Compares GPU sphere ids with the reference; on any non-ambiguous mismatch
 /// writes NAME-diff.png (red = mismatch, yellow = ambiguous mismatch).
 pub fn compare_ids(name: &str, gpu: &[Option<u32>], reference: &RefImage) -> IdMatch {
-    let mut m = IdMatch { pixels: gpu.len(), mismatches: 0, hard_mismatches: 0 };
+    let mut m = IdMatch {
+        pixels: gpu.len(),
+        mismatches: 0,
+        hard_mismatches: 0,
+    };
     let mut diff = image::RgbImage::new(reference.width, reference.height);
     for (i, (g, &r)) in gpu.iter().zip(&reference.ids).enumerate() {
         let r = (r != u32::MAX).then_some(r);

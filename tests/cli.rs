@@ -1,0 +1,313 @@
+//! The binary's contract: exit codes, one clear error line naming the
+//! file/line/option/feature, no partial output files, JSON schema, stable
+//! image hashes, and the bench JSON. Runs the real `sphereshade` binary.
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+fn bin() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_sphereshade"));
+    c.env("XDG_RUNTIME_DIR", std::env::temp_dir());
+    c
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("sphereshade-cli-{}", std::process::id()));
+    let _ = std::fs::create_dir_all(&d);
+    d.join(name)
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+fn run(args: &[&str]) -> Output {
+    bin().args(args).output().expect("run sphereshade")
+}
+
+const SMALL: [&str; 6] = ["--width", "96", "--height", "64", "--scene", "random"];
+
+#[test]
+fn malformed_files_fail_with_file_and_line_and_no_png() {
+    let cases: [(&str, &str, &str); 4] = [
+        ("bad.xyzr", "1 2 3 1.5\n4 5 nan 1.0\n", ":2:"),
+        ("short.xyzr", "1 2 3\n", ":1:"),
+        ("empty.pdb", "", "no spheres"),
+        (
+            "trunc.pdb",
+            "ATOM      1  CA  ALA A   1      11.104   6.134\n",
+            ":1:",
+        ),
+    ];
+    for (name, text, needle) in cases {
+        let input = tmp(name);
+        std::fs::write(&input, text).unwrap();
+        let out = tmp(&format!("{name}.png"));
+        let o = run(&[
+            "render",
+            input.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--width",
+            "32",
+            "--height",
+            "32",
+        ]);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{name}: {err}");
+        assert!(
+            err.contains(name) && err.contains(needle),
+            "{name}: error does not name file and line: {err}"
+        );
+        assert_eq!(
+            err.trim().lines().count(),
+            1,
+            "{name}: expected one error line, got: {err}"
+        );
+        assert!(!out.exists(), "{name}: a PNG was written for a failed run");
+    }
+    let o = run(&[
+        "render",
+        "x.unknown",
+        "--out",
+        tmp("u.png").to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("x.unknown"), "{}", stderr(&o));
+}
+
+#[test]
+fn bad_options_are_named() {
+    let png = tmp("opt.png");
+    for (args, needle) in [
+        (vec!["--opacity", "2"], "--opacity"),
+        (vec!["--view-dir", "0,0,0"], "--view-dir"),
+        (vec!["--issm-t", "lots"], "--issm-t"),
+        (vec!["--replicate", "1000x1000x1000"], "--replicate"),
+    ] {
+        let mut a = vec!["render", "--out", png.to_str().unwrap()];
+        a.extend(SMALL);
+        a.extend(args.iter());
+        let o = run(&a);
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {}", stderr(&o));
+        assert!(stderr(&o).contains(needle), "{args:?}: {}", stderr(&o));
+    }
+    // clap rejects malformed values with its usage exit code
+    let o = run(&["render", "--out", png.to_str().unwrap(), "--light", "1,2"]);
+    assert_ne!(o.status.code(), Some(0));
+    assert!(stderr(&o).contains("--light"));
+}
+
+#[test]
+fn missing_device_feature_is_one_clear_line() {
+    let o = bin()
+        .env("SPHERESHADE_DENY_FEATURE", "shaderBufferInt64Atomics")
+        .args(["render", "--out", tmp("f.png").to_str().unwrap()])
+        .args(SMALL)
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1));
+    let err = stderr(&o);
+    assert!(
+        err.contains("lacks required Vulkan feature shaderBufferInt64Atomics"),
+        "{err}"
+    );
+    let o = run(&[
+        "render",
+        "--device",
+        "99",
+        "--out",
+        tmp("d.png").to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("--device 99"), "{}", stderr(&o));
+}
+
+#[test]
+fn validated_render_writes_schema_json_and_stable_hash() {
+    let mut hashes = Vec::new();
+    for k in 0..2 {
+        let png = tmp(&format!("v{k}.png"));
+        let json = tmp(&format!("v{k}.json"));
+        let mut a = vec![
+            "render",
+            "--validate",
+            "--out",
+            png.to_str().unwrap(),
+            "--json",
+            json.to_str().unwrap(),
+        ];
+        a.extend(SMALL);
+        a.extend(["--atoms", "500", "--frames", "2"]);
+        let o = run(&a);
+        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+        let v: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        for key in [
+            "device",
+            "driver",
+            "input",
+            "spheres",
+            "width",
+            "height",
+            "frames",
+            "shadows",
+            "ssdo",
+            "raster",
+            "opacity",
+            "passes",
+            "total_ms",
+            "load_ms",
+            "gpu_memory_bytes",
+            "validation_messages",
+            "deep",
+            "image_sha256",
+        ] {
+            assert!(v.get(key).is_some(), "JSON lacks {key}");
+        }
+        assert_eq!(v["validation_messages"], 0);
+        assert_eq!(v["spheres"], 500);
+        assert_eq!(v["shadows"], "issm-soft");
+        assert_eq!(v["ssdo"], "semantic");
+        let passes = v["passes"].as_array().unwrap();
+        let mut names: Vec<&str> = passes.iter().map(|p| p["name"].as_str().unwrap()).collect();
+        for p in passes {
+            assert!(p["median_ms"].as_f64().unwrap() > 0.0, "{p}");
+            assert!(p["min_ms"].as_f64().unwrap() <= p["max_ms"].as_f64().unwrap());
+        }
+        for want in [
+            "raster",
+            "issm_raster",
+            "resolve",
+            "issm_shadow",
+            "ssdo",
+            "blur_h",
+            "blur_v",
+            "composite",
+        ] {
+            assert!(names.contains(&want), "pass {want} missing from {names:?}");
+        }
+        names.sort();
+        names.dedup();
+        assert_eq!(names.len(), passes.len(), "duplicate pass names");
+        hashes.push(v["image_sha256"].as_str().unwrap().to_string());
+        let img = image::open(&png).expect("png");
+        assert_eq!((img.width(), img.height()), (96, 64));
+    }
+    assert_eq!(
+        hashes[0], hashes[1],
+        "two runs of the same scene produced different images"
+    );
+}
+
+#[test]
+fn aov_encodings_follow_design() {
+    let xyzr = tmp("two.xyzr");
+    // two spheres side by side; ids 1 and 2
+    std::fs::write(&xyzr, "# two\n-3 0 0 2\n3 0 0 2\n").unwrap();
+    let base = |aov: &str, out: &PathBuf| {
+        let o = run(&[
+            "render",
+            xyzr.to_str().unwrap(),
+            "--aov",
+            aov,
+            "--out",
+            out.to_str().unwrap(),
+            "--width",
+            "64",
+            "--height",
+            "32",
+            "--ssdo",
+            "off",
+            "--shadows",
+            "issm",
+        ]);
+        assert_eq!(o.status.code(), Some(0), "{aov}: {}", stderr(&o));
+        image::open(out).expect("png")
+    };
+    let id = base("id", &tmp("id.png")).to_rgba8();
+    assert_eq!(id.get_pixel(0, 0).0, [0, 0, 0, 255], "background id");
+    assert_eq!(
+        id.get_pixel(21, 16).0,
+        [1, 0, 0, 255],
+        "left sphere is index 0 -> 1"
+    );
+    assert_eq!(
+        id.get_pixel(42, 16).0,
+        [2, 0, 0, 255],
+        "right sphere is index 1 -> 2"
+    );
+    let depth = base("depth", &tmp("depth.png"));
+    let d = depth.as_luma16().expect("16-bit depth");
+    assert_eq!(d.get_pixel(0, 0).0[0], 65535, "background depth");
+    let centre = d.get_pixel(21, 16).0[0];
+    assert!(
+        centre < 2000,
+        "sphere centre is among the nearest: {centre}"
+    );
+    let sh = base("shadow", &tmp("shadow.png"));
+    let s = sh.as_luma8().expect("8-bit shadow");
+    assert_eq!(s.get_pixel(0, 0).0[0], 255, "background shadow");
+    let ao = base("ao", &tmp("ao.png"));
+    assert!(ao.as_luma8().is_some(), "8-bit ao");
+}
+
+#[test]
+fn bench_writes_runs_and_ratios() {
+    let json = tmp("bench.json");
+    let o = run(&[
+        "bench",
+        "--scene",
+        "random",
+        "--atoms",
+        "1500",
+        "--size",
+        "64x48",
+        "--shadows",
+        "none,issm,issm-soft",
+        "--ssdo",
+        "off",
+        "--frames",
+        "2",
+        "--warmup",
+        "0",
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let runs = v["runs"].as_array().unwrap();
+    assert_eq!(runs.len(), 3);
+    assert!(
+        v["ratios"]
+            .as_object()
+            .unwrap()
+            .keys()
+            .any(|k| k.starts_with("issm_overhead"))
+    );
+    // --compare against itself: every ratio is exactly 1
+    let o = run(&[
+        "bench",
+        "--scene",
+        "random",
+        "--atoms",
+        "1500",
+        "--size",
+        "64x48",
+        "--shadows",
+        "none",
+        "--ssdo",
+        "off",
+        "--frames",
+        "1",
+        "--warmup",
+        "0",
+        "--json",
+        tmp("bench2.json").to_str().unwrap(),
+        "--compare",
+        json.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("compare"));
+}
