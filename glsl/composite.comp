@@ -20,7 +20,7 @@ layout(push_constant) uniform Push {
     uint use_shadow;
     uint use_ambient;
     float shadow_diffuse; // fraction of key diffuse kept in full shadow
-    float pad;
+    uint swap_rb;         // 1 = write BGRA (swapchains that want it)
 } pc;
 
 vec3 srgb_to_linear(vec3 c) { return pow(c, vec3(2.2)); }
@@ -34,7 +34,8 @@ void main() {
     if (n4.w == 0.0) {
         // Vertical gradient keeps silhouettes readable against the background.
         float t = float(i / w) / float(h);
-        color[i] = pack_rgba8(vec4(mix(g.background.rgb * 1.25, g.background.rgb * 0.6, t), 1.0));
+        vec3 bg = mix(g.background.rgb * 1.25, g.background.rgb * 0.6, t);
+        color[i] = pack_rgba8(vec4(pc.swap_rb != 0u ? bg.bgr : bg, 1.0));
         return;
     }
     uint id = uint(vis[i] & 0xFFFFFFFFul);
@@ -69,5 +70,6 @@ void main() {
     // Exponential tone map: saturated CPK colours would otherwise clip in
     // the light and lose the shading that shows shape.
     c = vec3(1.0) - exp(-1.5 * c);
-    color[i] = pack_rgba8(vec4(linear_to_srgb(c), 1.0));
+    vec3 outc = linear_to_srgb(c);
+    color[i] = pack_rgba8(vec4(pc.swap_rb != 0u ? outc.bgr : outc, 1.0));
 }

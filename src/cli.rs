@@ -34,6 +34,8 @@ pub enum Command {
     Render(RenderArgs),
     /// Run a benchmark matrix and write per-pass timings as JSON.
     Bench(crate::bench::BenchArgs),
+    /// Open a window; see `H` in the window or the README for controls.
+    View(crate::app::ViewCmd),
 }
 
 /// Where spheres come from (shared by render/bench/view).
@@ -182,6 +184,14 @@ pub fn parse_replicate(s: &str) -> std::result::Result<[u32; 3], String> {
 /// Loads the scene the arguments describe, with progress on stderr for
 /// files above a few megabytes. Returns the scene and the load time in ms.
 pub fn load_scene(args: &SceneArgs) -> Result<(Scene, f64)> {
+    load_scene_with_progress(args, &mut |_, _| {})
+}
+
+/// `load_scene` that also reports (bytes done, bytes total) to `report`.
+pub fn load_scene_with_progress(
+    args: &SceneArgs,
+    report: &mut dyn FnMut(u64, u64),
+) -> Result<(Scene, f64)> {
     let t0 = Instant::now();
     let mut scene = match (&args.input, &args.scene) {
         (Some(_), Some(_)) => {
@@ -210,6 +220,7 @@ pub fn load_scene(args: &SceneArgs) -> Result<(Scene, f64)> {
             let show = size > 8 << 20;
             let mut last = 0u64;
             let mut progress = |done: u64, total: u64| {
+                report(done, total);
                 let pct = (done * 100).checked_div(total).unwrap_or(0);
                 if show && pct >= last + 5 {
                     last = pct;
@@ -460,6 +471,7 @@ pub fn run(cli: Cli) -> Result<Exit> {
     match cli.command {
         Command::Info { device } => info(device),
         Command::Render(args) => render(args),
+        Command::View(args) => crate::app::run(args),
         Command::Bench(args) => {
             let n = crate::bench::main(&args)?;
             Ok(if n > 0 {

@@ -7,6 +7,7 @@
 // `!(x > 0.0)` is used on purpose: unlike `x <= 0.0` it also rejects NaN.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+pub mod app;
 pub mod bench;
 pub mod camera;
 pub mod cli;

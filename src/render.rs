@@ -28,6 +28,10 @@ pub struct Renderer<'c> {
     pub settings: RenderSettings,
     pub sphere_count: u32,
     globals_data: Globals,
+    /// Bounding sphere of the scene (camera depth offsets, zoom distance).
+    bounds: (glam::DVec3, f64),
+    /// Write the colour buffer as BGRA (for BGRA swapchains).
+    bgra: bool,
     globals: Buffer,
     spheres: Buffer,
     attrs: Buffer,
@@ -57,6 +61,11 @@ pub struct Renderer<'c> {
 
 /// SSDO, screen-space key shadows and blur with this frame's parameters.
 struct SsdoState {
+    /// Typical sphere radius, useful levels and zoom thresholds: kept so a
+    /// camera change can re-derive radii and the level choice.
+    radius: f64,
+    levels: Vec<u32>,
+    thresholds: Vec<f64>,
     pass: SsdoPass,
     blur: BlurPass,
     push: SsdoPush,
@@ -247,7 +256,13 @@ impl<'c> Renderer<'c> {
                 let (levels, choice) = level_choice(scene, cam, &settings.semantic_levels);
                 log::info!("semantic levels {levels:?}, choice {choice:?}");
                 let semantic = (mode == SsdoMode::Semantic) as u32;
+                let thresholds = settings.semantic_levels.clone().unwrap_or_else(|| {
+                    semantic::default_thresholds(levels.len(), 2.0 * bs_radius as f64 * 1.05)
+                });
                 Some(SsdoState {
+                    radius: r,
+                    levels,
+                    thresholds,
                     pass: SsdoPass::new(ctx)?,
                     blur: BlurPass::new(ctx)?,
                     push: SsdoPush {
@@ -309,6 +324,8 @@ impl<'c> Renderer<'c> {
             sphere_count: geom.len() as u32,
             settings,
             globals_data,
+            bounds: (bs_center.as_dvec3(), bs_radius as f64),
+            bgra: false,
             globals,
             spheres,
             attrs: attr_buf,
@@ -332,6 +349,54 @@ impl<'c> Renderer<'c> {
             cmd,
             fence,
         })
+    }
+
+    /// The composited colour buffer (RGBA8 or BGRA8 texels, row-major).
+    pub fn color_buffer(&self) -> &Buffer {
+        &self.color
+    }
+
+    pub fn is_bgra(&self) -> bool {
+        self.bgra
+    }
+
+    /// Writes the colour buffer as BGRA from the next frame on.
+    pub fn set_bgra(&mut self, bgra: bool) {
+        self.bgra = bgra;
+    }
+
+    /// Moves the camera (same image size); light-space maps are camera
+    /// independent, screen-space radii and the semantic level follow it.
+    pub fn set_camera(&mut self, cam: Camera) -> Result<()> {
+        let old = &self.settings.camera;
+        if (cam.width, cam.height) != (old.width, old.height) {
+            return Err(Error::Invalid(
+                "set_camera: the image size cannot change; make a new renderer".into(),
+            ));
+        }
+        let (c, r) = self.bounds;
+        self.globals_data.cam = cam.to_gpu((c - cam.center).length() + r + 1.0);
+        if let Some(st) = &mut self.ssdo {
+            let px = 1.0 / cam.pixels_per_unit();
+            let rad = st.radius;
+            st.push.r_near = (2.0 * rad).max(2.0 * px) as f32;
+            st.push.r_far = (8.0 * rad).max(8.0 * px) as f32;
+            st.key_shadow.march = (6.0 * rad).max(6.0 * px) as f32;
+            st.key_shadow.thickness = (2.0 * rad).max(px) as f32;
+            st.blur_push.sigma_z = (0.5 * rad).max(px) as f32;
+            let choice =
+                semantic::choose(semantic::zoom_distance(&cam, c), &st.thresholds, &st.levels);
+            st.push.level_a = choice.level_a;
+            st.push.level_b = choice.level_b;
+            st.push.blend = choice.blend;
+            st.blur_push.level = if choice.blend >= 0.5 {
+                choice.level_b
+            } else {
+                choice.level_a
+            };
+        }
+        self.settings.camera = cam;
+        Ok(())
     }
 
     pub fn pixels(&self) -> u64 {
@@ -640,7 +705,7 @@ impl<'c> Renderer<'c> {
             use_shadow,
             use_ambient,
             shadow_diffuse: 0.0,
-            pad: 0.0,
+            swap_rb: self.bgra as u32,
         };
         self.composite
             .record(ctx, cmd, &self.globals, &io, &push, pixels)?;

@@ -15,7 +15,8 @@ pub struct CompositePush {
     pub use_ambient: u32,
     /// Fraction of the key light's diffuse term kept in full shadow.
     pub shadow_diffuse: f32,
-    pub pad: f32,
+    /// 1 = write BGRA instead of RGBA.
+    pub swap_rb: u32,
 }
 
 /// Inputs of the composite pass, in binding order after the globals.

@@ -1,0 +1,512 @@
+//! `sphereshade view`: a window (winit 0.30 + ash-window) showing the
+//! renderer's colour buffer, with an orbit camera, light and mode toggles,
+//! and per-pass timings in the title bar. `--frames N --screenshot F` makes
+//! it a headless-friendly smoke test (Xvfb), `--resize-test` resizes the
+//! window half-way through.
+
+mod swapchain;
+
+use crate::cli::{self, Exit, SceneArgs, ViewArgs};
+use crate::error::{Error, Result};
+use crate::output;
+use crate::render::Renderer;
+use crate::scene::Scene;
+use crate::settings::{RenderSettings, ShadowMode, SsdoMode};
+use crate::vk::{Context, ContextOptions};
+use glam::DVec3;
+use raw_window_handle::{HasDisplayHandle, HasWindowHandle};
+use std::ffi::CString;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::Instant;
+use swapchain::{Present, Swapchain};
+use winit::application::ApplicationHandler;
+use winit::dpi::PhysicalSize;
+use winit::event::{ElementState, MouseButton, MouseScrollDelta, WindowEvent};
+use winit::event_loop::{ActiveEventLoop, ControlFlow, EventLoop};
+use winit::keyboard::{Key, NamedKey};
+use winit::window::{Window, WindowId};
+
+#[derive(clap::Args, Debug)]
+pub struct ViewCmd {
+    #[command(flatten)]
+    pub scene: SceneArgs,
+    #[command(flatten)]
+    pub view: ViewArgs,
+    /// Render this many frames, then exit (smoke test).
+    #[arg(long)]
+    pub frames: Option<u32>,
+    /// Save the last frame to this PNG on exit.
+    #[arg(long)]
+    pub screenshot: Option<PathBuf>,
+    /// Resize the window half-way through --frames (+40 x +24 pixels).
+    #[arg(long)]
+    pub resize_test: bool,
+}
+
+pub const HELP: &str = "controls: left drag orbit | right/middle drag pan | wheel zoom | shift+drag light | \
+S shadows (none/issm/issm-soft/deep) | O ssdo (off/plain/semantic) | B blur | +/- opacity | R reset camera | \
+P screenshot | H help | Esc quit";
+
+/// Camera parameters the controls change.
+#[derive(Clone, Copy, Debug)]
+struct Orbit {
+    center: DVec3,
+    dir: DVec3,
+    up: DVec3,
+    height: f64,
+    fov: Option<f64>,
+}
+
+enum Loading {
+    Pending(
+        std::thread::JoinHandle<Result<(Scene, f64)>>,
+        Arc<AtomicU64>,
+    ),
+    Done(Scene),
+    Taken,
+}
+
+struct App<'c> {
+    ctx: &'c Context,
+    cmd: ViewCmd,
+    window: Option<Arc<Window>>,
+    swapchain: Option<Swapchain>,
+    renderer: Option<Renderer<'c>>,
+    loading: Loading,
+    settings: Option<RenderSettings>,
+    home: Option<Orbit>,
+    orbit: Option<Orbit>,
+    size: (u32, u32),
+    frames: u32,
+    resized_once: bool,
+    cursor: (f64, f64),
+    buttons: [bool; 3],
+    shift: bool,
+    screenshots: u32,
+    last_title: Instant,
+    fps_frames: u32,
+    error: Option<Error>,
+    exit: Exit,
+}
+
+fn rotate(v: DVec3, axis: DVec3, angle: f64) -> DVec3 {
+    glam::DQuat::from_axis_angle(axis.normalize(), angle) * v
+}
+
+impl<'c> App<'c> {
+    fn fail(&mut self, el: &ActiveEventLoop, e: Error) {
+        self.error = Some(e);
+        el.exit();
+    }
+
+    /// (Re)creates the renderer for the current settings, camera and size.
+    fn rebuild(&mut self) -> Result<()> {
+        let Loading::Done(scene) = &self.loading else {
+            return Ok(());
+        };
+        let (Some(s), Some(o)) = (&mut self.settings, self.orbit) else {
+            return Ok(());
+        };
+        let (w, h) = self.size;
+        self.renderer = None; // free the old one's memory first
+        s.camera = crate::camera::Camera::new(o.center, o.dir, o.up, o.height, o.fov, w, h)?;
+        let mut r = Renderer::new(self.ctx, scene, s.clone())?;
+        if let Some(sc) = &self.swapchain {
+            r.set_bgra(sc.is_bgra());
+        }
+        self.renderer = Some(r);
+        Ok(())
+    }
+
+    fn update_camera(&mut self) -> Result<()> {
+        let (Some(r), Some(o)) = (&mut self.renderer, self.orbit) else {
+            return Ok(());
+        };
+        let (w, h) = self.size;
+        r.set_camera(crate::camera::Camera::new(
+            o.center, o.dir, o.up, o.height, o.fov, w, h,
+        )?)
+    }
+
+    fn screenshot(&mut self, path: &PathBuf) -> Result<()> {
+        let Some(r) = &self.renderer else {
+            return Ok(());
+        };
+        let mut color = r.read_color()?;
+        if r.is_bgra() {
+            for c in &mut color {
+                let b = c.to_le_bytes();
+                *c = u32::from_le_bytes([b[2], b[1], b[0], b[3]]);
+            }
+        }
+        let (w, h) = (r.settings.camera.width, r.settings.camera.height);
+        output::color_image(w, h, &color).save_png(path)?;
+        eprintln!("view: wrote {}", path.display());
+        Ok(())
+    }
+
+    fn title(&mut self, times: &[(&'static str, f64)]) {
+        let Some(win) = &self.window else { return };
+        self.fps_frames += 1;
+        let dt = self.last_title.elapsed().as_secs_f64();
+        if dt < 0.5 && self.frames > 1 {
+            return;
+        }
+        let fps = self.fps_frames as f64 / dt.max(1e-9);
+        self.fps_frames = 0;
+        self.last_title = Instant::now();
+        let gpu: f64 = times.iter().map(|t| t.1).sum();
+        let passes: Vec<String> = times.iter().map(|(n, t)| format!("{n} {t:.1}")).collect();
+        let (n, s) = match (&self.renderer, &self.settings) {
+            (Some(r), Some(s)) => (r.sphere_count, s),
+            _ => return,
+        };
+        win.set_title(&format!(
+            "sphereshade | {n} spheres | {fps:.1} fps | gpu {gpu:.1} ms | shadows {} ssdo {} blur {} opacity {:.2} | {} | H help",
+            s.shadows.name(),
+            s.ssdo.name(),
+            if s.blur { "on" } else { "off" },
+            s.opacity,
+            passes.join(" ")
+        ));
+    }
+
+    fn frame(&mut self, el: &ActiveEventLoop) -> Result<()> {
+        // Scene still loading: show progress, keep the window responsive.
+        if let Loading::Pending(handle, pct) = &self.loading {
+            if !handle.is_finished() {
+                if let Some(w) = &self.window {
+                    w.set_title(&format!(
+                        "sphereshade | loading {}%",
+                        pct.load(Ordering::Relaxed)
+                    ));
+                }
+                return Ok(());
+            }
+            let Loading::Pending(handle, _) = std::mem::replace(&mut self.loading, Loading::Taken)
+            else {
+                return Ok(());
+            };
+            let (scene, _) = handle
+                .join()
+                .map_err(|_| Error::Invalid("scene loader thread panicked".into()))??;
+            let settings = cli::settings_for(&scene, &self.cmd.view)?;
+            let c = settings.camera;
+            let o = Orbit {
+                center: c.center,
+                dir: c.dir,
+                up: c.up,
+                height: c.view_height,
+                fov: c.fov_deg,
+            };
+            self.home = Some(o);
+            self.orbit = Some(o);
+            self.settings = Some(settings);
+            self.loading = Loading::Done(scene);
+            self.rebuild()?;
+        }
+        if self.size.0 == 0 || self.size.1 == 0 {
+            return Ok(()); // minimised
+        }
+        let Some(r) = &mut self.renderer else {
+            return Ok(());
+        };
+        let times = r.render_frame()?;
+        let Some(sc) = &mut self.swapchain else {
+            return Ok(());
+        };
+        let stale = (sc.extent.width, sc.extent.height) != self.size;
+        if stale || matches!(sc.present(self.ctx, r.color_buffer())?, Present::Recreate) {
+            sc.recreate(self.ctx, self.size.0, self.size.1)?;
+            let ext = (sc.extent.width, sc.extent.height);
+            if ext != self.size || stale {
+                self.size = ext;
+                self.rebuild()?;
+            }
+            return Ok(());
+        }
+        self.frames += 1;
+        self.title(&times);
+        if let Some(n) = self.cmd.frames {
+            if self.cmd.resize_test && !self.resized_once && self.frames >= n / 2 {
+                self.resized_once = true;
+                if let Some(w) = &self.window {
+                    let _ =
+                        w.request_inner_size(PhysicalSize::new(self.size.0 + 40, self.size.1 + 24));
+                }
+            }
+            if self.frames >= n && (!self.cmd.resize_test || self.resized_once) {
+                if let Some(p) = self.cmd.screenshot.clone() {
+                    self.screenshot(&p)?;
+                }
+                el.exit();
+            }
+        }
+        Ok(())
+    }
+
+    fn key(&mut self, key: &Key) -> Result<()> {
+        let Some(s) = &mut self.settings else {
+            return Ok(());
+        };
+        let mut rebuild = true;
+        match key.as_ref() {
+            Key::Character("s" | "S") => {
+                s.shadows = match s.shadows {
+                    ShadowMode::None => ShadowMode::Issm,
+                    ShadowMode::Issm => ShadowMode::IssmSoft,
+                    ShadowMode::IssmSoft => ShadowMode::Deep,
+                    ShadowMode::Deep => ShadowMode::None,
+                }
+            }
+            Key::Character("o" | "O") => {
+                s.ssdo = match s.ssdo {
+                    SsdoMode::Off => SsdoMode::Plain,
+                    SsdoMode::Plain => SsdoMode::Semantic,
+                    SsdoMode::Semantic => SsdoMode::Off,
+                }
+            }
+            Key::Character("b" | "B") => s.blur = !s.blur,
+            Key::Character("+" | "=") => s.opacity = (s.opacity + 0.1).min(1.0),
+            Key::Character("-" | "_") => s.opacity = (s.opacity - 0.1).max(0.0),
+            Key::Character("r" | "R") => {
+                self.orbit = self.home;
+                rebuild = false;
+                self.update_camera()?;
+            }
+            Key::Character("p" | "P") => {
+                self.screenshots += 1;
+                let p = PathBuf::from(format!("sphereshade-{}.png", self.screenshots));
+                self.screenshot(&p)?;
+                rebuild = false;
+            }
+            Key::Character("h" | "H") => {
+                println!("{HELP}");
+                if let Some(w) = &self.window {
+                    w.set_title(HELP);
+                }
+                rebuild = false;
+            }
+            _ => rebuild = false,
+        }
+        if rebuild {
+            self.rebuild()?;
+        }
+        Ok(())
+    }
+
+    fn drag(&mut self, dx: f64, dy: f64) -> Result<()> {
+        let Some(o) = &mut self.orbit else {
+            return Ok(());
+        };
+        let right = o.dir.cross(o.up).normalize();
+        if self.shift && self.buttons[0] {
+            // light direction: rotate around the view axes
+            if let Some(s) = &mut self.settings {
+                s.light = rotate(rotate(s.light, o.up, dx * 0.01), right, dy * 0.01);
+            }
+            return self.rebuild();
+        }
+        if self.buttons[0] {
+            // orbit around the view centre
+            o.dir = rotate(rotate(o.dir, o.up, -dx * 0.005), right, -dy * 0.005).normalize();
+            let r = o.dir.cross(o.up);
+            if r.length() > 1e-6 {
+                o.up = r.normalize().cross(o.dir).normalize();
+            }
+        } else if self.buttons[1] || self.buttons[2] {
+            let per_px = o.height / self.size.1.max(1) as f64;
+            let up = right.cross(o.dir);
+            o.center += (-dx * right + dy * up) * per_px;
+        } else {
+            return Ok(());
+        }
+        self.update_camera()
+    }
+}
+
+impl ApplicationHandler for App<'_> {
+    fn resumed(&mut self, el: &ActiveEventLoop) {
+        if self.window.is_some() {
+            return;
+        }
+        let attrs = Window::default_attributes()
+            .with_title("sphereshade")
+            .with_inner_size(PhysicalSize::new(self.size.0, self.size.1));
+        let made = (|| -> Result<()> {
+            let window = Arc::new(
+                el.create_window(attrs)
+                    .map_err(|e| Error::Invalid(format!("cannot open a window: {e}")))?,
+            );
+            let dh = window
+                .display_handle()
+                .map_err(|e| Error::Invalid(format!("display handle: {e}")))?;
+            let wh = window
+                .window_handle()
+                .map_err(|e| Error::Invalid(format!("window handle: {e}")))?;
+            let surface = unsafe {
+                ash_window::create_surface(
+                    &self.ctx.entry,
+                    &self.ctx.instance,
+                    dh.as_raw(),
+                    wh.as_raw(),
+                    None,
+                )
+            }
+            .map_err(|result| Error::Vk {
+                call: "vkCreate*SurfaceKHR",
+                result,
+            })?;
+            let size = window.inner_size();
+            self.size = (size.width, size.height);
+            self.swapchain = Some(Swapchain::new(self.ctx, surface, size.width, size.height)?);
+            self.window = Some(window);
+            Ok(())
+        })();
+        if let Err(e) = made {
+            self.fail(el, e);
+        }
+    }
+
+    fn window_event(&mut self, el: &ActiveEventLoop, _id: WindowId, event: WindowEvent) {
+        let result = match event {
+            WindowEvent::CloseRequested => {
+                el.exit();
+                Ok(())
+            }
+            WindowEvent::Resized(size) => {
+                self.size = (size.width, size.height);
+                Ok(())
+            }
+            WindowEvent::RedrawRequested => self.frame(el),
+            WindowEvent::ModifiersChanged(m) => {
+                self.shift = m.state().shift_key();
+                Ok(())
+            }
+            WindowEvent::KeyboardInput { event, .. } if event.state == ElementState::Pressed => {
+                if event.logical_key == Key::Named(NamedKey::Escape) {
+                    el.exit();
+                    Ok(())
+                } else {
+                    self.key(&event.logical_key)
+                }
+            }
+            WindowEvent::MouseInput { state, button, .. } => {
+                let i = match button {
+                    MouseButton::Left => 0,
+                    MouseButton::Right => 1,
+                    MouseButton::Middle => 2,
+                    _ => return,
+                };
+                self.buttons[i] = state == ElementState::Pressed;
+                Ok(())
+            }
+            WindowEvent::CursorMoved { position, .. } => {
+                let (dx, dy) = (position.x - self.cursor.0, position.y - self.cursor.1);
+                self.cursor = (position.x, position.y);
+                if self.buttons.iter().any(|b| *b) {
+                    self.drag(dx, dy)
+                } else {
+                    Ok(())
+                }
+            }
+            WindowEvent::MouseWheel { delta, .. } => {
+                let steps = match delta {
+                    MouseScrollDelta::LineDelta(_, y) => y as f64,
+                    MouseScrollDelta::PixelDelta(p) => p.y / 40.0,
+                };
+                if let Some(o) = &mut self.orbit {
+                    o.height *= 0.9f64.powf(steps);
+                }
+                self.update_camera()
+            }
+            _ => Ok(()),
+        };
+        if let Err(e) = result {
+            self.fail(el, e);
+        }
+    }
+
+    fn about_to_wait(&mut self, _el: &ActiveEventLoop) {
+        if let Some(w) = &self.window {
+            w.request_redraw();
+        }
+    }
+}
+
+/// Runs the viewer until the window closes or `--frames` are done.
+pub fn run(cmd: ViewCmd) -> Result<Exit> {
+    let event_loop = EventLoop::new()
+        .map_err(|e| Error::Invalid(format!("cannot connect to a display: {e}")))?;
+    event_loop.set_control_flow(ControlFlow::Poll);
+    let dh = event_loop
+        .display_handle()
+        .map_err(|e| Error::Invalid(format!("display handle: {e}")))?;
+    let exts =
+        ash_window::enumerate_required_extensions(dh.as_raw()).map_err(|result| Error::Vk {
+            call: "enumerate_required_extensions",
+            result,
+        })?;
+    let instance_extensions: Vec<CString> = exts
+        .iter()
+        .map(|&p| unsafe { std::ffi::CStr::from_ptr(p) }.to_owned())
+        .collect();
+    let ctx = Context::new(&ContextOptions {
+        validate: cmd.view.validate,
+        device_index: cmd.view.device,
+        instance_extensions,
+        swapchain: true,
+    })?;
+
+    // Load on a thread so the window opens at once and shows progress.
+    let pct = Arc::new(AtomicU64::new(0));
+    let scene_args = cmd.scene.clone();
+    let p2 = pct.clone();
+    let handle = std::thread::spawn(move || {
+        cli::load_scene_with_progress(&scene_args, &mut |d, t| {
+            p2.store((d * 100).checked_div(t).unwrap_or(0), Ordering::Relaxed);
+        })
+    });
+    let size = (cmd.view.width, cmd.view.height);
+    let mut app = App {
+        ctx: &ctx,
+        cmd,
+        window: None,
+        swapchain: None,
+        renderer: None,
+        loading: Loading::Pending(handle, pct),
+        settings: None,
+        home: None,
+        orbit: None,
+        size,
+        frames: 0,
+        resized_once: false,
+        cursor: (0.0, 0.0),
+        buttons: [false; 3],
+        shift: false,
+        screenshots: 0,
+        last_title: Instant::now(),
+        fps_frames: 0,
+        error: None,
+        exit: Exit::Ok,
+    };
+    let ran = event_loop.run_app(&mut app);
+    // Destroy in order: renderer, swapchain (and surface), then the context.
+    app.renderer = None;
+    if let Some(mut sc) = app.swapchain.take() {
+        sc.destroy(&ctx);
+    }
+    app.window = None;
+    if let Some(e) = app.error.take() {
+        return Err(e);
+    }
+    ran.map_err(|e| Error::Invalid(format!("event loop: {e}")))?;
+    let n = ctx.validation_messages();
+    Ok(if n > 0 {
+        Exit::ValidationMessages(n)
+    } else {
+        app.exit
+    })
+}

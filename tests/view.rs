@@ -1,0 +1,92 @@
+//! The windowed viewer's smoke mode under Xvfb (lavapipe, validation on): N
+//! frames in a real window with a scripted resize, then a screenshot whose
+//! pixels must match `render` of the same scene and camera at the final size.
+
+use std::process::Command;
+
+fn bin() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_sphereshade"));
+    c.env("XDG_RUNTIME_DIR", std::env::temp_dir());
+    c
+}
+
+#[test]
+fn view_smoke_with_resize_matches_render() {
+    assert!(
+        Command::new("xvfb-run").arg("--help").output().is_ok(),
+        "xvfb-run is missing: run tools/setup.sh"
+    );
+    let dir = std::env::temp_dir().join(format!("sphereshade-view-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let shot = dir.join("view.png");
+    let input = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/1tii.pdb");
+    let o = Command::new("xvfb-run")
+        .args(["-a", "-s", "-screen 0 1024x768x24"])
+        .arg(env!("CARGO_BIN_EXE_sphereshade"))
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+        .args([
+            "view",
+            input,
+            "--width",
+            "200",
+            "--height",
+            "150",
+            "--frames",
+            "6",
+            "--resize-test",
+            "--validate",
+        ])
+        .arg("--screenshot")
+        .arg(&shot)
+        .output()
+        .expect("run xvfb-run");
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "view failed: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let view = image::open(&shot).expect("screenshot").to_rgba8();
+    assert_eq!(
+        view.dimensions(),
+        (240, 174),
+        "the scripted resize did not take effect"
+    );
+
+    let reference = dir.join("render.png");
+    let o = bin()
+        .args([
+            "render",
+            input,
+            "--width",
+            "240",
+            "--height",
+            "174",
+            "--validate",
+            "--out",
+        ])
+        .arg(&reference)
+        .output()
+        .expect("render");
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let render = image::open(&reference).expect("render png").to_rgba8();
+    let close = view
+        .pixels()
+        .zip(render.pixels())
+        .filter(|(a, b)| a.0.iter().zip(b.0.iter()).all(|(x, y)| x.abs_diff(*y) <= 2))
+        .count();
+    let pct = 100.0 * close as f64 / (240.0 * 174.0);
+    eprintln!("view screenshot matches render on {pct:.3}% of pixels");
+    let sphere_px = view.pixels().filter(|p| p.0[0] > 120).count();
+    assert!(sphere_px > 1000, "the screenshot shows no spheres");
+    assert!(
+        pct >= 99.5,
+        "view and render differ on {:.3}% of pixels",
+        100.0 - pct
+    );
+}
