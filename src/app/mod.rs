@@ -130,7 +130,7 @@ impl<'c> App<'c> {
         )?)
     }
 
-    fn screenshot(&mut self, path: &PathBuf) -> Result<()> {
+    fn screenshot(&mut self, path: &std::path::Path) -> Result<()> {
         let Some(r) = &self.renderer else {
             return Ok(());
         };
