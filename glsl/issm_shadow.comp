@@ -47,12 +47,11 @@ float occluder_visibility(vec3 p, vec3 dl, vec4 s) {
     return 1.0 - pow(1.0 - gap / se, pc.soft_x);
 }
 
-float texel_visibility(ivec2 t, int size, uint self_id, vec3 p, vec3 dl) {
-    if (any(lessThan(t, ivec2(0))) || any(greaterThanEqual(t, ivec2(size)))) return 1.0;
+// Sphere id stored at light texel t (NO_SPHERE outside or empty).
+uint texel_id(ivec2 t, int size) {
+    if (any(lessThan(t, ivec2(0))) || any(greaterThanEqual(t, ivec2(size)))) return NO_SPHERE;
     uint64_t k = issm[uint(t.y) * uint(size) + uint(t.x)];
-    if (k == VIS_EMPTY) return 1.0;
-    uint id = uint(k & 0xFFFFFFFFul);
-    return id == self_id ? 1.0 : occluder_visibility(p, dl, spheres[id]);
+    return k == VIS_EMPTY ? NO_SPHERE : uint(k & 0xFFFFFFFFul);
 }
 
 void main() {
@@ -73,10 +72,17 @@ void main() {
     ivec2 c = ivec2(round(vec2(dot(q, L.right.xyz) * ppu + 0.5 * n - 0.5, 0.5 * n - dot(q, L.up.xyz) * ppu - 0.5)));
     int size = int(L.dims.x);
     float v = 1.0;
+    // Neighbouring texels mostly hold the same sphere: remember the last two
+    // ids tested and skip repeats (a min over the same occluder is a no-op).
+    uint last0 = NO_SPHERE, last1 = NO_SPHERE;
     // Dense core: the spheres nearest the light around P's own texel.
-    for (int dy = -1; dy <= 1; ++dy) {
+    for (int dy = -1; dy <= 1 && v > 0.0; ++dy) {
         for (int dx = -1; dx <= 1; ++dx) {
-            v = min(v, texel_visibility(c + ivec2(dx, dy), size, self_id, p, dl));
+            uint id = texel_id(c + ivec2(dx, dy), size);
+            if (id == NO_SPHERE || id == self_id || id == last0 || id == last1) continue;
+            last1 = last0;
+            last0 = id;
+            v = min(v, occluder_visibility(p, dl, spheres[id]));
         }
     }
     // The rest of the (2t+1)^2 patch, every `stride` texels: the stride is at
@@ -86,7 +92,11 @@ void main() {
     for (int dy = -lim; dy <= lim && v > 0.0; dy += pc.stride) {
         for (int dx = -lim; dx <= lim; dx += pc.stride) {
             if (abs(dx) <= 1 && abs(dy) <= 1) continue;
-            v = min(v, texel_visibility(c + ivec2(dx, dy), size, self_id, p, dl));
+            uint id = texel_id(c + ivec2(dx, dy), size);
+            if (id == NO_SPHERE || id == self_id || id == last0 || id == last1) continue;
+            last1 = last0;
+            last0 = id;
+            v = min(v, occluder_visibility(p, dl, spheres[id]));
         }
     }
     shadow[i] = v;

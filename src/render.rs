@@ -215,10 +215,11 @@ impl<'c> Renderer<'c> {
                     settings.light,
                     p.size,
                 )?;
+                let radii: Vec<f32> = geom.iter().map(|g| g[3]).collect();
                 Some(DeepShadows::new(
                     ctx,
                     light,
-                    geom.len() as u32,
+                    &radii,
                     settings.deep_pool_chunks,
                 )?)
             }

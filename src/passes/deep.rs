@@ -1,49 +1,838 @@
-//! Deep shadow lists (seed 002). Placeholder interface; implementation in progress.
+//! Deep shadow lists (seed 002): per-tile chunked lists of every sphere whose
+//! light-space disk overlaps each texel of the key light's map, sorted by
+//! depth, walked with exact ray tests for hard or translucent shadows.
+//!
+//! Layout (DESIGN.md, the CUDA paper's): the N x N light map is split into
+//! 8x8-texel tiles (one 64-invocation workgroup each); entries live in chunks
+//! of 64 in structure-of-arrays buffers (depth, alpha, sphere id, next link,
+//! transmittance); each tile has a chunk table (first chunk + chunk count)
+//! and takes its chunks from one global pool with one atomicAdd; each texel
+//! keeps its head (chunk << 6 | entry, i.e. the global entry index) and its
+//! count. Links end with [`NONE`]. The paper's per-tile atomic sample
+//! counter becomes the count pass's per-texel atomics plus the tile's
+//! prefix sum: since a tile asks for all its chunks at once, they form one
+//! contiguous run and each texel's entries are contiguous inside it (the
+//! links are still written, in sorted order, and followed by the lookup).
+//!
+//! The visibility function of a texel is kept uncompressed (transmittance
+//! after each entry); its epsilon-compressed piecewise-linear form
+//! (|V' - V| <= [`EPSILON`], seed 002 Eq. 1) is computed and its node count
+//! stored per texel and summed in the counters, but the nodes themselves are
+//! not stored: the shadow lookup tests the listed spheres exactly instead of
+//! interpolating V(z), which would need a per-texel depth, not a sphere's.
+//!
+//! Passes, each its own timestamp scope followed by a full barrier:
+//! - `deep_count`: clear, then count entries per texel (atomicAdd); large
+//!   footprints are cut into 8-row band jobs run by whole workgroups;
+//! - `deep_alloc`: per tile, a shared-memory prefix sum of texel counts and
+//!   one pool atomicAdd for ceil(entries / 64) contiguous chunks; a tile
+//!   that does not fit is flagged and gets nothing (no out-of-bounds writes);
+//! - `deep_fill`: the same enumeration as the count (same pipeline), writing
+//!   each entry at head + atomic per-texel cursor;
+//! - `deep_sort`: per texel, sort its contiguous run by (depth, id), write
+//!   links, transmittance and the epsilon-compressed visibility node count;
+//! - `deep_shadow`: per visible pixel, walk its light texel's list with exact
+//!   ray tests.
+//!
+//! Vulkan has no forward-progress guarantee between invocations, so nothing
+//! spins on another invocation (the paper's "pending chunk" busy-wait is
+//! replaced by count -> allocate -> fill). GPU-AV does not check atomics:
+//! every list and counter buffer carries [`GUARD_WORDS`] guard words after
+//! its payload, filled once with [`GUARD_PATTERN`]; see [`DeepShadows::damaged_guards`].
 
+use super::{LOCAL_SIZE, spirv};
 use crate::camera::Camera;
 use crate::error::{Error, Result};
 use crate::output::DeepStats;
-use crate::vk::{Buffer, Context, Profiler};
+use crate::vk::pipeline::{PipelineDesc, STORAGE, UNIFORM};
+use crate::vk::{Buffer, ComputePipeline, Context, Profiler, barrier};
 use ash::vk;
+use bytemuck::{Pod, Zeroable};
+use gpu_allocator::MemoryLocation;
+use std::sync::atomic::{AtomicU32, Ordering};
+
+/// Tile side in texels (a tile is one 64-invocation workgroup).
+pub const TILE: u32 = 8;
+/// Entries per chunk.
+pub const CHUNK: u32 = 64;
+/// List terminator / "no chunk".
+pub const NONE: u32 = u32::MAX;
+/// u32 guard words after every list and counter buffer.
+pub const GUARD_WORDS: u64 = 64;
+pub const GUARD_PATTERN: u32 = 0xDEE9_5AFE;
+/// Footprints above this many texels are split into 8-row band jobs run by
+/// whole workgroups (one invocation loops over smaller ones). On lavapipe a
+/// band workgroup costs about as much as a 100-texel loop, hence 256 rather
+/// than the rasterizer's 64.
+pub const BIG_AREA: u32 = 256;
+/// Band jobs per frame before the per-sphere fallback loop.
+pub const JOB_CAPACITY: u32 = 1 << 18;
+/// Tolerance of the compressed visibility function: one 8-bit AOV step.
+pub const EPSILON: f32 = 1.0 / 255.0;
+/// Bytes per entry in the SoA arrays: depth, alpha, id, next, transmittance.
+pub const BYTES_PER_ENTRY: u64 = 20;
+/// Counter words (stats 0..15, band jobs 16..23) before the guard.
+pub const COUNTER_WORDS: u64 = 32;
+
+/// Indices into the counters buffer (mirrors glsl/deep.glsl).
+pub mod counter {
+    pub const CHUNKS: usize = 0;
+    pub const OVERFLOW: usize = 1;
+    pub const ENTRIES: usize = 2;
+    pub const MAX_COUNT: usize = 3;
+    pub const NODES: usize = 4;
+    pub const FILL_ERRORS: usize = 5;
+    pub const MAX_NODES: usize = 6;
+    pub const NONEMPTY: usize = 7;
+    pub const DROPPED: usize = 8;
+    pub const BANDS_REQ: usize = 16;
+    pub const BANDS_RUN: usize = 17;
+    pub const ARGS: usize = 20;
+}
+
+/// Per-texel record (`DeepTexel` in glsl/deep.glsl).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq, Eq)]
+pub struct DeepTexel {
+    pub count: u32,
+    pub fill: u32,
+    pub head: u32,
+    pub nodes: u32,
+}
+
+/// Per-tile chunk table (`DeepTile` in glsl/deep.glsl).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq, Eq)]
+pub struct DeepTile {
+    pub first_chunk: u32,
+    pub chunks: u32,
+    pub entries: u32,
+    pub flags: u32,
+}
+
+pub const TILE_OVERFLOWED: u32 = 1;
+
+const _: () = assert!(std::mem::size_of::<DeepTexel>() == 16);
+const _: () = assert!(std::mem::size_of::<DeepTile>() == 16);
+
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct SplatPush {
+    mode: u32,
+    bands: u32,
+    sphere_count: u32,
+    big_area: u32,
+    job_capacity: u32,
+    entry_capacity: u32,
+    opacity: f32,
+    pad: u32,
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct ArgsPush {
+    job_capacity: u32,
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct AllocPush {
+    chunk_capacity: u32,
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct SortPush {
+    eps: f32,
+    entry_capacity: u32,
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct ShadowPush {
+    entry_capacity: u32,
+    sphere_count: u32,
+}
+
+const MODE_COUNT: u32 = 0;
+const MODE_FILL: u32 = 1;
+
+/// The entry arrays (structure of arrays), `capacity` chunks of 64 each.
+struct Lists {
+    depth: Buffer,
+    alpha: Buffer,
+    ids: Buffer,
+    next: Buffer,
+    trans: Buffer,
+}
+
+impl Lists {
+    fn new(ctx: &Context, chunks: u32) -> Result<Self> {
+        let n = chunks as u64 * CHUNK as u64;
+        let mut made: Vec<Buffer> = Vec::new();
+        for name in [
+            "deep depth",
+            "deep alpha",
+            "deep sphere id",
+            "deep next",
+            "deep transmittance",
+        ] {
+            match guarded(ctx, name, n, vk::BufferUsageFlags::STORAGE_BUFFER) {
+                Ok(b) => made.push(b),
+                Err(e) => {
+                    for b in &mut made {
+                        b.destroy(ctx);
+                    }
+                    return Err(e);
+                }
+            }
+        }
+        let mut it = made.into_iter();
+        let mut take = || it.next().expect("five buffers");
+        Ok(Lists {
+            depth: take(),
+            alpha: take(),
+            ids: take(),
+            next: take(),
+            trans: take(),
+        })
+    }
+
+    fn all(&self) -> [&Buffer; 5] {
+        [&self.depth, &self.alpha, &self.ids, &self.next, &self.trans]
+    }
+
+    fn destroy(&mut self, ctx: &Context) {
+        for b in [
+            &mut self.depth,
+            &mut self.alpha,
+            &mut self.ids,
+            &mut self.next,
+            &mut self.trans,
+        ] {
+            b.destroy(ctx);
+        }
+    }
+}
+
+/// A device-local buffer of `words` u32 followed by the guard words.
+fn guarded(ctx: &Context, name: &str, words: u64, usage: vk::BufferUsageFlags) -> Result<Buffer> {
+    let buf = Buffer::new(
+        ctx,
+        name,
+        (words + GUARD_WORDS) * 4,
+        usage,
+        MemoryLocation::GpuOnly,
+    )?;
+    let guard = vec![GUARD_PATTERN; GUARD_WORDS as usize];
+    if let Err(e) = buf.upload(ctx, words * 4, bytemuck::cast_slice(&guard)) {
+        let mut buf = buf;
+        buf.destroy(ctx);
+        return Err(e);
+    }
+    Ok(buf)
+}
+
+/// Everything the GPU built in the last frame, for tests and debugging.
+#[derive(Clone, Debug)]
+pub struct DeepRaw {
+    pub map_width: u32,
+    pub map_height: u32,
+    pub tiles_x: u32,
+    pub tiles_y: u32,
+    pub chunk_capacity: u32,
+    pub counters: Vec<u32>,
+    pub texels: Vec<DeepTexel>,
+    pub tiles: Vec<DeepTile>,
+    /// Entry arrays, the first min(chunks requested, capacity) * 64 entries.
+    pub depth: Vec<f32>,
+    pub alpha: Vec<f32>,
+    pub ids: Vec<u32>,
+    pub next: Vec<u32>,
+    pub trans: Vec<f32>,
+}
+
+/// Counters of the last frame beyond [`DeepStats`].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct DeepCounters {
+    pub chunks_requested: u32,
+    pub overflowed: bool,
+    pub entries: u32,
+    pub max_depth_complexity: u32,
+    /// Nodes of the epsilon-compressed visibility functions, all texels.
+    pub compressed_nodes: u32,
+    pub max_compressed_nodes: u32,
+    pub nonempty_texels: u32,
+    /// Entries not stored because their tile overflowed.
+    pub dropped_entries: u32,
+    /// Fill slots outside their texel's run (a bug if not 0).
+    pub fill_errors: u32,
+    pub band_jobs: u32,
+}
 
 pub struct DeepShadows {
     pub light: Camera,
+    sphere_count: u32,
+    capacity: u32,
+    /// Band jobs allowed per frame (JOB_CAPACITY unless a test lowers it).
+    job_limit: AtomicU32,
+    texels: Buffer,
+    tiles: Buffer,
+    counters: Buffer,
+    jobs: Buffer,
+    inline_bits: Buffer,
+    lists: Lists,
+    splat: ComputePipeline,
+    args: ComputePipeline,
+    alloc: ComputePipeline,
+    sort: ComputePipeline,
+    shadow: ComputePipeline,
+}
+
+/// Initial pool size without `--deep-pool-chunks`: the sum over spheres of
+/// the texel squares a disk of R texels overlaps (the area of the disk grown
+/// by a texel square: pi R^2 + 4R + 1), 25% headroom and one partly used
+/// chunk per tile. Spheres outside the light view count too (harmless).
+/// Pool growth on overflow fixes any underestimate.
+pub fn estimate_pool_chunks(light: &Camera, radii: &[f32]) -> u32 {
+    let texel = light.view_height / light.width.max(1) as f64;
+    let entries: f64 = radii
+        .iter()
+        .map(|&r| {
+            let r = r as f64 / texel + 0.01;
+            std::f64::consts::PI * r * r + 4.0 * r + 1.0
+        })
+        .sum();
+    let tiles = tile_count(light) as f64;
+    let chunks = entries / CHUNK as f64 * 1.25 + tiles;
+    chunks.clamp(64.0, max_chunks_hard() as f64) as u32
+}
+
+/// Link encoding (chunk << 6 | entry) must stay below the terminator.
+fn max_chunks_hard() -> u32 {
+    (u32::MAX - 1) / CHUNK
+}
+
+fn tile_count(light: &Camera) -> u64 {
+    light.width.div_ceil(TILE) as u64 * light.height.div_ceil(TILE) as u64
 }
 
 impl DeepShadows {
-    pub fn new(_ctx: &Context, light: Camera, _sphere_count: u32, _pool_chunks: Option<u32>) -> Result<Self> {
-        let _ = light;
-        Err(Error::Invalid("--shadows deep: not implemented yet".into()))
+    pub fn new(
+        ctx: &Context,
+        light: Camera,
+        radii: &[f32],
+        pool_chunks: Option<u32>,
+    ) -> Result<Self> {
+        let sphere_count = radii.len() as u32;
+        if light.fov_deg.is_some() {
+            return Err(Error::Invalid(
+                "deep shadow lists need an orthographic light view".into(),
+            ));
+        }
+        let capacity = match pool_chunks {
+            Some(0) => {
+                return Err(Error::Invalid(
+                    "--deep-pool-chunks must be at least 1".into(),
+                ));
+            }
+            Some(c) => c,
+            None => estimate_pool_chunks(&light, radii),
+        };
+        let capacity = Self::check_capacity(ctx, capacity as u64, pool_chunks.is_none())?;
+        let texel_count = light.width as u64 * light.height as u64;
+        let range = ctx.props.limits.max_storage_buffer_range as u64;
+        if (texel_count * 4 + GUARD_WORDS) * 4 > range {
+            return Err(Error::Invalid(format!(
+                "--shadows deep: a {}x{} light map needs a {} MiB texel table, more than the device's \
+                 maxStorageBufferRange ({} MiB); lower --issm-size",
+                light.width,
+                light.height,
+                (texel_count * 16) >> 20,
+                range >> 20
+            )));
+        }
+        let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
+        let pipe =
+            |name: &str, spirv: &[u8], bindings: &[vk::DescriptorType], push: usize, local: u32| {
+                ComputePipeline::new(
+                    ctx,
+                    &PipelineDesc {
+                        name,
+                        spirv,
+                        bindings,
+                        push_size: push as u32,
+                        local_size: local,
+                        constants: &[],
+                    },
+                )
+            };
+        // Build everything, releasing what was made if a later step fails.
+        let mut bufs: Vec<Buffer> = Vec::new();
+        let mut pipes: Vec<ComputePipeline> = Vec::new();
+        let built = (|| -> Result<()> {
+            bufs.push(guarded(ctx, "deep texels", texel_count * 4, storage)?);
+            bufs.push(guarded(ctx, "deep tiles", tile_count(&light) * 4, storage)?);
+            bufs.push(guarded(
+                ctx,
+                "deep counters",
+                COUNTER_WORDS,
+                storage | vk::BufferUsageFlags::INDIRECT_BUFFER,
+            )?);
+            bufs.push(guarded(
+                ctx,
+                "deep band jobs",
+                JOB_CAPACITY as u64 * 2,
+                storage,
+            )?);
+            bufs.push(guarded(
+                ctx,
+                "deep inline spheres",
+                (sphere_count as u64).div_ceil(32).max(1),
+                storage,
+            )?);
+            let s = STORAGE;
+            pipes.push(pipe(
+                "deep splat",
+                spirv::DEEP_SPLAT_COMP,
+                &[UNIFORM, s, s, s, s, s, s, s, s, s],
+                std::mem::size_of::<SplatPush>(),
+                LOCAL_SIZE,
+            )?);
+            pipes.push(pipe(
+                "deep band args",
+                spirv::DEEP_ARGS_COMP,
+                &[s],
+                std::mem::size_of::<ArgsPush>(),
+                1,
+            )?);
+            pipes.push(pipe(
+                "deep alloc",
+                spirv::DEEP_ALLOC_COMP,
+                &[UNIFORM, s, s, s],
+                std::mem::size_of::<AllocPush>(),
+                64,
+            )?);
+            pipes.push(pipe(
+                "deep sort",
+                spirv::DEEP_SORT_COMP,
+                &[UNIFORM, s, s, s, s, s, s, s],
+                std::mem::size_of::<SortPush>(),
+                64,
+            )?);
+            pipes.push(pipe(
+                "deep shadow",
+                spirv::DEEP_SHADOW_COMP,
+                &[UNIFORM, s, s, s, s, s, s, s, s, s, s],
+                std::mem::size_of::<ShadowPush>(),
+                LOCAL_SIZE,
+            )?);
+            Ok(())
+        })();
+        let lists = built.and_then(|_| Lists::new(ctx, capacity));
+        let lists = match lists {
+            Ok(l) => l,
+            Err(e) => {
+                for b in &mut bufs {
+                    b.destroy(ctx);
+                }
+                for p in &pipes {
+                    p.destroy(ctx);
+                }
+                return Err(e);
+            }
+        };
+        let mut b = bufs.into_iter();
+        let mut p = pipes.into_iter();
+        let mut nb = || b.next().expect("buffers");
+        let (texels, tiles, counters, jobs, inline_bits) = (nb(), nb(), nb(), nb(), nb());
+        let mut np = || p.next().expect("pipelines");
+        let (splat, args, alloc, sort, shadow) = (np(), np(), np(), np(), np());
+        Ok(DeepShadows {
+            light,
+            sphere_count,
+            capacity,
+            job_limit: AtomicU32::new(JOB_CAPACITY),
+            texels,
+            tiles,
+            counters,
+            jobs,
+            inline_bits,
+            lists,
+            splat,
+            args,
+            alloc,
+            sort,
+            shadow,
+        })
+    }
+
+    /// Clamps (estimates) or rejects (explicit sizes) a pool the device
+    /// cannot address: each entry array must fit in maxStorageBufferRange and
+    /// links must stay below the terminator.
+    fn check_capacity(ctx: &Context, chunks: u64, clamp: bool) -> Result<u32> {
+        let range = ctx.props.limits.max_storage_buffer_range as u64;
+        let by_range = (range.saturating_sub(GUARD_WORDS * 4) / 4) / CHUNK as u64;
+        let max = by_range.min(max_chunks_hard() as u64).max(1);
+        if chunks <= max {
+            Ok(chunks as u32)
+        } else if clamp {
+            Ok(max as u32)
+        } else {
+            Err(Error::Invalid(format!(
+                "deep shadow lists: a pool of {chunks} chunks ({} entries) exceeds what the device can address \
+                 ({max} chunks: maxStorageBufferRange {range} bytes per entry array); lower --issm-size",
+                chunks * CHUNK as u64
+            )))
+        }
+    }
+
+    /// Test hook: allow at most `jobs` band jobs per frame (clamped to
+    /// [`JOB_CAPACITY`]) so the full-job-list fallback (voided slots, the
+    /// sphere's own invocation looping over its footprint) can be exercised
+    /// on small scenes. Takes effect from the next recorded frame.
+    pub fn set_job_limit(&self, jobs: u32) {
+        self.job_limit
+            .store(jobs.min(JOB_CAPACITY), Ordering::Relaxed);
+    }
+
+    pub fn tiles_xy(&self) -> (u32, u32) {
+        (
+            self.light.width.div_ceil(TILE),
+            self.light.height.div_ceil(TILE),
+        )
+    }
+
+    /// Pool size in chunks.
+    pub fn chunk_capacity(&self) -> u32 {
+        self.capacity
+    }
+
+    fn entry_capacity(&self) -> u32 {
+        self.capacity * CHUNK
+    }
+
+    fn texel_count(&self) -> u64 {
+        self.light.width as u64 * self.light.height as u64
     }
 
     #[allow(clippy::too_many_arguments)]
     pub fn record(
         &self,
-        _ctx: &Context,
-        _cmd: vk::CommandBuffer,
-        _prof: &mut Profiler,
-        _globals: &Buffer,
-        _spheres: &Buffer,
-        _vis: &Buffer,
-        _gpos: &Buffer,
-        _shadow: &Buffer,
-        _opacity: f32,
-        _pixels: u64,
+        ctx: &Context,
+        cmd: vk::CommandBuffer,
+        prof: &mut Profiler,
+        globals: &Buffer,
+        spheres: &Buffer,
+        vis: &Buffer,
+        gpos: &Buffer,
+        shadow: &Buffer,
+        opacity: f32,
+        pixels: u64,
     ) -> Result<()> {
-        Err(Error::Invalid("--shadows deep: not implemented yet".into()))
-    }
+        let dev = &ctx.device;
+        let l = &self.lists;
+        let splat_bufs = [
+            globals,
+            spheres,
+            &self.texels,
+            &self.tiles,
+            &l.depth,
+            &l.alpha,
+            &l.ids,
+            &self.counters,
+            &self.jobs,
+            &self.inline_bits,
+        ];
+        let job_capacity = self.job_limit.load(Ordering::Relaxed);
+        let splat = |mode: u32, bands: u32| SplatPush {
+            mode,
+            bands,
+            sphere_count: self.sphere_count,
+            big_area: BIG_AREA,
+            job_capacity,
+            entry_capacity: self.entry_capacity(),
+            opacity: opacity.clamp(0.0, 1.0),
+            pad: 0,
+        };
+        let args_offset = counter::ARGS as u64 * 4;
+        let (tx, ty) = self.tiles_xy();
 
-    pub fn read_stats(&self, _ctx: &Context) -> Result<DeepStats> {
-        Err(Error::Invalid("--shadows deep: not implemented yet".into()))
-    }
+        prof.begin(ctx, cmd, "deep_count")?;
+        unsafe {
+            dev.cmd_fill_buffer(cmd, self.texels.raw, 0, self.texel_count() * 16, 0);
+            dev.cmd_fill_buffer(cmd, self.counters.raw, 0, COUNTER_WORDS * 4, 0);
+            let inline_words = (self.sphere_count as u64).div_ceil(32).max(1);
+            dev.cmd_fill_buffer(cmd, self.inline_bits.raw, 0, inline_words * 4, 0);
+        }
+        barrier(dev, cmd);
+        self.splat.dispatch(
+            ctx,
+            cmd,
+            &splat_bufs,
+            &splat(MODE_COUNT, 0),
+            self.sphere_count as u64,
+        )?;
+        barrier(dev, cmd);
+        self.args.dispatch_groups(
+            ctx,
+            cmd,
+            &[&self.counters],
+            &ArgsPush { job_capacity },
+            [1, 1, 1],
+        )?;
+        barrier(dev, cmd);
+        self.splat.dispatch_indirect(
+            ctx,
+            cmd,
+            &splat_bufs,
+            &splat(MODE_COUNT, 1),
+            &self.counters,
+            args_offset,
+        )?;
+        prof.end(ctx, cmd)?;
+        barrier(dev, cmd);
 
-    pub fn grow(&mut self, _ctx: &Context, _needed_chunks: u64) -> Result<()> {
+        prof.begin(ctx, cmd, "deep_alloc")?;
+        let push = AllocPush {
+            chunk_capacity: self.capacity,
+        };
+        self.alloc.dispatch_groups(
+            ctx,
+            cmd,
+            &[globals, &self.texels, &self.tiles, &self.counters],
+            &push,
+            [tx, ty, 1],
+        )?;
+        prof.end(ctx, cmd)?;
+        barrier(dev, cmd);
+
+        prof.begin(ctx, cmd, "deep_fill")?;
+        self.splat.dispatch(
+            ctx,
+            cmd,
+            &splat_bufs,
+            &splat(MODE_FILL, 0),
+            self.sphere_count as u64,
+        )?;
+        barrier(dev, cmd);
+        self.splat.dispatch_indirect(
+            ctx,
+            cmd,
+            &splat_bufs,
+            &splat(MODE_FILL, 1),
+            &self.counters,
+            args_offset,
+        )?;
+        prof.end(ctx, cmd)?;
+        barrier(dev, cmd);
+
+        prof.begin(ctx, cmd, "deep_sort")?;
+        let push = SortPush {
+            eps: EPSILON,
+            entry_capacity: self.entry_capacity(),
+        };
+        let bufs = [
+            globals,
+            &self.texels,
+            &l.depth,
+            &l.alpha,
+            &l.ids,
+            &l.next,
+            &l.trans,
+            &self.counters,
+        ];
+        self.sort
+            .dispatch_groups(ctx, cmd, &bufs, &push, [tx, ty, 1])?;
+        prof.end(ctx, cmd)?;
+        barrier(dev, cmd);
+
+        prof.begin(ctx, cmd, "deep_shadow")?;
+        let push = ShadowPush {
+            entry_capacity: self.entry_capacity(),
+            sphere_count: self.sphere_count,
+        };
+        let bufs = [
+            globals,
+            spheres,
+            vis,
+            gpos,
+            &self.texels,
+            &self.tiles,
+            &l.depth,
+            &l.alpha,
+            &l.ids,
+            &l.next,
+            shadow,
+        ];
+        self.shadow.dispatch(ctx, cmd, &bufs, &push, pixels)?;
+        prof.end(ctx, cmd)?;
+        barrier(dev, cmd);
         Ok(())
     }
 
-    pub fn memory_bytes(&self) -> u64 {
-        0
+    /// The counters of the last frame.
+    pub fn read_counters(&self, ctx: &Context) -> Result<DeepCounters> {
+        let c: Vec<u32> = self.counters.download_pod(ctx, 0, COUNTER_WORDS)?;
+        Ok(DeepCounters {
+            chunks_requested: c[counter::CHUNKS],
+            overflowed: c[counter::OVERFLOW] != 0,
+            entries: c[counter::ENTRIES],
+            max_depth_complexity: c[counter::MAX_COUNT],
+            compressed_nodes: c[counter::NODES],
+            max_compressed_nodes: c[counter::MAX_NODES],
+            nonempty_texels: c[counter::NONEMPTY],
+            dropped_entries: c[counter::DROPPED],
+            fill_errors: c[counter::FILL_ERRORS],
+            band_jobs: c[counter::BANDS_RUN],
+        })
     }
 
-    pub fn destroy(&mut self, _ctx: &Context) {}
+    pub fn read_stats(&self, ctx: &Context) -> Result<DeepStats> {
+        let c = self.read_counters(ctx)?;
+        Ok(DeepStats {
+            entries: c.entries as u64,
+            chunks_used: c.chunks_requested as u64,
+            chunk_capacity: self.capacity as u64,
+            bytes: self.list_bytes(),
+            fixed_layer_bytes: c.max_depth_complexity as u64 * self.texel_count() * BYTES_PER_ENTRY,
+            overflowed: c.overflowed,
+        })
+    }
+
+    /// Reads every deep-list buffer back (entries up to the chunks in use).
+    pub fn read_raw(&self, ctx: &Context) -> Result<DeepRaw> {
+        let counters: Vec<u32> = self.counters.download_pod(ctx, 0, COUNTER_WORDS)?;
+        let used = (counters[counter::CHUNKS].min(self.capacity) as u64) * CHUNK as u64;
+        let (tiles_x, tiles_y) = self.tiles_xy();
+        let l = &self.lists;
+        Ok(DeepRaw {
+            map_width: self.light.width,
+            map_height: self.light.height,
+            tiles_x,
+            tiles_y,
+            chunk_capacity: self.capacity,
+            texels: self.texels.download_pod(ctx, 0, self.texel_count())?,
+            tiles: self
+                .tiles
+                .download_pod(ctx, 0, tiles_x as u64 * tiles_y as u64)?,
+            depth: l.depth.download_pod(ctx, 0, used)?,
+            alpha: l.alpha.download_pod(ctx, 0, used)?,
+            ids: l.ids.download_pod(ctx, 0, used)?,
+            next: l.next.download_pod(ctx, 0, used)?,
+            trans: l.trans.download_pod(ctx, 0, used)?,
+            counters,
+        })
+    }
+
+    /// Per texel (row-major over the light map), the list in link order:
+    /// (sphere id, depth, alpha). At most `count` links are followed.
+    pub fn read_lists(&self, ctx: &Context) -> Result<Vec<Vec<(u32, f32, f32)>>> {
+        let raw = self.read_raw(ctx)?;
+        Ok(raw
+            .texels
+            .iter()
+            .map(|t| {
+                let mut out = Vec::new();
+                let mut a = t.head;
+                while a != NONE && (a as usize) < raw.ids.len() && out.len() < t.count as usize {
+                    out.push((
+                        raw.ids[a as usize],
+                        raw.depth[a as usize],
+                        raw.alpha[a as usize],
+                    ));
+                    a = raw.next[a as usize];
+                }
+                out
+            })
+            .collect())
+    }
+
+    fn guarded_buffers(&self) -> Vec<(&Buffer, u64)> {
+        let entries = self.entry_capacity() as u64;
+        let mut v = vec![
+            (&self.texels, self.texel_count() * 4),
+            (&self.tiles, tile_count(&self.light) * 4),
+            (&self.counters, COUNTER_WORDS),
+            (&self.jobs, JOB_CAPACITY as u64 * 2),
+            (
+                &self.inline_bits,
+                (self.sphere_count as u64).div_ceil(32).max(1),
+            ),
+        ];
+        v.extend(self.lists.all().into_iter().map(|b| (b, entries)));
+        v
+    }
+
+    /// Names of the buffers whose guard words were overwritten (empty = ok).
+    pub fn damaged_guards(&self, ctx: &Context) -> Result<Vec<String>> {
+        let mut bad = Vec::new();
+        for (buf, words) in self.guarded_buffers() {
+            let g: Vec<u32> = buf.download_pod(ctx, words, GUARD_WORDS)?;
+            if g.iter().any(|&w| w != GUARD_PATTERN) {
+                bad.push(buf.name.clone());
+            }
+        }
+        Ok(bad)
+    }
+
+    /// Grows the pool to at least `needed_chunks` (plus 1/8 headroom); the
+    /// caller renders the frame again. The old lists are discarded.
+    pub fn grow(&mut self, ctx: &Context, needed_chunks: u64) -> Result<()> {
+        if needed_chunks <= self.capacity as u64 {
+            return Ok(());
+        }
+        let want = needed_chunks + needed_chunks / 8 + 1;
+        let max = Self::check_capacity(ctx, u64::MAX, true)? as u64;
+        if needed_chunks > max {
+            return Err(Error::Invalid(format!(
+                "deep shadow lists need {needed_chunks} chunks of {CHUNK} entries, more than the device can \
+                 address ({max} chunks: maxStorageBufferRange per entry array); lower --issm-size"
+            )));
+        }
+        let capacity = want.min(max) as u32;
+        // The previous frame was waited on; nothing in flight uses the lists.
+        ctx.wait_idle();
+        let lists = Lists::new(ctx, capacity)?;
+        self.lists.destroy(ctx);
+        self.lists = lists;
+        self.capacity = capacity;
+        Ok(())
+    }
+
+    /// Bytes of the deep-list structure proper (the JSON's `bytes`): the
+    /// entry arrays at their allocated capacity, the texel and tile tables and
+    /// the counters, guard words included; not the band-job scratch.
+    pub fn list_bytes(&self) -> u64 {
+        let fixed = self.texels.size + self.tiles.size + self.counters.size;
+        fixed + self.lists.all().iter().map(|b| b.size).sum::<u64>()
+    }
+
+    /// Bytes of every buffer this pass owns (lists and band-job scratch).
+    pub fn memory_bytes(&self) -> u64 {
+        self.guarded_buffers().iter().map(|(b, _)| b.size).sum()
+    }
+
+    pub fn destroy(&mut self, ctx: &Context) {
+        super::destroy_all(
+            ctx,
+            &[
+                &self.splat,
+                &self.args,
+                &self.alloc,
+                &self.sort,
+                &self.shadow,
+            ],
+        );
+        for b in [
+            &mut self.texels,
+            &mut self.tiles,
+            &mut self.counters,
+            &mut self.jobs,
+            &mut self.inline_bits,
+        ] {
+            b.destroy(ctx);
+        }
+        self.lists.destroy(ctx);
+    }
 }
