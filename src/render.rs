@@ -197,6 +197,7 @@ impl<'c> Renderer<'c> {
                         (t, issm::auto_stride(min_r, texel))
                     }
                 };
+                log::info!("issm: map {}², texel {texel:.3}, t {t}, stride {stride}", p.size);
                 Some(IssmState {
                     map: raster::vis_buffer(ctx, "issm", p.size as u64 * p.size as u64)?,
                     pass: IssmShadowPass::new(ctx)?,
