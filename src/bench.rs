@@ -63,6 +63,13 @@ pub struct BenchArgs {
     pub validate: bool,
     #[arg(long)]
     pub device: Option<usize>,
+    /// Also write a bar chart PNG of per-pass median ms.
+    #[arg(long)]
+    pub chart: Option<PathBuf>,
+    /// Keep the camera fixed (by default measured frames orbit the scene,
+    /// every fourth one zoomed in 4x).
+    #[arg(long)]
+    pub no_orbit: bool,
 }
 
 /// The whole bench output.
@@ -190,41 +197,117 @@ fn check_supported(shadows: ShadowMode, raster: RasterMode) -> Result<()> {
     Ok(())
 }
 
+/// One technique combination of the matrix.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Technique {
+    shadows: ShadowMode,
+    ssdo: SsdoMode,
+    raster: RasterMode,
+    opacity: f32,
+}
+
+/// The default techniques: local lighting, ISSM hard/soft, deep opaque and
+/// translucent, the full frame with semantic and with plain SSDO, and the
+/// graphics raster baseline (each differs from a neighbour in one setting,
+/// so the ratios below compare like with like).
+fn default_techniques() -> Vec<Technique> {
+    use RasterMode::*;
+    use ShadowMode as S;
+    use SsdoMode as O;
+    let t = |shadows, ssdo, raster, opacity| Technique { shadows, ssdo, raster, opacity };
+    vec![
+        t(S::None, O::Off, Compute, 1.0),
+        t(S::Issm, O::Off, Compute, 1.0),
+        t(S::IssmSoft, O::Off, Compute, 1.0),
+        t(S::Deep, O::Off, Compute, 1.0),
+        t(S::Deep, O::Off, Compute, 0.5),
+        t(S::IssmSoft, O::Semantic, Compute, 1.0),
+        t(S::IssmSoft, O::Plain, Compute, 1.0),
+        t(S::None, O::Off, Graphics, 1.0),
+    ]
+}
+
+/// Real structure files shipped beside the checkout, when present.
+fn shared_data_files() -> Vec<PathBuf> {
+    let dir = PathBuf::from("../shared/data");
+    let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .map(|rd| {
+            rd.filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|p| crate::scene::format_of(p).is_some())
+                .collect()
+        })
+        .unwrap_or_default();
+    files.sort();
+    files
+}
+
+/// The camera of measured frame `k` of `n`: an orbit of the view direction
+/// around the up axis, every fourth frame zoomed in 4x (larger spheres on
+/// screen, fewer per pixel; depth complexity changes with the angle).
+pub fn orbit_camera(base: &crate::camera::Camera, k: u32, n: u32) -> Result<crate::camera::Camera> {
+    let angle = std::f64::consts::TAU * k as f64 / n.max(1) as f64;
+    let dir = glam::DQuat::from_axis_angle(base.up, angle) * base.dir;
+    let height = if k % 4 == 3 { base.view_height / 4.0 } else { base.view_height };
+    crate::camera::Camera::new(base.center, dir, base.up, height, base.fov_deg, base.width, base.height)
+}
+
 pub fn run(a: &BenchArgs) -> Result<BenchReport> {
-    let (def_atoms, def_sizes, def_shadows): (Vec<usize>, Vec<(u32, u32)>, Vec<ShadowMode>) =
-        if a.quick {
-            (
-                vec![100_000],
-                vec![(960, 540)],
-                vec![ShadowMode::None, ShadowMode::Issm, ShadowMode::IssmSoft],
-            )
+    let explicit = a.shadows.is_some() || a.ssdo.is_some() || a.raster.is_some() || a.opacity.is_some();
+    let techniques = if explicit || a.quick {
+        let def_shadows = if a.quick {
+            vec![ShadowMode::None, ShadowMode::Issm, ShadowMode::IssmSoft]
         } else {
-            (
-                vec![100_000, 1_000_000],
-                vec![(1920, 1080)],
-                vec![ShadowMode::None, ShadowMode::Issm, ShadowMode::IssmSoft],
-            )
+            vec![ShadowMode::None]
         };
-    let shadows = list(&a.shadows, &def_shadows, "--shadows")?;
-    let ssdo = list(&a.ssdo, &[SsdoMode::Off], "--ssdo")?;
-    let raster = list(&a.raster, &[RasterMode::Compute], "--raster")?;
-    let opacity: Vec<f32> = parse_list(&a.opacity, &[1.0], "--opacity")?;
+        let shadows = list(&a.shadows, &def_shadows, "--shadows")?;
+        let ssdo = list(&a.ssdo, &[SsdoMode::Off], "--ssdo")?;
+        let raster = list(&a.raster, &[RasterMode::Compute], "--raster")?;
+        let opacity: Vec<f32> = parse_list(&a.opacity, &[1.0], "--opacity")?;
+        if opacity.iter().any(|o| !(0.0..=1.0).contains(o)) {
+            return Err(Error::Invalid("--opacity values must be between 0 and 1".into()));
+        }
+        let mut t = Vec::new();
+        for &shadows in &shadows {
+            for &ssdo in &ssdo {
+                for &raster in &raster {
+                    for &opacity in &opacity {
+                        t.push(Technique { shadows, ssdo, raster, opacity });
+                    }
+                }
+            }
+        }
+        t
+    } else {
+        default_techniques()
+    };
+    for t in &techniques {
+        check_supported(t.shadows, t.raster)?;
+    }
+    let def_atoms = if a.quick { vec![100_000] } else { vec![100_000, 1_000_000, 4_000_000] };
     let atoms: Vec<usize> = parse_list(&a.atoms, &def_atoms, "--atoms")?;
     let sizes = match &a.size {
-        None => def_sizes,
+        None if a.quick => vec![(960, 540)],
+        None => vec![(1920, 1080), (3840, 2160)],
         Some(s) => s.split(',').map(parse_size).collect::<Result<_>>()?,
     };
-    for &sh in &shadows {
-        for &ra in &raster {
-            check_supported(sh, ra)?;
+    let mut sets = data_sets(a, &atoms)?;
+    if a.inputs.is_empty() && a.scene.is_none() && a.atoms.is_none() && !a.quick {
+        // The default matrix also covers the real files and a 1M lattice of 1TII.
+        let files = shared_data_files();
+        if files.is_empty() {
+            eprintln!("bench: ../shared/data not found; running the procedural data sets only");
+        }
+        let extra = BenchArgs { inputs: files, quick: true, ..a.clone() };
+        sets.extend(data_sets(&extra, &[])?);
+        if let Some(tii) = extra.inputs.iter().find(|p| p.ends_with("1tii.pdb")) {
+            let lattice = BenchArgs { inputs: vec![tii.clone()], replicate: Some([6, 6, 5]), quick: true, ..a.clone() };
+            let mut more = data_sets(&lattice, &[])?;
+            for d in &mut more {
+                d.name = format!("{} 6x6x5", d.name);
+            }
+            sets.extend(more);
         }
     }
-    if opacity.iter().any(|o| !(0.0..=1.0).contains(o)) {
-        return Err(Error::Invalid(
-            "--opacity values must be between 0 and 1".into(),
-        ));
-    }
-    let sets = data_sets(a, &atoms)?;
     let ctx = Context::new(&crate::vk::ContextOptions {
         validate: a.validate,
         device_index: a.device,
@@ -232,68 +315,65 @@ pub fn run(a: &BenchArgs) -> Result<BenchReport> {
     })?;
     eprintln!("bench: device {} ({})", ctx.info.name, ctx.info.driver);
 
-    let total =
-        sets.len() * shadows.len() * ssdo.len() * raster.len() * opacity.len() * sizes.len();
+    let total = sets.len() * sizes.len() * techniques.len();
     let mut runs = Vec::new();
     for set in &sets {
         for &(w, h) in &sizes {
-            for &sh in &shadows {
-                for &ss in &ssdo {
-                    for &ra in &raster {
-                        for &op in &opacity {
-                            eprintln!(
-                                "bench: run {}/{total}: {} ({} spheres) {w}x{h} shadows={} ssdo={} raster={} opacity={op}",
-                                runs.len() + 1,
-                                set.name,
-                                set.scene.spheres.len(),
-                                sh.name(),
-                                ss.name(),
-                                ra.name()
-                            );
-                            let view = ViewArgs {
-                                width: w,
-                                height: h,
-                                shadows: sh,
-                                issm_size: 512,
-                                issm_t: "auto".into(),
-                                soft_s: None,
-                                soft_x: None,
-                                soft_b: None,
-                                opacity: op,
-                                ssdo: ss,
-                                blur: "on".into(),
-                                raster: ra,
-                                light: a.light,
-                                view_dir: glam::DVec3::new(0.0, 0.0, -1.0),
-                                up: glam::DVec3::Y,
-                                view_center: None,
-                                view_height: None,
-                                fov: None,
-                                validate: a.validate,
-                                device: a.device,
-                                deep_pool_chunks: None,
-                                semantic_levels: None,
-                            };
-                            let settings = cli::settings_for(&set.scene, &view)?;
-                            let out = cli::render_run(
-                                &ctx,
-                                &set.scene,
-                                &set.name,
-                                settings,
-                                Aov::Color,
-                                a.warmup,
-                                a.frames,
-                                set.load_ms,
-                            )?;
-                            runs.push(out.stats);
-                        }
-                    }
-                }
+            for t in &techniques {
+                eprintln!(
+                    "bench: run {}/{total}: {} ({} spheres) {w}x{h} shadows={} ssdo={} raster={} opacity={}",
+                    runs.len() + 1,
+                    set.name,
+                    set.scene.spheres.len(),
+                    t.shadows.name(),
+                    t.ssdo.name(),
+                    t.raster.name(),
+                    t.opacity
+                );
+                let view = ViewArgs {
+                    width: w,
+                    height: h,
+                    shadows: t.shadows,
+                    ssdo: t.ssdo,
+                    raster: t.raster,
+                    opacity: t.opacity,
+                    light: a.light,
+                    validate: a.validate,
+                    device: a.device,
+                    ..bench_view_defaults()
+                };
+                let settings = cli::settings_for(&set.scene, &view)?;
+                let base = settings.camera;
+                let frames = a.frames;
+                let orbit = !a.no_orbit && frames > 1;
+                let out = cli::render_run_with(
+                    &ctx,
+                    &set.scene,
+                    &set.name,
+                    settings,
+                    Aov::Color,
+                    a.warmup,
+                    frames,
+                    set.load_ms,
+                    &mut |r, k| if orbit { r.set_camera(orbit_camera(&base, k, frames)?) } else { Ok(()) },
+                )?;
+                runs.push(out.stats);
             }
         }
     }
     let ratios = ratios(&runs);
     Ok(BenchReport { runs, ratios })
+}
+
+/// Default view options (the CLI defaults) for bench runs.
+fn bench_view_defaults() -> ViewArgs {
+    use clap::Parser;
+    #[derive(Parser)]
+    struct Defaults {
+        #[command(flatten)]
+        view: ViewArgs,
+    }
+    Defaults::parse_from(["bench"]).view
 }
 
 fn key(r: &RunStats) -> (String, u64, u32, u32, String, String, String, u64) {
@@ -309,42 +389,58 @@ fn key(r: &RunStats) -> (String, u64, u32, u32, String, String, String, u64) {
     )
 }
 
-/// Derived ratios of frame medians between runs that differ in one setting:
-/// ISSM overhead (issm-soft / none and issm / none), soft/hard, and time per
-/// million spheres per data set, each named after the data set and size.
+fn pass_ms(r: &RunStats, name: &str) -> Option<f64> {
+    r.passes.iter().find(|p| p.name == name).map(|p| p.median_ms)
+}
+
+/// Derived ratios between runs of the same data set and size that differ in
+/// one setting (frame medians unless noted), named after data set and size:
+/// ISSM overhead (issm / none, issm-soft / none), soft/hard, deep/ISSM,
+/// translucent/opaque deep, semantic/plain SSDO (full frames), graphics /
+/// compute raster (the `raster` pass), and ms per million spheres of the
+/// local-lighting frame.
 pub fn ratios(runs: &[RunStats]) -> BTreeMap<String, f64> {
     let mut out = BTreeMap::new();
-    let find = |base: &RunStats, shadows: &str| {
+    let find = |base: &RunStats, shadows: &str, ssdo: &str, raster: &str, opacity: f64| {
         runs.iter().find(|r| {
-            let (a, b) = (key(r), key(base));
-            (a.0, a.1, a.2, a.3, &a.5, &a.6, a.7) == (b.0, b.1, b.2, b.3, &b.5, &b.6, b.7)
+            (r.input.as_str(), r.spheres, r.width, r.height) == (base.input.as_str(), base.spheres, base.width, base.height)
                 && r.shadows == shadows
+                && r.ssdo == ssdo
+                && r.raster == raster
+                && (r.opacity - opacity).abs() < 1e-6
         })
     };
-    for r in runs.iter().filter(|r| r.shadows == "none") {
+    let bases = runs.iter().filter(|r| r.shadows == "none" && r.ssdo == "off" && r.raster == "compute" && r.opacity == 1.0);
+    for r in bases {
         let tag = format!("{} {}sph {}x{}", r.input, r.spheres, r.width, r.height);
-        if let Some(h) = find(r, "issm") {
-            out.insert(
-                format!("issm_overhead[{tag}]"),
-                h.total_ms.median / r.total_ms.median,
-            );
+        let frame = |x: &RunStats| x.total_ms.median;
+        let hard = find(r, "issm", "off", "compute", 1.0);
+        let soft = find(r, "issm-soft", "off", "compute", 1.0);
+        let deep = find(r, "deep", "off", "compute", 1.0);
+        if let Some(h) = hard {
+            out.insert(format!("issm_overhead[{tag}]"), frame(h) / frame(r));
         }
-        if let Some(s) = find(r, "issm-soft") {
-            out.insert(
-                format!("issm_soft_overhead[{tag}]"),
-                s.total_ms.median / r.total_ms.median,
-            );
-            if let Some(h) = find(r, "issm") {
-                out.insert(
-                    format!("soft_over_hard[{tag}]"),
-                    s.total_ms.median / h.total_ms.median,
-                );
-            }
+        if let Some(s) = soft {
+            out.insert(format!("issm_soft_overhead[{tag}]"), frame(s) / frame(r));
         }
-        out.insert(
-            format!("ms_per_million_spheres[{tag}]"),
-            r.total_ms.median / (r.spheres as f64 / 1e6),
-        );
+        if let (Some(s), Some(h)) = (soft, hard) {
+            out.insert(format!("soft_over_hard[{tag}]"), frame(s) / frame(h));
+        }
+        if let (Some(d), Some(h)) = (deep, hard) {
+            out.insert(format!("deep_over_issm[{tag}]"), frame(d) / frame(h));
+        }
+        if let (Some(d5), Some(d)) = (find(r, "deep", "off", "compute", 0.5), deep) {
+            out.insert(format!("deep_translucent_over_opaque[{tag}]"), frame(d5) / frame(d));
+        }
+        if let (Some(se), Some(pl)) = (find(r, "issm-soft", "semantic", "compute", 1.0), find(r, "issm-soft", "plain", "compute", 1.0)) {
+            out.insert(format!("semantic_over_plain[{tag}]"), frame(se) / frame(pl));
+        }
+        if let Some(g) = find(r, "none", "off", "graphics", 1.0)
+            && let (Some(gr), Some(cr)) = (pass_ms(g, "raster"), pass_ms(r, "raster"))
+        {
+            out.insert(format!("graphics_over_compute_raster[{tag}]"), gr / cr);
+        }
+        out.insert(format!("ms_per_million_spheres[{tag}]"), frame(r) / (r.spheres as f64 / 1e6));
     }
     out
 }
@@ -423,6 +519,10 @@ pub fn main(a: &BenchArgs) -> Result<u32> {
     let report = run(a)?;
     print!("{}", table(&report));
     output::write_json(&a.json, &report)?;
+    if let Some(c) = &a.chart {
+        output::AovImage::Rgba8(image::DynamicImage::ImageRgb8(crate::chart::bar_chart(&report)).to_rgba8())
+            .save_png(c)?;
+    }
     if let Some(old) = old {
         println!("compare (new / old median ms):");
         for (run, pass, r) in compare(&report, &old) {

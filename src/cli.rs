@@ -370,10 +370,26 @@ pub fn context_for(v: &ViewArgs) -> Result<Context> {
 
 /// Renders `frames` measured frames after `warmup` ones.
 pub fn run_frames(r: &mut Renderer, warmup: u32, frames: u32) -> Result<Vec<PassTimes>> {
+    run_frames_with(r, warmup, frames, &mut |_, _| Ok(()))
+}
+
+/// `run_frames` calling `before(renderer, k)` ahead of measured frame k
+/// (the benchmark moves the camera along its orbit there).
+pub fn run_frames_with(
+    r: &mut Renderer,
+    warmup: u32,
+    frames: u32,
+    before: &mut dyn FnMut(&mut Renderer, u32) -> Result<()>,
+) -> Result<Vec<PassTimes>> {
     for _ in 0..warmup {
         r.render_frame()?;
     }
-    (0..frames.max(1)).map(|_| r.render_frame()).collect()
+    (0..frames.max(1))
+        .map(|k| {
+            before(r, k)?;
+            r.render_frame()
+        })
+        .collect()
 }
 
 /// Reads the requested AOV back from the renderer and encodes it.
@@ -426,8 +442,24 @@ pub fn render_run(
     frames: u32,
     load_ms: f64,
 ) -> Result<RunOutcome> {
+    render_run_with(ctx, scene, input, settings, aov, warmup, frames, load_ms, &mut |_, _| Ok(()))
+}
+
+/// `render_run` with a hook before each measured frame (see `run_frames_with`).
+#[allow(clippy::too_many_arguments)]
+pub fn render_run_with(
+    ctx: &Context,
+    scene: &Scene,
+    input: &str,
+    settings: RenderSettings,
+    aov: Aov,
+    warmup: u32,
+    frames: u32,
+    load_ms: f64,
+    before: &mut dyn FnMut(&mut Renderer, u32) -> Result<()>,
+) -> Result<RunOutcome> {
     let mut r = Renderer::new(ctx, scene, settings)?;
-    let times = run_frames(&mut r, warmup, frames)?;
+    let times = run_frames_with(&mut r, warmup, frames, before)?;
     let image = aov_image(&r, aov)?;
     let (passes, total_ms) = output::summarize(&times);
     let s = &r.settings;

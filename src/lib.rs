@@ -10,6 +10,7 @@
 pub mod app;
 pub mod bench;
 pub mod camera;
+pub mod chart;
 pub mod cli;
 pub mod error;
 pub mod gpu;
