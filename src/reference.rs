@@ -218,3 +218,41 @@ pub fn shadow_ray(
     }
     vis
 }
+
+/// Exact key-light visibility per pixel of `cam` at the reference's visible
+/// points (None for background and ambiguous pixels), with the reference
+/// cast itself (ids). `opacity` 1 gives hard shadows.
+pub fn shadow_image(
+    spheres: &[Sphere],
+    cam: &Camera,
+    light: DVec3,
+    opacity: f64,
+) -> (Vec<Option<f64>>, RefImage) {
+    // Tolerance relative to the scene size, as the id comparisons use.
+    let (mut lo, mut hi) = (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN));
+    for s in spheres {
+        lo = lo.min(c64(s) - s.radius as f64);
+        hi = hi.max(c64(s) + s.radius as f64);
+    }
+    let radius = (0.5 * (hi - lo).length()).max(1.0);
+    let img = cast(spheres, cam, 2e-5 * radius);
+    let bins = match crate::camera::light_view(
+        spheres.iter().map(|s| (s.center, s.radius)),
+        light,
+        1024,
+    ) {
+        Ok(lv) => Bins::new(spheres, &lv),
+        Err(_) => return (vec![None; img.ids.len()], img),
+    };
+    let out = (0..img.ids.len())
+        .map(|i| {
+            if img.ids[i] == u32::MAX || img.ambiguous[i] {
+                return None;
+            }
+            let (orig, dir) = cam.ray(i as u32 % cam.width, i as u32 / cam.width);
+            let p = orig + img.t[i] * dir;
+            Some(shadow_ray(spheres, &bins, light, p, img.ids[i], opacity))
+        })
+        .collect();
+    (out, img)
+}

@@ -8,10 +8,10 @@ mod common;
 
 use common::*;
 use glam::DVec3;
-use sphereshade::camera::{Camera, light_view};
+use sphereshade::camera::Camera;
 use sphereshade::output::ids_from_vis;
 use sphereshade::passes::deep::{self, CHUNK, DeepRaw, NONE, TILE, TILE_OVERFLOWED};
-use sphereshade::reference::{self, Bins};
+use sphereshade::reference;
 use sphereshade::render::Renderer;
 use sphereshade::scene::{self, LoadOptions, Scene, Sphere};
 use sphereshade::settings::{RenderSettings, ShadowMode};
@@ -574,40 +574,15 @@ fn overflow_grows_pool_and_matches_big_pool() {
     assert_no_validation_messages(&ctx);
 }
 
-/// Exact key-light visibility at the reference's visible points (None where
-/// the reference sees background or an ambiguous pixel) and its ids.
+/// Exact key-light visibility at the reference's visible points and its ids.
 fn reference_shadow(
     scene: &Scene,
     cam: &Camera,
     light: DVec3,
     opacity: f64,
 ) -> (Vec<Option<f64>>, Vec<u32>) {
-    let (_, radius) = scene.bounding_sphere();
-    let img = reference::cast(&scene.spheres, cam, 2e-5 * (radius as f64).max(1.0));
-    let lv = light_view(
-        scene.spheres.iter().map(|s| (s.center, s.radius)),
-        light,
-        1024,
-    )
-    .expect("light view");
-    let bins = Bins::new(&scene.spheres, &lv);
-    let mut out = vec![None; img.ids.len()];
-    for (i, o) in out.iter_mut().enumerate() {
-        if img.ids[i] == u32::MAX || img.ambiguous[i] {
-            continue;
-        }
-        let (orig, dir) = cam.ray(i as u32 % cam.width, i as u32 / cam.width);
-        let p = orig + img.t[i] * dir;
-        *o = Some(reference::shadow_ray(
-            &scene.spheres,
-            &bins,
-            light,
-            p,
-            img.ids[i],
-            opacity,
-        ));
-    }
-    (out, img.ids)
+    let (vis, img) = reference::shadow_image(&scene.spheres, cam, light, opacity);
+    (vis, img.ids)
 }
 
 /// Renders with deep shadows and returns (percentage agreeing, compared
