@@ -214,7 +214,12 @@ fn default_techniques() -> Vec<Technique> {
     use RasterMode::*;
     use ShadowMode as S;
     use SsdoMode as O;
-    let t = |shadows, ssdo, raster, opacity| Technique { shadows, ssdo, raster, opacity };
+    let t = |shadows, ssdo, raster, opacity| Technique {
+        shadows,
+        ssdo,
+        raster,
+        opacity,
+    };
     vec![
         t(S::None, O::Off, Compute, 1.0),
         t(S::Issm, O::Off, Compute, 1.0),
@@ -247,12 +252,25 @@ fn shared_data_files() -> Vec<PathBuf> {
 pub fn orbit_camera(base: &crate::camera::Camera, k: u32, n: u32) -> Result<crate::camera::Camera> {
     let angle = std::f64::consts::TAU * k as f64 / n.max(1) as f64;
     let dir = glam::DQuat::from_axis_angle(base.up, angle) * base.dir;
-    let height = if k % 4 == 3 { base.view_height / 4.0 } else { base.view_height };
-    crate::camera::Camera::new(base.center, dir, base.up, height, base.fov_deg, base.width, base.height)
+    let height = if k % 4 == 3 {
+        base.view_height / 4.0
+    } else {
+        base.view_height
+    };
+    crate::camera::Camera::new(
+        base.center,
+        dir,
+        base.up,
+        height,
+        base.fov_deg,
+        base.width,
+        base.height,
+    )
 }
 
 pub fn run(a: &BenchArgs) -> Result<BenchReport> {
-    let explicit = a.shadows.is_some() || a.ssdo.is_some() || a.raster.is_some() || a.opacity.is_some();
+    let explicit =
+        a.shadows.is_some() || a.ssdo.is_some() || a.raster.is_some() || a.opacity.is_some();
     let techniques = if explicit || a.quick {
         let def_shadows = if a.quick {
             vec![ShadowMode::None, ShadowMode::Issm, ShadowMode::IssmSoft]
@@ -264,14 +282,21 @@ pub fn run(a: &BenchArgs) -> Result<BenchReport> {
         let raster = list(&a.raster, &[RasterMode::Compute], "--raster")?;
         let opacity: Vec<f32> = parse_list(&a.opacity, &[1.0], "--opacity")?;
         if opacity.iter().any(|o| !(0.0..=1.0).contains(o)) {
-            return Err(Error::Invalid("--opacity values must be between 0 and 1".into()));
+            return Err(Error::Invalid(
+                "--opacity values must be between 0 and 1".into(),
+            ));
         }
         let mut t = Vec::new();
         for &shadows in &shadows {
             for &ssdo in &ssdo {
                 for &raster in &raster {
                     for &opacity in &opacity {
-                        t.push(Technique { shadows, ssdo, raster, opacity });
+                        t.push(Technique {
+                            shadows,
+                            ssdo,
+                            raster,
+                            opacity,
+                        });
                     }
                 }
             }
@@ -283,7 +308,11 @@ pub fn run(a: &BenchArgs) -> Result<BenchReport> {
     for t in &techniques {
         check_supported(t.shadows, t.raster)?;
     }
-    let def_atoms = if a.quick { vec![100_000] } else { vec![100_000, 1_000_000, 4_000_000] };
+    let def_atoms = if a.quick {
+        vec![100_000]
+    } else {
+        vec![100_000, 1_000_000, 4_000_000]
+    };
     let atoms: Vec<usize> = parse_list(&a.atoms, &def_atoms, "--atoms")?;
     let sizes = match &a.size {
         None if a.quick => vec![(960, 540)],
@@ -297,10 +326,19 @@ pub fn run(a: &BenchArgs) -> Result<BenchReport> {
         if files.is_empty() {
             eprintln!("bench: ../shared/data not found; running the procedural data sets only");
         }
-        let extra = BenchArgs { inputs: files, quick: true, ..a.clone() };
+        let extra = BenchArgs {
+            inputs: files,
+            quick: true,
+            ..a.clone()
+        };
         sets.extend(data_sets(&extra, &[])?);
         if let Some(tii) = extra.inputs.iter().find(|p| p.ends_with("1tii.pdb")) {
-            let lattice = BenchArgs { inputs: vec![tii.clone()], replicate: Some([6, 6, 5]), quick: true, ..a.clone() };
+            let lattice = BenchArgs {
+                inputs: vec![tii.clone()],
+                replicate: Some([6, 6, 5]),
+                quick: true,
+                ..a.clone()
+            };
             let mut more = data_sets(&lattice, &[])?;
             for d in &mut more {
                 d.name = format!("{} 6x6x5", d.name);
@@ -355,7 +393,13 @@ pub fn run(a: &BenchArgs) -> Result<BenchReport> {
                     a.warmup,
                     frames,
                     set.load_ms,
-                    &mut |r, k| if orbit { r.set_camera(orbit_camera(&base, k, frames)?) } else { Ok(()) },
+                    &mut |r, k| {
+                        if orbit {
+                            r.set_camera(orbit_camera(&base, k, frames)?)
+                        } else {
+                            Ok(())
+                        }
+                    },
                 )?;
                 runs.push(out.stats);
             }
@@ -390,7 +434,10 @@ fn key(r: &RunStats) -> (String, u64, u32, u32, String, String, String, u64) {
 }
 
 fn pass_ms(r: &RunStats, name: &str) -> Option<f64> {
-    r.passes.iter().find(|p| p.name == name).map(|p| p.median_ms)
+    r.passes
+        .iter()
+        .find(|p| p.name == name)
+        .map(|p| p.median_ms)
 }
 
 /// Derived ratios between runs of the same data set and size that differ in
@@ -403,14 +450,17 @@ pub fn ratios(runs: &[RunStats]) -> BTreeMap<String, f64> {
     let mut out = BTreeMap::new();
     let find = |base: &RunStats, shadows: &str, ssdo: &str, raster: &str, opacity: f64| {
         runs.iter().find(|r| {
-            (r.input.as_str(), r.spheres, r.width, r.height) == (base.input.as_str(), base.spheres, base.width, base.height)
+            (r.input.as_str(), r.spheres, r.width, r.height)
+                == (base.input.as_str(), base.spheres, base.width, base.height)
                 && r.shadows == shadows
                 && r.ssdo == ssdo
                 && r.raster == raster
                 && (r.opacity - opacity).abs() < 1e-6
         })
     };
-    let bases = runs.iter().filter(|r| r.shadows == "none" && r.ssdo == "off" && r.raster == "compute" && r.opacity == 1.0);
+    let bases = runs.iter().filter(|r| {
+        r.shadows == "none" && r.ssdo == "off" && r.raster == "compute" && r.opacity == 1.0
+    });
     for r in bases {
         let tag = format!("{} {}sph {}x{}", r.input, r.spheres, r.width, r.height);
         let frame = |x: &RunStats| x.total_ms.median;
@@ -430,9 +480,15 @@ pub fn ratios(runs: &[RunStats]) -> BTreeMap<String, f64> {
             out.insert(format!("deep_over_issm[{tag}]"), frame(d) / frame(h));
         }
         if let (Some(d5), Some(d)) = (find(r, "deep", "off", "compute", 0.5), deep) {
-            out.insert(format!("deep_translucent_over_opaque[{tag}]"), frame(d5) / frame(d));
+            out.insert(
+                format!("deep_translucent_over_opaque[{tag}]"),
+                frame(d5) / frame(d),
+            );
         }
-        if let (Some(se), Some(pl)) = (find(r, "issm-soft", "semantic", "compute", 1.0), find(r, "issm-soft", "plain", "compute", 1.0)) {
+        if let (Some(se), Some(pl)) = (
+            find(r, "issm-soft", "semantic", "compute", 1.0),
+            find(r, "issm-soft", "plain", "compute", 1.0),
+        ) {
             out.insert(format!("semantic_over_plain[{tag}]"), frame(se) / frame(pl));
         }
         if let Some(g) = find(r, "none", "off", "graphics", 1.0)
@@ -440,7 +496,10 @@ pub fn ratios(runs: &[RunStats]) -> BTreeMap<String, f64> {
         {
             out.insert(format!("graphics_over_compute_raster[{tag}]"), gr / cr);
         }
-        out.insert(format!("ms_per_million_spheres[{tag}]"), frame(r) / (r.spheres as f64 / 1e6));
+        out.insert(
+            format!("ms_per_million_spheres[{tag}]"),
+            frame(r) / (r.spheres as f64 / 1e6),
+        );
     }
     out
 }
@@ -520,8 +579,10 @@ pub fn main(a: &BenchArgs) -> Result<u32> {
     print!("{}", table(&report));
     output::write_json(&a.json, &report)?;
     if let Some(c) = &a.chart {
-        output::AovImage::Rgba8(image::DynamicImage::ImageRgb8(crate::chart::bar_chart(&report)).to_rgba8())
-            .save_png(c)?;
+        output::AovImage::Rgba8(
+            image::DynamicImage::ImageRgb8(crate::chart::bar_chart(&report)).to_rgba8(),
+        )
+        .save_png(c)?;
     }
     if let Some(old) = old {
         println!("compare (new / old median ms):");

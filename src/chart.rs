@@ -135,7 +135,11 @@ pub fn bar_chart(report: &BenchReport) -> RgbImage {
         fill(&mut img, x, y, 12, CHAR_H, pass_color(i));
         draw_text(&mut img, x + 18, y, n, ink);
     }
-    let max = report.runs.iter().map(|r| r.total_ms.median).fold(1e-9, f64::max);
+    let max = report
+        .runs
+        .iter()
+        .map(|r| r.total_ms.median)
+        .fold(1e-9, f64::max);
     let x0 = 10 + LABEL_CHARS * CHAR_W + 10;
     let bar_w = width - x0 - 90;
     for (k, r) in report.runs.iter().enumerate() {
@@ -149,7 +153,11 @@ pub fn bar_chart(report: &BenchReport) -> RgbImage {
             r.shadows,
             r.ssdo,
             r.raster,
-            if r.opacity < 1.0 { format!(" a{:.1}", r.opacity) } else { String::new() }
+            if r.opacity < 1.0 {
+                format!(" a{:.1}", r.opacity)
+            } else {
+                String::new()
+            }
         );
         let label: String = label.chars().take(LABEL_CHARS as usize).collect();
         draw_text(&mut img, 10, y + 5, &label, ink);
@@ -160,10 +168,20 @@ pub fn bar_chart(report: &BenchReport) -> RgbImage {
             fill(&mut img, x, y + 2, w, ROW - 6, pass_color(i));
             x += w;
         }
-        draw_text(&mut img, x + 6, y + 5, &format!("{:.0}", r.total_ms.median), ink);
+        draw_text(
+            &mut img,
+            x + 6,
+            y + 5,
+            &format!("{:.0}", r.total_ms.median),
+            ink,
+        );
     }
     let foot = height - 20;
-    let note = format!("median ms per frame, {} on {}", "timestamp queries", report.runs.first().map_or("", |r| r.device.as_str()));
+    let note = format!(
+        "median ms per frame, {} on {}",
+        "timestamp queries",
+        report.runs.first().map_or("", |r| r.device.as_str())
+    );
     draw_text(&mut img, 10, foot, &note, Rgb([90, 90, 90]));
     img
 }
