@@ -442,7 +442,17 @@ pub fn render_run(
     frames: u32,
     load_ms: f64,
 ) -> Result<RunOutcome> {
-    render_run_with(ctx, scene, input, settings, aov, warmup, frames, load_ms, &mut |_, _| Ok(()))
+    render_run_with(
+        ctx,
+        scene,
+        input,
+        settings,
+        aov,
+        warmup,
+        frames,
+        load_ms,
+        &mut |_, _| Ok(()),
+    )
 }
 
 /// `render_run` with a hook before each measured frame (see `run_frames_with`).
@@ -562,7 +572,9 @@ fn render(args: RenderArgs) -> Result<Exit> {
         load_ms,
     )?;
     let mut stats = outcome.stats;
-    stats.validation_messages = ctx.validation_messages();
+    // Tear the device down first so leak reports are counted too.
+    let (n, _) = ctx.finish();
+    stats.validation_messages = n;
     outcome.image.save_png(&args.out)?;
     if let Some(j) = &args.json {
         output::write_json(j, &stats)?;
@@ -577,7 +589,6 @@ fn render(args: RenderArgs) -> Result<Exit> {
         stats.frames,
         args.out.display()
     );
-    let n = ctx.validation_messages();
     Ok(if n > 0 {
         Exit::ValidationMessages(n)
     } else {

@@ -111,3 +111,39 @@ fn gpu_struct_layout_matches_glsl() {
     );
     assert_no_validation_messages(&ctx);
 }
+
+/// Tearing down a renderer with every technique leaves nothing behind: the
+/// layer reports leaked objects when the device is destroyed, and
+/// `Context::finish` counts those too.
+#[test]
+fn renderer_teardown_leaks_nothing() {
+    use sphereshade::render::Renderer;
+    use sphereshade::settings::{ShadowMode, SsdoMode};
+    let ctx = validated_context();
+    let s = sphereshade::scene::procedural("capsid", 1500, 4).expect("scene");
+    for (shadows, ssdo) in [
+        (ShadowMode::IssmSoft, SsdoMode::Semantic),
+        (ShadowMode::Deep, SsdoMode::Plain),
+        (ShadowMode::None, SsdoMode::Off),
+    ] {
+        let mut st = settings(camera(&s, 64, 48, None), shadows);
+        st.ssdo = ssdo;
+        st.blur = true;
+        let mut r = Renderer::new(&ctx, &s, st).expect("renderer");
+        r.render_frame().expect("frame");
+    }
+    let (n, msgs) = ctx.finish();
+    assert_eq!(n, 0, "teardown reported: {}", msgs.join("\n---\n"));
+}
+
+/// Negative: a buffer that is never destroyed must show up as a leak.
+#[test]
+fn a_leaked_buffer_is_reported_at_teardown() {
+    let ctx = validated_context();
+    let b = Buffer::storage(&ctx, "deliberately leaked", 256).expect("buffer");
+    std::mem::forget(b);
+    let (n, msgs) = ctx.finish();
+    assert!(n > 0, "a leaked VkBuffer went unreported");
+    let all = msgs.join("\n");
+    assert!(all.contains("deliberately leaked") || all.contains("VkBuffer"), "unexpected messages: {all}");
+}

@@ -503,10 +503,12 @@ pub fn run(cmd: ViewCmd) -> Result<Exit> {
         return Err(e);
     }
     ran.map_err(|e| Error::Invalid(format!("event loop: {e}")))?;
-    let n = ctx.validation_messages();
+    let exit = std::mem::replace(&mut app.exit, Exit::Ok);
+    drop(app);
+    let (n, _) = ctx.finish();
     Ok(if n > 0 {
         Exit::ValidationMessages(n)
     } else {
-        app.exit
+        exit
     })
 }

@@ -66,6 +66,7 @@ pub struct Context {
     /// the messenger's user data).
     pub messages: Box<MessageLog>,
     pub validation: bool,
+    device_destroyed: bool,
 }
 
 fn device_kind(t: vk::PhysicalDeviceType) -> (&'static str, u32) {
@@ -366,6 +367,7 @@ impl Context {
             command_pool,
             messages,
             validation: opts.validate,
+            device_destroyed: false,
         };
         ctx.name(ctx.queue, "main queue");
         ctx.name(ctx.command_pool, "main command pool");
@@ -623,8 +625,14 @@ impl Context {
     }
 }
 
-impl Drop for Context {
-    fn drop(&mut self) {
+impl Context {
+    /// Destroys the device (idempotent). The validation layer reports leaked
+    /// objects here, so counts read afterwards include them.
+    fn destroy_device(&mut self) {
+        if self.device_destroyed {
+            return;
+        }
+        self.device_destroyed = true;
         unsafe {
             let _ = self.device.device_wait_idle();
             self.device.destroy_command_pool(self.command_pool, None);
@@ -636,6 +644,21 @@ impl Drop for Context {
             // The allocator frees its memory blocks; it must go before the device.
             ManuallyDrop::drop(&mut self.allocator);
             self.device.destroy_device(None);
+        }
+    }
+
+    /// Tears the device down and returns every validation warning/error
+    /// counted, including leak reports made at device destruction.
+    pub fn finish(mut self) -> (u32, Vec<String>) {
+        self.destroy_device();
+        (self.messages.count(), self.messages.messages())
+    }
+}
+
+impl Drop for Context {
+    fn drop(&mut self) {
+        self.destroy_device();
+        unsafe {
             if let Some(di) = &self.debug_instance {
                 di.destroy_debug_utils_messenger(self.messenger, None);
             }
