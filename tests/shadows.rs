@@ -39,6 +39,11 @@ fn hard_mask_agreement(ctx: &Context, name: &str, scene: &Scene, s: RenderSettin
     let ids = ids_from_vis(&r.read_vis().expect("vis"));
     let shadow = r.read_shadow().expect("shadow");
     let (t, map_size) = r.issm_info().map(|(l, t)| (t, l.width)).unwrap_or((0, 0));
+    let texel = r
+        .issm_info()
+        .map_or(1.0, |(l, _)| l.view_height / l.width as f64);
+    let gpos = r.read_gpos().expect("gpos");
+    let mut near_silhouette = 0usize;
     let (refs, ref_ids) = reference_shadow(scene, &cam, light, 1.0);
     let mut m = MaskMatch {
         compared: 0,
@@ -61,6 +66,18 @@ fn hard_mask_agreement(ctx: &Context, name: &str, scene: &Scene, s: RenderSettin
                 image::Rgb([160, 160, 160])
             };
         } else {
+            // Where are the misses? Distance of P's light ray to the nearest
+            // occluder silhouette ahead, in ISSM texels.
+            let p = gpos[i];
+            let gap = silhouette_gap(
+                scene,
+                light,
+                glam::DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64),
+                ref_ids[i],
+            );
+            if gap < texel {
+                near_silhouette += 1;
+            }
             // red: GPU shadowed but lit; green: light leaks where shadowed
             *px = if g_sh {
                 image::Rgb([255, 0, 0])
@@ -70,8 +87,10 @@ fn hard_mask_agreement(ctx: &Context, name: &str, scene: &Scene, s: RenderSettin
         }
     }
     let pct = 100.0 * m.agree as f64 / m.compared.max(1) as f64;
+    let misses = m.compared - m.agree;
     eprintln!(
-        "{name}: hard mask agrees on {pct:.3}% of {} visible pixels (map {map_size}², t = {t})",
+        "{name}: hard mask agrees on {pct:.3}% of {} visible pixels (map {map_size}², t = {t}); \
+         {misses} misses, {near_silhouette} of them within one texel ({texel:.3}) of an occluder silhouette",
         m.compared
     );
     if pct < 99.5 {
@@ -80,6 +99,26 @@ fn hard_mask_agreement(ctx: &Context, name: &str, scene: &Scene, s: RenderSettin
         eprintln!("{name}: wrote {}", p.display());
     }
     m
+}
+
+/// Smallest |distance(ray, centre) - r| over spheres ahead of `p` toward the
+/// light (brute force; test scenes are small).
+fn silhouette_gap(scene: &Scene, light: DVec3, p: DVec3, self_id: u32) -> f64 {
+    let d = -light.normalize();
+    let mut best = f64::INFINITY;
+    for (i, s) in scene.spheres.iter().enumerate() {
+        if i as u32 == self_id {
+            continue;
+        }
+        let c = DVec3::new(s.center[0] as f64, s.center[1] as f64, s.center[2] as f64);
+        let k = (c - p).dot(d);
+        if k + (s.radius as f64) < 0.0 {
+            continue;
+        }
+        let dist = ((c - p) - k * d).length();
+        best = best.min((dist - s.radius as f64).abs());
+    }
+    best
 }
 
 fn issm_settings(
