@@ -166,6 +166,15 @@ fn issm_hard_matches_exact_shadows_1tii() {
     )
     .expect("1tii");
     assert_mask(&ctx, "issm-1tii", &s, None);
+    // The paper's t = 1 (3x3 patch), for the accuracy/speed trade-off.
+    let m = hard_mask_agreement(
+        &ctx,
+        "issm-1tii-t1",
+        &s,
+        issm_settings(&s, 256, 200, ShadowMode::Issm, Some(1)),
+    );
+    let pct = 100.0 * m.agree as f64 / m.compared as f64;
+    assert!(pct >= 97.0, "t = 1 agrees on only {pct:.3}%");
     assert_no_validation_messages(&ctx);
 }
 
