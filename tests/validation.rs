@@ -145,5 +145,8 @@ fn a_leaked_buffer_is_reported_at_teardown() {
     let (n, msgs) = ctx.finish();
     assert!(n > 0, "a leaked VkBuffer went unreported");
     let all = msgs.join("\n");
-    assert!(all.contains("deliberately leaked") || all.contains("VkBuffer"), "unexpected messages: {all}");
+    assert!(
+        all.contains("deliberately leaked") || all.contains("VkBuffer"),
+        "unexpected messages: {all}"
+    );
 }
