@@ -5,7 +5,9 @@ use crate::error::{Error, Result};
 use crate::output::{self, RunStats};
 use crate::render::{PassTimes, Renderer, default_camera};
 use crate::scene::{self, ColorBy, LoadOptions, ModelSelect, Scene};
-use crate::settings::{Aov, IssmParams, RasterMode, RenderSettings, ShadowMode, SsdoMode};
+use crate::settings::{
+    Aov, IssmParams, RasterMode, RenderSettings, ShadowMapParams, ShadowMode, SsdoMode,
+};
 use crate::vk::{Context, ContextOptions};
 use clap::{Args, Parser, Subcommand};
 use glam::DVec3;
@@ -86,6 +88,28 @@ pub struct ViewArgs {
     pub soft_x: Option<f32>,
     #[arg(long)]
     pub soft_b: Option<f32>,
+    /// Depth shadow map side in texels (`--shadows sm-pcf`).
+    #[arg(long, default_value_t = 2048)]
+    pub sm_size: u32,
+    /// Constant depth bias of the shadow map, in map texels.
+    #[arg(long, default_value_t = 0.5)]
+    pub sm_bias: f32,
+    /// Slope-scaled bias factor: times tan(N, light) times the lookup reach
+    /// (half a texel diagonal + PCF radius), in texels.
+    #[arg(long, default_value_t = 1.0)]
+    pub sm_slope_bias: f32,
+    /// PCF taps on a Vogel disk rotated per pixel (0 or 1 = single tap).
+    #[arg(long, default_value_t = 16)]
+    pub pcf_samples: u32,
+    /// PCF disk radius in shadow-map texels.
+    #[arg(long, default_value_t = 1.5)]
+    pub pcf_radius: f32,
+    /// Opacity shadow map side in texels (`--shadows osm`).
+    #[arg(long, default_value_t = 512)]
+    pub osm_size: u32,
+    /// Depth slices of the opacity shadow map.
+    #[arg(long, default_value_t = 64)]
+    pub osm_slices: u32,
     /// Opacity of every sphere (0..1) for translucent shadows.
     #[arg(long, default_value_t = 1.0)]
     pub opacity: f32,
@@ -324,11 +348,53 @@ pub fn settings_for(scene: &Scene, v: &ViewArgs) -> Result<RenderSettings> {
             *slot = x;
         }
     }
+    // Baseline shadow map (sm-pcf) and opacity shadow map (osm) options.
+    if !(16..=8192).contains(&v.sm_size) {
+        return Err(Error::Invalid(
+            "--sm-size must be between 16 and 8192".into(),
+        ));
+    }
+    for (x, name) in [
+        (v.sm_bias, "--sm-bias"),
+        (v.sm_slope_bias, "--sm-slope-bias"),
+        (v.pcf_radius, "--pcf-radius"),
+    ] {
+        if !(0.0..=1e4).contains(&x) {
+            return Err(Error::Invalid(format!(
+                "{name} must be between 0 and 10000 (texels)"
+            )));
+        }
+    }
+    if v.pcf_samples > 256 {
+        return Err(Error::Invalid(
+            "--pcf-samples must be between 0 and 256".into(),
+        ));
+    }
+    if !(16..=4096).contains(&v.osm_size) {
+        return Err(Error::Invalid(
+            "--osm-size must be between 16 and 4096".into(),
+        ));
+    }
+    if !(1..=1024).contains(&v.osm_slices) {
+        return Err(Error::Invalid(
+            "--osm-slices must be between 1 and 1024".into(),
+        ));
+    }
+    let shadow_maps = ShadowMapParams {
+        sm_size: v.sm_size,
+        sm_bias: v.sm_bias,
+        sm_slope_bias: v.sm_slope_bias,
+        pcf_samples: v.pcf_samples,
+        pcf_radius: v.pcf_radius,
+        osm_size: v.osm_size,
+        osm_slices: v.osm_slices,
+    };
     Ok(RenderSettings {
         camera,
         light: v.light,
         shadows: v.shadows,
         issm,
+        shadow_maps,
         opacity: v.opacity,
         ssdo: v.ssdo,
         blur: v.blur == "on",

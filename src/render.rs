@@ -9,9 +9,11 @@ use crate::passes::blur::{Axis, BlurPass, BlurPush};
 use crate::passes::composite::{CompositeInputs, CompositePass, CompositePush};
 use crate::passes::deep::DeepShadows;
 use crate::passes::issm::{self, IssmPush, IssmShadowPass};
+use crate::passes::osm::OpacityShadows;
 use crate::passes::raster::{self, RasterPass, ViewIndex};
 use crate::passes::raster_graphics::GraphicsRasterPass;
 use crate::passes::resolve::ResolvePass;
+use crate::passes::shadow_map::ShadowMap;
 use crate::passes::ssdo::{GBuffer, KeyShadowPush, SsdoPass, SsdoPush};
 use crate::scene::Scene;
 use crate::semantic::{self, LevelChoice};
@@ -52,6 +54,10 @@ pub struct Renderer<'c> {
     composite: CompositePass,
     issm: Option<IssmState>,
     deep: Option<DeepShadows>,
+    /// Baseline depth shadow map with PCF (`--shadows sm-pcf`).
+    shadow_map: Option<ShadowMap>,
+    /// Baseline opacity shadow maps (`--shadows osm`).
+    osm: Option<OpacityShadows>,
     /// Stats of the last frame's deep lists (after any pool growth).
     pub deep_stats: Option<DeepStats>,
     profiler: Profiler,
@@ -128,6 +134,33 @@ impl<'c> Renderer<'c> {
         }
         let cam = &settings.camera;
         let pixels = cam.width as u64 * cam.height as u64;
+        // The baselines fit the same kind of light view, at their own sizes;
+        // built first, so a map the device cannot hold fails before anything
+        // else is allocated.
+        let baseline_light = |size: u32| {
+            crate::camera::light_view(
+                scene.spheres.iter().map(|s| (s.center, s.radius)),
+                settings.light,
+                size,
+            )
+        };
+        let shadow_map = match settings.shadows {
+            ShadowMode::SmPcf => Some(ShadowMap::new(
+                ctx,
+                baseline_light(settings.shadow_maps.sm_size)?,
+                &settings.shadow_maps,
+            )?),
+            _ => None,
+        };
+        let osm = match settings.shadows {
+            ShadowMode::Osm => Some(OpacityShadows::new(
+                ctx,
+                baseline_light(settings.shadow_maps.osm_size)?,
+                scene.spheres.iter().map(|s| (s.center, s.radius)),
+                &settings.shadow_maps,
+            )?),
+            _ => None,
+        };
         let geom: Vec<GpuSphere> = scene
             .spheres
             .iter()
@@ -197,7 +230,10 @@ impl<'c> Renderer<'c> {
                         (t, issm::auto_stride(min_r, texel))
                     }
                 };
-                log::info!("issm: map {}², texel {texel:.3}, t {t}, stride {stride}", p.size);
+                log::info!(
+                    "issm: map {}², texel {texel:.3}, t {t}, stride {stride}",
+                    p.size
+                );
                 Some(IssmState {
                     map: raster::vis_buffer(ctx, "issm", p.size as u64 * p.size as u64)?,
                     pass: IssmShadowPass::new(ctx)?,
@@ -229,7 +265,9 @@ impl<'c> Renderer<'c> {
         let light_cam = issm
             .as_ref()
             .map(|s| s.light)
-            .or(deep.as_ref().map(|d| d.light));
+            .or(deep.as_ref().map(|d| d.light))
+            .or(shadow_map.as_ref().map(|s| s.light))
+            .or(osm.as_ref().map(|o| o.light));
         let light_gpu = match light_cam {
             Some(l) => {
                 let off = (bs_center.as_dvec3() - l.center).length() + bs_radius as f64 + 1.0;
@@ -346,6 +384,8 @@ impl<'c> Renderer<'c> {
             composite: CompositePass::new(ctx)?,
             issm,
             deep,
+            shadow_map,
+            osm,
             deep_stats: None,
             profiler: Profiler::new(ctx, 32)?,
             cmd,
@@ -426,6 +466,8 @@ impl<'c> Renderer<'c> {
             + self.raster.memory_bytes()
             + self.issm.as_ref().map_or(0, |s| s.map.size)
             + self.deep.as_ref().map_or(0, |d| d.memory_bytes())
+            + self.shadow_map.as_ref().map_or(0, |s| s.memory_bytes())
+            + self.osm.as_ref().map_or(0, |o| o.memory_bytes())
     }
 
     /// Renders one frame; when the deep-list pool overflowed, grows it and
@@ -553,6 +595,11 @@ impl<'c> Renderer<'c> {
             )?;
         }
 
+        if let Some(sm) = &self.shadow_map {
+            let (g, s, c) = (&self.globals, &self.spheres, self.sphere_count);
+            sm.record_raster(ctx, cmd, prof, &self.raster, g, s, c)?;
+        }
+
         prof.begin(ctx, cmd, ResolvePass::NAME)?;
         let (g, s, v, gp, gn) = (
             &self.globals,
@@ -617,7 +664,22 @@ impl<'c> Renderer<'c> {
             barrier(&ctx.device, cmd);
         }
 
-        let exact_shadows = self.issm.is_some() || self.deep.is_some();
+        if let Some(sm) = &self.shadow_map {
+            let (g, v, gp, gn) = (&self.globals, &self.vis, &self.gpos, &self.gnorm);
+            sm.record_shadow(ctx, cmd, prof, g, v, gp, gn, &self.shadow, pixels)?;
+        }
+
+        if let Some(o) = &self.osm {
+            let (g, s, v, gp) = (&self.globals, &self.spheres, &self.vis, &self.gpos);
+            let opacity = self.settings.opacity;
+            o.record(ctx, cmd, prof, g, s, v, gp, &self.shadow, opacity, pixels)?;
+        }
+
+        // Light-space shadows (exact or baseline) replace the screen-space ones.
+        let exact_shadows = self.issm.is_some()
+            || self.deep.is_some()
+            || self.shadow_map.is_some()
+            || self.osm.is_some();
         let (mut amb_final, mut shadow_final) = (&self.ambient, &self.shadow);
         if let Some(st) = &self.ssdo {
             let gb = GBuffer {
@@ -752,6 +814,16 @@ impl<'c> Renderer<'c> {
         }
     }
 
+    /// The baseline depth shadow map, when `--shadows sm-pcf` is active.
+    pub fn shadow_map(&self) -> Option<&ShadowMap> {
+        self.shadow_map.as_ref()
+    }
+
+    /// The baseline opacity shadow maps, when `--shadows osm` is active.
+    pub fn opacity_shadows(&self) -> Option<&OpacityShadows> {
+        self.osm.as_ref()
+    }
+
     /// The deep shadow lists, when `--shadows deep` is active.
     pub fn deep(&self) -> Option<&DeepShadows> {
         self.deep.as_ref()
@@ -826,6 +898,12 @@ impl Drop for Renderer<'_> {
         }
         if let Some(d) = &mut self.deep {
             d.destroy(ctx);
+        }
+        if let Some(sm) = &mut self.shadow_map {
+            sm.destroy(ctx);
+        }
+        if let Some(o) = &mut self.osm {
+            o.destroy(ctx);
         }
         if let Some(st) = &mut self.ssdo {
             st.pass.destroy(ctx);

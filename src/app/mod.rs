@@ -46,7 +46,7 @@ pub struct ViewCmd {
 }
 
 pub const HELP: &str = "controls: left drag orbit | right/middle drag pan | wheel zoom | shift+drag light | \
-S shadows (none/issm/issm-soft/deep) | O ssdo (off/plain/semantic) | B blur | +/- opacity | R reset camera | \
+S shadows (none/issm/issm-soft/deep/sm-pcf/osm) | O ssdo (off/plain/semantic) | B blur | +/- opacity | R reset camera | \
 P screenshot | H help | Esc quit";
 
 /// Camera parameters the controls change.
@@ -80,6 +80,8 @@ struct App<'c> {
     orbit: Option<Orbit>,
     size: (u32, u32),
     frames: u32,
+    /// When the first frame was presented (fps averages start there).
+    second_frame_at: Option<Instant>,
     resized_once: bool,
     cursor: (f64, f64),
     buttons: [bool; 3],
@@ -228,6 +230,9 @@ impl<'c> App<'c> {
             return Ok(());
         }
         self.frames += 1;
+        if self.frames == 1 {
+            self.second_frame_at = Some(Instant::now());
+        }
         self.title(&times);
         if let Some(n) = self.cmd.frames {
             if self.cmd.resize_test && !self.resized_once && self.frames >= n / 2 {
@@ -238,6 +243,14 @@ impl<'c> App<'c> {
                 }
             }
             if self.frames >= n && (!self.cmd.resize_test || self.resized_once) {
+                // Average over the frames after the first (pipeline warm-up).
+                if let Some(t0) = self.second_frame_at {
+                    let fps = (self.frames - 1) as f64 / t0.elapsed().as_secs_f64().max(1e-9);
+                    eprintln!(
+                        "view: {} frames at {}x{}, {fps:.2} fps (frames 2..{})",
+                        self.frames, self.size.0, self.size.1, self.frames
+                    );
+                }
                 if let Some(p) = self.cmd.screenshot.clone() {
                     self.screenshot(&p)?;
                 }
@@ -258,7 +271,9 @@ impl<'c> App<'c> {
                     ShadowMode::None => ShadowMode::Issm,
                     ShadowMode::Issm => ShadowMode::IssmSoft,
                     ShadowMode::IssmSoft => ShadowMode::Deep,
-                    ShadowMode::Deep => ShadowMode::None,
+                    ShadowMode::Deep => ShadowMode::SmPcf,
+                    ShadowMode::SmPcf => ShadowMode::Osm,
+                    ShadowMode::Osm => ShadowMode::None,
                 }
             }
             Key::Character("o" | "O") => {
@@ -482,6 +497,7 @@ pub fn run(cmd: ViewCmd) -> Result<Exit> {
         orbit: None,
         size,
         frames: 0,
+        second_frame_at: None,
         resized_once: false,
         cursor: (0.0, 0.0),
         buttons: [false; 3],

@@ -191,12 +191,14 @@ impl Swapchain {
         let dev = &ctx.device;
         let f = &self.frames[self.frame];
         unsafe { dev.wait_for_fences(&[f.fence], true, u64::MAX) }.vk("vkWaitForFences")?;
-        let index = match unsafe {
+        // A suboptimal image still holds the signalled semaphore: it must be
+        // presented (not dropped), and the swapchain recreated after.
+        let (index, suboptimal) = match unsafe {
             self.loader
                 .acquire_next_image(self.swapchain, u64::MAX, f.acquired, vk::Fence::null())
         } {
-            Ok((i, false)) => i,
-            Ok((_, true)) | Err(vk::Result::ERROR_OUT_OF_DATE_KHR) => return Ok(Present::Recreate),
+            Ok(v) => v,
+            Err(vk::Result::ERROR_OUT_OF_DATE_KHR) => return Ok(Present::Recreate),
             Err(result) => {
                 return Err(Error::Vk {
                     call: "vkAcquireNextImageKHR",
@@ -302,8 +304,9 @@ impl Swapchain {
             .swapchains(&swapchains)
             .image_indices(&indices);
         match unsafe { self.loader.queue_present(ctx.queue, &info) } {
-            Ok(false) => Ok(Present::Ok),
-            Ok(true) | Err(vk::Result::ERROR_OUT_OF_DATE_KHR) => Ok(Present::Recreate),
+            Ok(false) if !suboptimal => Ok(Present::Ok),
+            Ok(_) => Ok(Present::Recreate),
+            Err(vk::Result::ERROR_OUT_OF_DATE_KHR) => Ok(Present::Recreate),
             Err(result) => Err(Error::Vk {
                 call: "vkQueuePresentKHR",
                 result,

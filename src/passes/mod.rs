@@ -5,9 +5,11 @@ pub mod blur;
 pub mod composite;
 pub mod deep;
 pub mod issm;
+pub mod osm;
 pub mod raster;
 pub mod raster_graphics;
 pub mod resolve;
+pub mod shadow_map;
 pub mod ssdo;
 
 use crate::vk::Context;

@@ -8,7 +8,9 @@ use sphereshade::camera::Camera;
 use sphereshade::reference::RefImage;
 use sphereshade::render::default_camera;
 use sphereshade::scene::{Scene, Sphere};
-use sphereshade::settings::{IssmParams, RasterMode, RenderSettings, ShadowMode, SsdoMode};
+use sphereshade::settings::{
+    IssmParams, RasterMode, RenderSettings, ShadowMapParams, ShadowMode, SsdoMode,
+};
 use sphereshade::vk::{Context, ContextOptions};
 use std::path::PathBuf;
 
@@ -74,6 +76,7 @@ pub fn settings(camera: Camera, shadows: ShadowMode) -> RenderSettings {
         light: DVec3::new(-1.0, -1.0, -1.0),
         shadows,
         issm: IssmParams::default(),
+        shadow_maps: ShadowMapParams::default(),
         opacity: 1.0,
         ssdo: SsdoMode::Off,
         blur: false,

@@ -1,0 +1,106 @@
+#version 460
+// Baseline hard shadows (seed 003): depth shadow map lookup with a
+// slope-scaled depth bias and percentage-closer filtering on a Vogel disk.
+//
+// The map is the key light's visibility buffer written by the compute sphere
+// rasterizer (sm_raster): per texel, the light depth of the nearest sphere
+// SURFACE (plus the view's depth offset) as float bits in the high word and
+// the sphere id in the low word. P = gpos is projected into the light view
+// and its light depth compared with the stored one:
+//   lit  iff  depth(P) - bias <= map depth,
+//   bias = c + s * min(tan(theta), tan_max)     (theta: angle of N to the light)
+// where c and s (world units) come from --sm-bias and --sm-slope-bias times
+// the texel size (s also times the lookup reach, see src/passes/shadow_map.rs).
+//
+// PCF: `samples` taps at offsets radius * sqrt((k + 0.5) / N) at angles
+// k * 2.4 + phi (the golden-angle Vogel disk of the seed), phi a per-pixel
+// hash so the banding of a fixed pattern turns into fine noise; visibility is
+// the fraction of taps that pass. samples <= 1 is one tap at P's texel.
+//
+// Receivers facing away from the light (N . L <= 0): the depth map
+// necessarily holds the receiver's own lit cap in front of P, but the shadow
+// AOV counts occlusion by OTHER spheres only (DESIGN.md). There, a tap whose
+// nearest sphere is the receiver itself (the id half of the key) counts as
+// unoccluded. The same holds within the grazing band where tan(theta) would
+// exceed tan_max (N . L < 1 / sqrt(1 + tan_max^2), about 5.7 degrees from the
+// terminator for tan_max = 10): no finite slope bias avoids acne there. All
+// other receivers use the plain biased depth test, so their acne and
+// peter-panning are exactly those of a classic shadow map.
+#include "shared.glsl"
+
+layout(local_size_x_id = 0) in;
+
+layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
+layout(set = 0, binding = 1) readonly buffer Vis { uint64_t vis[]; };
+layout(set = 0, binding = 2) readonly buffer GPos { vec4 gpos[]; };
+layout(set = 0, binding = 3) readonly buffer GNorm { vec4 gnorm[]; };
+layout(set = 0, binding = 4) readonly buffer Map { uint64_t map[]; };
+layout(set = 0, binding = 5) writeonly buffer Shadow { float shadow[]; };
+
+layout(push_constant) uniform Push {
+    float bias_const; // world units
+    float bias_slope; // world units per unit of tan(theta)
+    float tan_max;    // clamp of tan(theta) near the terminator
+    float radius;     // PCF disk radius in texels
+    uint samples;     // PCF taps (<= 1: single tap)
+} pc;
+
+const float GOLDEN_ANGLE = 2.4;
+const float TWO_PI = 6.2831853;
+
+// Integer hash (PCG-style) of the pixel index -> [0, 1).
+float hash01(uint x) {
+    uint s = x * 747796405u + 2891336453u;
+    uint w = ((s >> ((s >> 28u) + 4u)) ^ s) * 277803737u;
+    w = (w >> 22u) ^ w;
+    return float(w >> 8) * (1.0 / 16777216.0);
+}
+
+void main() {
+    uint w = g.cam.dims.x, h = g.cam.dims.y;
+    uint i = FLAT_ID;
+    if (i >= w * h) return;
+    uint64_t key = vis[i];
+    if (key == VIS_EMPTY) {
+        shadow[i] = 1.0;
+        return;
+    }
+    uint self_id = uint(key & 0xFFFFFFFFul);
+    vec3 p = gpos[i].xyz;
+    vec3 n = gnorm[i].xyz;
+    View L = g.light;
+    vec3 q = p - L.center.xyz;
+    float size = L.right.w, ppu = L.center.w;
+    // Texel-index coordinates (texel centres at integers).
+    vec2 uv = vec2(dot(q, L.right.xyz) * ppu + 0.5 * size - 0.5,
+                   0.5 * size - dot(q, L.up.xyz) * ppu - 0.5);
+    float pd = dot(q, L.dir.xyz) + L.depth.x;
+
+    float ndl = dot(n, -L.dir.xyz);
+    bool back = ndl * sqrt(1.0 + pc.tan_max * pc.tan_max) <= 1.0;
+    float tan_t = back ? pc.tan_max : min(sqrt(max(1.0 - ndl * ndl, 0.0)) / ndl, pc.tan_max);
+    float bias = pc.bias_const + pc.bias_slope * tan_t;
+    float test_depth = pd - bias;
+
+    uint taps = max(pc.samples, 1u);
+    float phi = taps > 1u ? TWO_PI * hash01(i) : 0.0;
+    int last = int(size) - 1;
+    float lit = 0.0;
+    for (uint k = 0u; k < taps; ++k) {
+        vec2 off = vec2(0.0);
+        if (taps > 1u) {
+            float r = pc.radius * sqrt((float(k) + 0.5) / float(taps));
+            float a = float(k) * GOLDEN_ANGLE + phi;
+            off = r * vec2(cos(a), sin(a));
+        }
+        ivec2 t = clamp(ivec2(round(uv + off)), ivec2(0), ivec2(last));
+        uint64_t m = map[uint(t.y) * uint(size) + uint(t.x)];
+        if (m == VIS_EMPTY || (back && uint(m & 0xFFFFFFFFul) == self_id)) {
+            lit += 1.0;
+            continue;
+        }
+        float d = uintBitsToFloat(uint(m >> 32));
+        lit += test_depth <= d ? 1.0 : 0.0;
+    }
+    shadow[i] = lit / float(taps);
+}
