@@ -34,7 +34,11 @@ pub struct Renderer<'c> {
     bounds: (glam::DVec3, f64),
     /// Write the colour buffer as BGRA (for BGRA swapchains).
     bgra: bool,
-    globals: Buffer,
+    /// Per-frame resources, so a frame can be recorded while the previous
+    /// one still runs (the viewer); `render_frame` uses them one at a time.
+    slots: Vec<FrameSlot>,
+    /// The slot the next frame uses.
+    next_slot: usize,
     spheres: Buffer,
     attrs: Buffer,
     vis: Buffer,
@@ -60,9 +64,53 @@ pub struct Renderer<'c> {
     osm: Option<OpacityShadows>,
     /// Stats of the last frame's deep lists (after any pool growth).
     pub deep_stats: Option<DeepStats>,
-    profiler: Profiler,
+}
+
+/// What one frame in flight owns: its command buffer, fence, timestamp
+/// queries and uniform buffer (descriptor sets come from the context's arena
+/// of the same slot). Render targets are shared: frames on the one queue run
+/// in order, and each frame starts with a full barrier.
+struct FrameSlot {
     cmd: vk::CommandBuffer,
+    /// Signalled when the frame that last used this slot finished.
     fence: vk::Fence,
+    profiler: Profiler,
+    globals: Buffer,
+    /// A frame was submitted with this slot and its results not yet read.
+    pending: bool,
+}
+
+impl FrameSlot {
+    fn new(ctx: &Context, i: usize) -> Result<Self> {
+        let cmd = ctx.command_buffer(&format!("frame {i}"))?;
+        let info = vk::FenceCreateInfo::default().flags(vk::FenceCreateFlags::SIGNALED);
+        let fence = unsafe { ctx.device.create_fence(&info, None) }.vk("vkCreateFence")?;
+        ctx.name(fence, &format!("frame fence {i}"));
+        let globals = Buffer::new(
+            ctx,
+            &format!("globals {i}"),
+            std::mem::size_of::<Globals>() as u64,
+            vk::BufferUsageFlags::UNIFORM_BUFFER,
+            MemoryLocation::CpuToGpu,
+        )?;
+        Ok(FrameSlot {
+            cmd,
+            fence,
+            profiler: Profiler::new(ctx, 32)?,
+            globals,
+            pending: false,
+        })
+    }
+
+    fn destroy(&mut self, ctx: &Context) {
+        unsafe {
+            ctx.device.destroy_fence(self.fence, None);
+            ctx.device
+                .free_command_buffers(ctx.command_pool, &[self.cmd]);
+        }
+        self.profiler.destroy(ctx);
+        self.globals.destroy(ctx);
+    }
 }
 
 /// SSDO, screen-space key shadows and blur with this frame's parameters.
@@ -176,13 +224,6 @@ impl<'c> Renderer<'c> {
             })
             .collect();
 
-        let globals = Buffer::new(
-            ctx,
-            "globals",
-            std::mem::size_of::<Globals>() as u64,
-            vk::BufferUsageFlags::UNIFORM_BUFFER,
-            MemoryLocation::CpuToGpu,
-        )?;
         let spheres = Buffer::storage(ctx, "spheres", (geom.len() * 16) as u64)?;
         spheres.upload(ctx, 0, bytemuck::cast_slice(&geom))?;
         let attr_buf = Buffer::storage(ctx, "sphere attributes", (attrs.len() * 32) as u64)?;
@@ -352,13 +393,9 @@ impl<'c> Renderer<'c> {
             RasterMode::Graphics => Some(GraphicsRasterPass::new(ctx)?),
             RasterMode::Compute => None,
         };
-        let cmd = ctx.command_buffer("frame")?;
-        let fence = unsafe {
-            ctx.device
-                .create_fence(&vk::FenceCreateInfo::default(), None)
-        }
-        .vk("vkCreateFence")?;
-        ctx.name(fence, "frame fence");
+        let slots = (0..crate::vk::FRAME_SLOTS)
+            .map(|i| FrameSlot::new(ctx, i))
+            .collect::<Result<Vec<_>>>()?;
         Ok(Renderer {
             ctx,
             sphere_count: geom.len() as u32,
@@ -366,7 +403,8 @@ impl<'c> Renderer<'c> {
             globals_data,
             bounds: (bs_center.as_dvec3(), bs_radius as f64),
             bgra: false,
-            globals,
+            slots,
+            next_slot: 0,
             spheres,
             attrs: attr_buf,
             vis,
@@ -387,9 +425,6 @@ impl<'c> Renderer<'c> {
             shadow_map,
             osm,
             deep_stats: None,
-            profiler: Profiler::new(ctx, 32)?,
-            cmd,
-            fence,
         })
     }
 
@@ -447,22 +482,22 @@ impl<'c> Renderer<'c> {
 
     /// Bytes of GPU memory held by this renderer's buffers.
     pub fn memory_bytes(&self) -> u64 {
-        [
-            &self.globals,
-            &self.spheres,
-            &self.attrs,
-            &self.vis,
-            &self.gpos,
-            &self.gnorm,
-            &self.gregion,
-            &self.shadow,
-            &self.ambient,
-            &self.color,
-        ]
-        .iter()
-        .chain(self.blurred.iter().collect::<Vec<_>>().iter())
-        .map(|b| b.size)
-        .sum::<u64>()
+        self.slots.iter().map(|f| f.globals.size).sum::<u64>()
+            + [
+                &self.spheres,
+                &self.attrs,
+                &self.vis,
+                &self.gpos,
+                &self.gnorm,
+                &self.gregion,
+                &self.shadow,
+                &self.ambient,
+                &self.color,
+            ]
+            .iter()
+            .chain(self.blurred.iter().collect::<Vec<_>>().iter())
+            .map(|b| b.size)
+            .sum::<u64>()
             + self.raster.memory_bytes()
             + self.issm.as_ref().map_or(0, |s| s.map.size)
             + self.deep.as_ref().map_or(0, |d| d.memory_bytes())
@@ -508,43 +543,91 @@ impl<'c> Renderer<'c> {
 
     /// Records, submits and waits for one frame; returns per-pass times.
     fn submit_frame(&mut self) -> Result<PassTimes> {
+        let slot = self.submit()?;
+        self.finish_slot(slot)?
+            .ok_or_else(|| Error::Invalid("frame results missing".into()))
+    }
+
+    /// Records and submits the next frame without waiting for it; returns
+    /// the per-pass times of the frame that used this slot before (already
+    /// finished, or waited for: at most one other frame stays in flight).
+    /// Deep lists need their overflow check after every frame, so with
+    /// `--shadows deep` this waits like `render_frame`.
+    pub fn render_frame_pipelined(&mut self) -> Result<Option<PassTimes>> {
+        if self.deep.is_some() {
+            return self.render_frame().map(Some);
+        }
+        let slot = self.next_slot;
+        let previous = self.finish_slot(slot)?;
+        self.submit()?;
+        Ok(previous)
+    }
+
+    /// Waits for the frame last submitted with `slot` and reads its timings.
+    fn finish_slot(&mut self, slot: usize) -> Result<Option<PassTimes>> {
+        let ctx = self.ctx;
+        let fs = &mut self.slots[slot];
+        unsafe { ctx.device.wait_for_fences(&[fs.fence], true, u64::MAX) }.vk("vkWaitForFences")?;
+        if !fs.pending {
+            return Ok(None);
+        }
+        fs.pending = false;
+        fs.profiler.results(ctx).map(Some)
+    }
+
+    /// Records and submits one frame in the next slot (whose previous frame
+    /// must have finished); returns the slot.
+    fn submit(&mut self) -> Result<usize> {
         let ctx = self.ctx;
         let dev = &ctx.device;
-        if let Some(m) = self.globals.mapped_mut() {
-            m.copy_from_slice(bytemuck::bytes_of(&self.globals_data));
-        } else {
-            self.globals
-                .upload(ctx, 0, bytemuck::bytes_of(&self.globals_data))?;
+        let slot = self.next_slot;
+        self.next_slot = (slot + 1) % self.slots.len();
+        {
+            let fs = &mut self.slots[slot];
+            unsafe { dev.wait_for_fences(&[fs.fence], true, u64::MAX) }.vk("vkWaitForFences")?;
+            match fs.globals.mapped_mut() {
+                Some(m) => m.copy_from_slice(bytemuck::bytes_of(&self.globals_data)),
+                None => fs
+                    .globals
+                    .upload(ctx, 0, bytemuck::bytes_of(&self.globals_data))?,
+            }
         }
-        // The previous frame's fence was waited on: its descriptor sets are free.
-        ctx.reset_descriptors()?;
+        // This slot's previous frame finished: its descriptor sets are free.
+        ctx.begin_descriptor_frame(slot)?;
+        let cmd = self.slots[slot].cmd;
         unsafe {
-            dev.reset_command_buffer(self.cmd, vk::CommandBufferResetFlags::empty())
+            dev.reset_command_buffer(cmd, vk::CommandBufferResetFlags::empty())
                 .vk("vkResetCommandBuffer")?;
             let begin = vk::CommandBufferBeginInfo::default()
                 .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
-            dev.begin_command_buffer(self.cmd, &begin)
+            dev.begin_command_buffer(cmd, &begin)
                 .vk("vkBeginCommandBuffer")?;
         }
-        let recorded = self.record(self.cmd);
-        unsafe { dev.end_command_buffer(self.cmd) }.vk("vkEndCommandBuffer")?;
+        let recorded = self.record(slot);
+        unsafe { dev.end_command_buffer(cmd) }.vk("vkEndCommandBuffer")?;
         recorded?;
-        let cmds = [self.cmd];
+        let fs = &mut self.slots[slot];
+        let cmds = [cmd];
         let submit = [vk::SubmitInfo::default().command_buffers(&cmds)];
         unsafe {
-            dev.reset_fences(&[self.fence]).vk("vkResetFences")?;
-            dev.queue_submit(ctx.queue, &submit, self.fence)
+            dev.reset_fences(&[fs.fence]).vk("vkResetFences")?;
+            dev.queue_submit(ctx.queue, &submit, fs.fence)
                 .vk("vkQueueSubmit")?;
-            dev.wait_for_fences(&[self.fence], true, u64::MAX)
-                .vk("vkWaitForFences")?;
         }
-        self.profiler.results(ctx)
+        fs.pending = true;
+        Ok(slot)
     }
 
-    fn record(&mut self, cmd: vk::CommandBuffer) -> Result<()> {
+    fn record(&mut self, slot: usize) -> Result<()> {
         let ctx = self.ctx;
         let pixels = self.pixels();
-        let prof = &mut self.profiler;
+        let FrameSlot {
+            cmd,
+            profiler: prof,
+            globals,
+            ..
+        } = &mut self.slots[slot];
+        let (cmd, globals): (vk::CommandBuffer, &Buffer) = (*cmd, globals);
         prof.begin_frame(ctx, cmd);
         barrier(&ctx.device, cmd);
 
@@ -554,7 +637,7 @@ impl<'c> Renderer<'c> {
             gr.record(
                 ctx,
                 cmd,
-                &self.globals,
+                globals,
                 &self.spheres,
                 self.sphere_count,
                 &self.vis,
@@ -568,7 +651,7 @@ impl<'c> Renderer<'c> {
                 cmd,
                 prof,
                 "raster",
-                &self.globals,
+                globals,
                 &self.spheres,
                 self.sphere_count,
                 &self.vis,
@@ -580,7 +663,7 @@ impl<'c> Renderer<'c> {
         if let Some(st) = &self.issm {
             let n = st.light.width as u64 * st.light.height as u64;
             let name = IssmShadowPass::RASTER_NAME;
-            let (g, s, c) = (&self.globals, &self.spheres, self.sphere_count);
+            let (g, s, c) = (globals, &self.spheres, self.sphere_count);
             self.raster.record_scoped(
                 ctx,
                 cmd,
@@ -596,18 +679,12 @@ impl<'c> Renderer<'c> {
         }
 
         if let Some(sm) = &self.shadow_map {
-            let (g, s, c) = (&self.globals, &self.spheres, self.sphere_count);
+            let (g, s, c) = (globals, &self.spheres, self.sphere_count);
             sm.record_raster(ctx, cmd, prof, &self.raster, g, s, c)?;
         }
 
         prof.begin(ctx, cmd, ResolvePass::NAME)?;
-        let (g, s, v, gp, gn) = (
-            &self.globals,
-            &self.spheres,
-            &self.vis,
-            &self.gpos,
-            &self.gnorm,
-        );
+        let (g, s, v, gp, gn) = (globals, &self.spheres, &self.vis, &self.gpos, &self.gnorm);
         self.resolve.record(
             ctx,
             cmd,
@@ -624,13 +701,7 @@ impl<'c> Renderer<'c> {
         barrier(&ctx.device, cmd);
 
         if let Some(d) = &self.deep {
-            let (g, s, v, gp, sh) = (
-                &self.globals,
-                &self.spheres,
-                &self.vis,
-                &self.gpos,
-                &self.shadow,
-            );
+            let (g, s, v, gp, sh) = (globals, &self.spheres, &self.vis, &self.gpos, &self.shadow);
             d.record(
                 ctx,
                 cmd,
@@ -647,7 +718,7 @@ impl<'c> Renderer<'c> {
 
         if let Some(st) = &self.issm {
             prof.begin(ctx, cmd, IssmShadowPass::NAME)?;
-            let (g, s) = (&self.globals, &self.spheres);
+            let (g, s) = (globals, &self.spheres);
             st.pass.record(
                 ctx,
                 cmd,
@@ -665,12 +736,12 @@ impl<'c> Renderer<'c> {
         }
 
         if let Some(sm) = &self.shadow_map {
-            let (g, v, gp, gn) = (&self.globals, &self.vis, &self.gpos, &self.gnorm);
+            let (g, v, gp, gn) = (globals, &self.vis, &self.gpos, &self.gnorm);
             sm.record_shadow(ctx, cmd, prof, g, v, gp, gn, &self.shadow, pixels)?;
         }
 
         if let Some(o) = &self.osm {
-            let (g, s, v, gp) = (&self.globals, &self.spheres, &self.vis, &self.gpos);
+            let (g, s, v, gp) = (globals, &self.spheres, &self.vis, &self.gpos);
             let opacity = self.settings.opacity;
             o.record(ctx, cmd, prof, g, s, v, gp, &self.shadow, opacity, pixels)?;
         }
@@ -695,7 +766,7 @@ impl<'c> Renderer<'c> {
                 st.pass.record_key_shadow(
                     ctx,
                     cmd,
-                    &self.globals,
+                    globals,
                     &gb,
                     &self.shadow,
                     &st.key_shadow,
@@ -708,7 +779,7 @@ impl<'c> Renderer<'c> {
             st.pass.record_ssdo(
                 ctx,
                 cmd,
-                &self.globals,
+                globals,
                 &gb,
                 &self.shadow,
                 &self.ambient,
@@ -735,17 +806,8 @@ impl<'c> Renderer<'c> {
                     (Axis::Vertical, [a_tmp, s_tmp], [a_out, s_out]),
                 ] {
                     prof.begin(ctx, cmd, axis.name())?;
-                    st.blur.record(
-                        ctx,
-                        cmd,
-                        axis,
-                        &self.globals,
-                        geo,
-                        input,
-                        output,
-                        &push,
-                        pixels,
-                    )?;
+                    st.blur
+                        .record(ctx, cmd, axis, globals, geo, input, output, &push, pixels)?;
                     prof.end(ctx, cmd)?;
                     barrier(&ctx.device, cmd);
                 }
@@ -772,7 +834,7 @@ impl<'c> Renderer<'c> {
             swap_rb: self.bgra as u32,
         };
         self.composite
-            .record(ctx, cmd, &self.globals, &io, &push, pixels)?;
+            .record(ctx, cmd, globals, &io, &push, pixels)?;
         prof.end(ctx, cmd)?;
         barrier(&ctx.device, cmd);
         Ok(())
@@ -880,12 +942,9 @@ impl Drop for Renderer<'_> {
     fn drop(&mut self) {
         let ctx = self.ctx;
         ctx.wait_idle();
-        unsafe {
-            ctx.device.destroy_fence(self.fence, None);
-            ctx.device
-                .free_command_buffers(ctx.command_pool, &[self.cmd]);
+        for fs in &mut self.slots {
+            fs.destroy(ctx);
         }
-        self.profiler.destroy(ctx);
         self.raster.destroy(ctx);
         if let Some(gr) = &mut self.raster_graphics {
             gr.destroy(ctx);
@@ -910,7 +969,6 @@ impl Drop for Renderer<'_> {
             st.blur.destroy(ctx);
         }
         for b in [
-            &mut self.globals,
             &mut self.spheres,
             &mut self.attrs,
             &mut self.vis,

@@ -215,7 +215,9 @@ impl<'c> App<'c> {
         let Some(r) = &mut self.renderer else {
             return Ok(());
         };
-        let times = r.render_frame()?;
+        // At most two frames in flight: this returns the timings of the frame
+        // submitted two calls ago (already done), never stalling on this one.
+        let times = r.render_frame_pipelined()?.unwrap_or_default();
         let Some(sc) = &mut self.swapchain else {
             return Ok(());
         };

@@ -56,8 +56,8 @@ pub struct Context {
     pub props: vk::PhysicalDeviceProperties,
     pub info: DeviceInfo,
     pub device: ash::Device,
-    /// Descriptor sets for the frame being recorded (see `reset_descriptors`).
-    descriptors: Mutex<DescriptorArena>,
+    /// Descriptor sets for the frame being recorded (see `begin_descriptor_frame`).
+    descriptors: Mutex<Arenas>,
     pub queue: vk::Queue,
     pub queue_family: u32,
     pub allocator: ManuallyDrop<Mutex<Allocator>>,
@@ -360,7 +360,7 @@ impl Context {
             props,
             info,
             device,
-            descriptors: Mutex::new(DescriptorArena::default()),
+            descriptors: Mutex::new(Arenas::default()),
             queue,
             queue_family,
             allocator: ManuallyDrop::new(Mutex::new(allocator)),
@@ -549,16 +549,18 @@ impl Context {
     }
 
     /// Allocates a descriptor set for one dispatch. Sets live until
-    /// `reset_descriptors`, which callers invoke only when no submitted work
+    /// `begin_descriptor_frame` for that slot, which callers invoke only when no submitted work
     /// can still use them (every submission here waits for its fence).
     pub fn allocate_descriptor_set(
         &self,
         layout: vk::DescriptorSetLayout,
     ) -> Result<vk::DescriptorSet> {
-        let mut arena = self
+        let mut arenas = self
             .descriptors
             .lock()
             .map_err(|_| Error::Invalid("descriptor arena poisoned".into()))?;
+        let active = arenas.active;
+        let arena = &mut arenas.slots[active];
         loop {
             if let Some(&pool) = arena.pools.get(arena.current) {
                 let layouts = [layout];
@@ -602,12 +604,17 @@ impl Context {
         }
     }
 
-    /// Frees every descriptor set handed out so far.
-    pub fn reset_descriptors(&self) -> Result<()> {
-        let mut arena = self
+    /// Makes frame slot `slot`'s arena the one sets come from, freeing the
+    /// sets it handed out before: call only once the GPU finished the frame
+    /// that last used this slot (its fence).
+    pub fn begin_descriptor_frame(&self, slot: usize) -> Result<()> {
+        let mut arenas = self
             .descriptors
             .lock()
             .map_err(|_| Error::Invalid("descriptor arena poisoned".into()))?;
+        arenas.active = slot % FRAME_SLOTS;
+        let active = arenas.active;
+        let arena = &mut arenas.slots[active];
         for &pool in &arena.pools {
             unsafe {
                 self.device
@@ -636,9 +643,11 @@ impl Context {
         unsafe {
             let _ = self.device.device_wait_idle();
             self.device.destroy_command_pool(self.command_pool, None);
-            if let Ok(arena) = self.descriptors.get_mut() {
-                for &pool in &arena.pools {
-                    self.device.destroy_descriptor_pool(pool, None);
+            if let Ok(arenas) = self.descriptors.get_mut() {
+                for arena in &arenas.slots {
+                    for &pool in &arena.pools {
+                        self.device.destroy_descriptor_pool(pool, None);
+                    }
                 }
             }
             // The allocator frees its memory blocks; it must go before the device.
@@ -674,6 +683,24 @@ impl Drop for Context {
 struct DescriptorArena {
     pools: Vec<vk::DescriptorPool>,
     current: usize,
+}
+
+/// Frames that may be in flight at once (the renderer's frame slots).
+pub const FRAME_SLOTS: usize = 2;
+
+/// One arena per frame slot; sets come from the active one.
+struct Arenas {
+    slots: [DescriptorArena; FRAME_SLOTS],
+    active: usize,
+}
+
+impl Default for Arenas {
+    fn default() -> Self {
+        Arenas {
+            slots: Default::default(),
+            active: 0,
+        }
+    }
 }
 
 /// A full memory barrier between passes (any stage, any access). Passes are
