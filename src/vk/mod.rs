@@ -689,19 +689,12 @@ struct DescriptorArena {
 pub const FRAME_SLOTS: usize = 2;
 
 /// One arena per frame slot; sets come from the active one.
+#[derive(Default)]
 struct Arenas {
     slots: [DescriptorArena; FRAME_SLOTS],
     active: usize,
 }
 
-impl Default for Arenas {
-    fn default() -> Self {
-        Arenas {
-            slots: Default::default(),
-            active: 0,
-        }
-    }
-}
 
 /// A full memory barrier between passes (any stage, any access). Passes are
 /// short and mostly serial, so one global barrier between them is both
