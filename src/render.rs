@@ -22,6 +22,9 @@ use crate::vk::{Buffer, Context, Profiler, barrier};
 use ash::vk;
 use gpu_allocator::MemoryLocation;
 
+/// Fraction of the key light's diffuse term kept in full shadow.
+pub const SHADOW_DIFFUSE: f32 = 0.12;
+
 /// Per-pass milliseconds of one frame, in recording order.
 pub type PassTimes = Vec<(&'static str, f64)>;
 
@@ -830,7 +833,10 @@ impl<'c> Renderer<'c> {
         let push = CompositePush {
             use_shadow,
             use_ambient,
-            shadow_diffuse: 0.0,
+            // Lighting rule (issue 4, after the ISSM paper): a fully shadowed
+            // point keeps ambient and this fraction of the key's diffuse term,
+            // and loses its specular term; partial shadow blends linearly.
+            shadow_diffuse: SHADOW_DIFFUSE,
             swap_rb: self.bgra as u32,
         };
         self.composite
