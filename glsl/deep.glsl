@@ -8,7 +8,10 @@
 // a list. Each tile owns a contiguous run of chunks taken from one global
 // pool with a single atomicAdd; inside it every texel's entries are
 // contiguous (a prefix sum over the tile's texel counts), so a texel's list
-// is head, head + 1, ... with its links written after sorting.
+// is head, head + 1, ... with its links written after sorting. Its
+// epsilon-compressed visibility nodes (depth, V) live in two more SoA arrays
+// of twice the entry capacity, at 2 * head, 2 * head + 1, ... (n entries give
+// at most 2n nodes; see deep_sort.comp).
 #ifndef DEEP_GLSL
 #define DEEP_GLSL
 
@@ -29,7 +32,7 @@ struct DeepTexel {
     uint count; // entries counted (count pass)
     uint fill;  // entries written (fill pass cursor)
     uint head;  // first entry (chunk << 6 | entry), DEEP_NONE if empty or overflowed
-    uint nodes; // nodes of the epsilon-compressed visibility function
+    uint nodes; // nodes of the epsilon-compressed visibility function (at 2 * head)
 };
 
 struct DeepTile {

@@ -12,10 +12,25 @@
 // (1M-sphere lattice, texels of 65..300 entries); on a GPU it may pay off.
 // Then the invocation walks its sorted run once to write the next links
 // (entry i -> i + 1, last -> DEEP_NONE), the uncompressed transmittance after
-// each entry (running product of 1 - alpha), and the node count of an
+// each entry (running product of 1 - alpha), and the nodes (depth, V) of an
 // epsilon-compressed piecewise-linear visibility function V'(z) with
 // |V' - V| <= eps (seed 002, Eq. 1): greedy segments through a slope window
-// as in Lokovic & Veach.
+// as in Lokovic & Veach, a step (|jump| > eps at one depth) being two nodes
+// with the same depth, before and after (the paper's surface rule).
+//
+// Node layout: two SoA arrays (depth, V) of twice the entry capacity; the
+// texel whose entries start at head keeps its nodes at 2 * head ... in order,
+// texels[].nodes of them. A run of n entries never has more than 2n nodes:
+// the samples fed are the 2n points (z_i, V before entry i), (z_i, V after
+// it); every node is emitted at an anchor, and each anchor is a later sample
+// than the previous one (a segment ends at its last accepted sample, which
+// follows its anchor; a step anchors at the current sample), the first node
+// being sample 0 and the closing node the last accepted sample after the
+// final anchor. The bound is reached by distinct depths with alpha > 2 eps:
+// the first entry gives the first node and its step, each later one a
+// segment end and a step (mixed-60-translucent in tests/deep.rs: 2.0/entry).
+// So the node run fits the texel's 2n slots with no second allocation, at the
+// price of 16 bytes per entry slot; writes are still clamped to 2n slots.
 #include "deep.glsl"
 
 layout(local_size_x = 64) in;
@@ -28,6 +43,8 @@ layout(set = 0, binding = 4) buffer Ids { uint e_id[]; };
 layout(set = 0, binding = 5) writeonly buffer Next { uint e_next[]; };
 layout(set = 0, binding = 6) writeonly buffer Trans { float e_trans[]; };
 layout(set = 0, binding = 7) buffer Counters { uint counters[]; };
+layout(set = 0, binding = 8) writeonly buffer NodeDepth { float n_depth[]; };
+layout(set = 0, binding = 9) writeonly buffer NodeVis { float n_vis[]; };
 
 layout(push_constant) uniform Push {
     float eps;           // compression tolerance on V
@@ -114,6 +131,15 @@ const float BIG = 3.0e38;
 float za, va, lo, hi, zl;
 bool open_segment;
 uint nodes;
+uint node_base, node_cap; // the texel's node slots: [node_base, node_base + node_cap)
+
+void emit(float z, float v) {
+    if (nodes < node_cap) {
+        n_depth[node_base + nodes] = z;
+        n_vis[node_base + nodes] = v;
+    }
+    nodes++;
+}
 
 void feed(float z, float v) {
     for (int it = 0; it < 2; ++it) {
@@ -122,8 +148,8 @@ void feed(float z, float v) {
             // At the anchor's depth: a step larger than eps is a vertical
             // segment (two nodes with the same z, as in the paper).
             if (abs(v - va) > pc.eps) {
-                nodes++;
                 va = v;
+                emit(za, va);
                 lo = -BIG;
                 hi = BIG;
                 open_segment = false;
@@ -143,7 +169,7 @@ void feed(float z, float v) {
         // depth (open_segment is true here: an empty window is unbounded).
         va += 0.5 * (lo + hi) * (zl - za);
         za = zl;
-        nodes++;
+        emit(za, va);
         lo = -BIG;
         hi = BIG;
         open_segment = false;
@@ -175,7 +201,10 @@ void main() {
     hi = BIG;
     zl = za;
     open_segment = false;
-    nodes = 1u; // (first depth, 1)
+    node_base = 2u * base; // < 2 * entry_capacity (check_capacity keeps it in range)
+    node_cap = 2u * n;
+    nodes = 0u;
+    emit(za, 1.0); // (first depth, 1)
     float v = 1.0;
     for (uint i = 0u; i < n; ++i) {
         uint a = base + i;
@@ -186,7 +215,7 @@ void main() {
         e_trans[a] = v;
         e_next[a] = i + 1u < n ? a + 1u : DEEP_NONE;
     }
-    if (open_segment) nodes++;
+    if (open_segment) emit(zl, va + 0.5 * (lo + hi) * (zl - za));
     texels[ti].nodes = nodes;
     atomicAdd(counters[C_NODES], nodes);
     atomicMax(counters[C_MAX_NODES], nodes);

@@ -150,9 +150,76 @@ fn eval_nodes(nodes: &[(f32, f32)], z: f32, right: bool) -> f32 {
     prev.1 + (next.1 - prev.1) * (z - prev.0) / (next.0 - prev.0)
 }
 
-/// Checks the GPU's raw lists against the CPU model and the layout rules;
-/// returns (compared texels, texels where the GPU node count differs from
-/// the CPU replica).
+/// Largest |V'(z) - V(z)| of a node list over a sorted list, just before
+/// and just after each distinct depth (V steps once per distinct depth).
+fn max_node_error(nodes: &[(f32, f32)], list: &[(u32, f32, f32)]) -> f32 {
+    let (mut v, mut err, mut k) = (1.0f32, 0.0f32, 0);
+    while k < list.len() {
+        let z = list[k].1;
+        err = err.max((eval_nodes(nodes, z, false) - v).abs());
+        while k < list.len() && list[k].1 == z {
+            v *= 1.0 - list[k].2;
+            k += 1;
+        }
+        err = err.max((eval_nodes(nodes, z, true) - v).abs());
+    }
+    err
+}
+
+/// The GPU's stored visibility nodes against the texel records, the CPU
+/// compression of the GPU's own sorted lists (same count, depths and V within
+/// 1e-5) and the bound (|V' - V| <= eps + 1e-5 around every entry depth).
+/// Returns (total nodes, max |V' - V|).
+fn check_nodes(name: &str, raw: &DeepRaw, lists: &[Vec<(u32, f32, f32)>]) -> (u64, f32) {
+    let gpu_nodes = raw.visibility_nodes();
+    assert_eq!(gpu_nodes.len(), lists.len());
+    let (mut total, mut max_err) = (0u64, 0.0f32);
+    for (t, (nodes, list)) in gpu_nodes.iter().zip(lists).enumerate() {
+        let tx = raw.texels[t];
+        assert!(
+            tx.nodes <= 2 * tx.count,
+            "{name}: texel {t}: {} nodes for {} entries",
+            tx.nodes,
+            tx.count
+        );
+        assert_eq!(
+            nodes.len(),
+            tx.nodes as usize,
+            "{name}: texel {t}: node run outside the arrays read"
+        );
+        total += nodes.len() as u64;
+        let cpu = compress(list, deep::EPSILON);
+        assert_eq!(
+            nodes.len(),
+            cpu.len(),
+            "{name}: texel {t}: GPU {nodes:?} vs CPU {cpu:?}"
+        );
+        for (k, (g, c)) in nodes.iter().zip(&cpu).enumerate() {
+            assert!(
+                (g.0 - c.0).abs() <= 1e-5 * c.0.abs().max(1.0) && (g.1 - c.1).abs() <= 1e-5,
+                "{name}: texel {t} node {k}: GPU {g:?} vs CPU {c:?}"
+            );
+        }
+        assert!(
+            nodes.windows(2).all(|p| p[0].0 <= p[1].0),
+            "{name}: texel {t}: nodes out of depth order {nodes:?}"
+        );
+        let err = max_node_error(nodes, list);
+        assert!(
+            err <= deep::EPSILON + 1e-5,
+            "{name}: texel {t}: stored |V'-V| = {err}"
+        );
+        max_err = max_err.max(err);
+    }
+    assert_eq!(
+        raw.counters[deep::counter::NODES] as u64,
+        total,
+        "{name}: node counter vs stored nodes"
+    );
+    (total, max_err)
+}
+
+/// Checks the GPU's raw lists against the CPU model and the layout rules.
 fn check_lists(
     name: &str,
     scene: &Scene,
@@ -321,6 +388,13 @@ fn check_lists(
         node_diffs * 100 <= (w * h),
         "{name}: node counts differ from the CPU replica on {node_diffs} texels"
     );
+    let (stored_nodes, max_err) = check_nodes(name, raw, lists);
+    eprintln!(
+        "{name}: stored nodes {stored_nodes} for {total} entries ({:.3} nodes/entry), max |V'-V| {max_err:.6} \
+         (eps {:.6})",
+        stored_nodes as f64 / total.max(1) as f64,
+        deep::EPSILON
+    );
 
     // Chunk accounting: per tile ceil(entries / 64) contiguous chunks, the
     // pool counter is their sum, runs are disjoint and inside the pool, and
@@ -463,6 +537,15 @@ fn lists_match_cpu_model() {
             if frame == 0 {
                 check_lists(name, &scene, &d.light, &raw, &lists, opacity);
                 let c = d.read_counters(&ctx).expect("counters");
+                let st = r.deep_stats.clone().expect("stats");
+                let slots = st.chunk_capacity * CHUNK as u64;
+                assert!(
+                    st.bytes >= slots * deep::BYTES_PER_ENTRY,
+                    "{name}: bytes {} leave out the node arrays",
+                    st.bytes
+                );
+                assert_eq!(st.bytes, d.list_bytes());
+                assert!(d.memory_bytes() > st.bytes);
                 eprintln!(
                     "{name}: {} band jobs, stats {:?}",
                     c.band_jobs, r.deep_stats
@@ -484,6 +567,9 @@ fn lists_match_cpu_model() {
             } else {
                 // A second frame rebuilds exactly the same lists.
                 assert!(lists == first, "{name}: the second frame's lists differ");
+                let nodes = d.read_visibility_nodes(&ctx).expect("nodes");
+                assert_eq!(nodes, raw.visibility_nodes());
+                assert_eq!(nodes.len(), lists.len());
                 assert_eq!(
                     raw.counters[deep::counter::ENTRIES],
                     lists.iter().map(|l| l.len() as u32).sum::<u32>()
@@ -635,6 +721,19 @@ fn deep_agreement(
     }
     let pct = 100.0 * agree as f64 / compared.max(1) as f64;
     let st = r.deep_stats.clone().expect("stats");
+    let d = r.deep().expect("deep");
+    let (nodes, max_err) = check_nodes(
+        name,
+        &d.read_raw(ctx).expect("raw"),
+        &d.read_lists(ctx).expect("lists"),
+    );
+    let max_nodes = d.read_counters(ctx).expect("counters").max_compressed_nodes;
+    eprintln!(
+        "{name}: opacity {opacity}: {nodes} visibility nodes (max {max_nodes} per texel) for {} entries: \
+         {:.3} nodes/entry, max |V'-V| {max_err:.6}",
+        st.entries,
+        nodes as f64 / st.entries.max(1) as f64
+    );
     eprintln!(
         "{name}: opacity {opacity}: {pct:.3}% of {compared} visible pixels agree ({shadowed} in shadow); deep: {} entries, \
          {} chunks, {} bytes vs fixed-layer {} bytes ({:.2}x)",

@@ -15,11 +15,15 @@
 //! links are still written, in sorted order, and followed by the lookup).
 //!
 //! The visibility function of a texel is kept uncompressed (transmittance
-//! after each entry); its epsilon-compressed piecewise-linear form
-//! (|V' - V| <= [`EPSILON`], seed 002 Eq. 1) is computed and its node count
-//! stored per texel and summed in the counters, but the nodes themselves are
-//! not stored: the shadow lookup tests the listed spheres exactly instead of
-//! interpolating V(z), which would need a per-texel depth, not a sphere's.
+//! after each entry) and in its epsilon-compressed piecewise-linear form
+//! (|V' - V| <= [`EPSILON`], seed 002 Eq. 1): nodes (depth, V) in two
+//! structure-of-arrays buffers of twice the entry capacity, the texel whose
+//! entries start at `head` owning node slots `2 * head ..` (`nodes` of them,
+//! in depth order; a step is two nodes at the same depth, before and after).
+//! n entries give at most 2n nodes (proof in glsl/deep_sort.comp), so the
+//! node run needs no allocation of its own. The shadow lookup does not use
+//! the nodes: it tests the listed spheres exactly instead of interpolating
+//! V(z), which would need a per-texel depth, not a sphere's.
 //!
 //! Passes, each its own timestamp scope followed by a full barrier:
 //! - `deep_count`: clear, then count entries per texel (atomicAdd); large
@@ -30,7 +34,7 @@
 //! - `deep_fill`: the same enumeration as the count (same pipeline), writing
 //!   each entry at head + atomic per-texel cursor;
 //! - `deep_sort`: per texel, sort its contiguous run by (depth, id), write
-//!   links, transmittance and the epsilon-compressed visibility node count;
+//!   links, transmittance and the epsilon-compressed visibility nodes;
 //! - `deep_shadow`: per visible pixel, walk its light texel's list with exact
 //!   ray tests.
 //!
@@ -69,8 +73,12 @@ pub const BIG_AREA: u32 = 256;
 pub const JOB_CAPACITY: u32 = 1 << 18;
 /// Tolerance of the compressed visibility function: one 8-bit AOV step.
 pub const EPSILON: f32 = 1.0 / 255.0;
-/// Bytes per entry in the SoA arrays: depth, alpha, id, next, transmittance.
-pub const BYTES_PER_ENTRY: u64 = 20;
+/// Bytes per entry slot in the SoA arrays: depth, alpha, id, next,
+/// transmittance (20), plus its two visibility node slots of depth and V (16).
+pub const BYTES_PER_ENTRY: u64 = 36;
+/// Visibility node slots per entry slot (a texel's n entries give at most 2n
+/// nodes).
+pub const NODES_PER_ENTRY: u64 = 2;
 /// Counter words (stats 0..15, band jobs 16..23) before the guard.
 pub const COUNTER_WORDS: u64 = 32;
 
@@ -157,27 +165,32 @@ struct ShadowPush {
 const MODE_COUNT: u32 = 0;
 const MODE_FILL: u32 = 1;
 
-/// The entry arrays (structure of arrays), `capacity` chunks of 64 each.
+/// The entry arrays (structure of arrays), `capacity` chunks of 64 each, and
+/// the visibility node arrays, [`NODES_PER_ENTRY`] slots per entry slot.
 struct Lists {
     depth: Buffer,
     alpha: Buffer,
     ids: Buffer,
     next: Buffer,
     trans: Buffer,
+    node_depth: Buffer,
+    node_vis: Buffer,
 }
 
 impl Lists {
     fn new(ctx: &Context, chunks: u32) -> Result<Self> {
         let n = chunks as u64 * CHUNK as u64;
         let mut made: Vec<Buffer> = Vec::new();
-        for name in [
-            "deep depth",
-            "deep alpha",
-            "deep sphere id",
-            "deep next",
-            "deep transmittance",
+        for (name, words) in [
+            ("deep depth", n),
+            ("deep alpha", n),
+            ("deep sphere id", n),
+            ("deep next", n),
+            ("deep transmittance", n),
+            ("deep node depth", n * NODES_PER_ENTRY),
+            ("deep node visibility", n * NODES_PER_ENTRY),
         ] {
-            match guarded(ctx, name, n, vk::BufferUsageFlags::STORAGE_BUFFER) {
+            match guarded(ctx, name, words, vk::BufferUsageFlags::STORAGE_BUFFER) {
                 Ok(b) => made.push(b),
                 Err(e) => {
                     for b in &mut made {
@@ -188,18 +201,26 @@ impl Lists {
             }
         }
         let mut it = made.into_iter();
-        let mut take = || it.next().expect("five buffers");
+        let mut take = || it.next().expect("seven buffers");
         Ok(Lists {
             depth: take(),
             alpha: take(),
             ids: take(),
             next: take(),
             trans: take(),
+            node_depth: take(),
+            node_vis: take(),
         })
     }
 
-    fn all(&self) -> [&Buffer; 5] {
+    /// The entry arrays (one u32/f32 per entry slot).
+    fn entries(&self) -> [&Buffer; 5] {
         [&self.depth, &self.alpha, &self.ids, &self.next, &self.trans]
+    }
+
+    /// The node arrays ([`NODES_PER_ENTRY`] words per entry slot).
+    fn nodes(&self) -> [&Buffer; 2] {
+        [&self.node_depth, &self.node_vis]
     }
 
     fn destroy(&mut self, ctx: &Context) {
@@ -209,6 +230,8 @@ impl Lists {
             &mut self.ids,
             &mut self.next,
             &mut self.trans,
+            &mut self.node_depth,
+            &mut self.node_vis,
         ] {
             b.destroy(ctx);
         }
@@ -250,6 +273,31 @@ pub struct DeepRaw {
     pub ids: Vec<u32>,
     pub next: Vec<u32>,
     pub trans: Vec<f32>,
+    /// Visibility node arrays, [`NODES_PER_ENTRY`] slots per entry above.
+    pub node_depth: Vec<f32>,
+    pub node_vis: Vec<f32>,
+}
+
+impl DeepRaw {
+    /// Per texel, its visibility nodes (see
+    /// [`DeepShadows::read_visibility_nodes`]), at most its 2 x count slots
+    /// (the GPU never writes past them) and what lies inside the arrays read.
+    pub fn visibility_nodes(&self) -> Vec<Vec<(f32, f32)>> {
+        self.texels
+            .iter()
+            .map(|t| {
+                if t.nodes == 0 || t.head == NONE {
+                    return Vec::new();
+                }
+                let start = (t.head as usize * NODES_PER_ENTRY as usize).min(self.node_depth.len());
+                let n = t.nodes.min(t.count.saturating_mul(NODES_PER_ENTRY as u32));
+                let end = (start + n as usize).min(self.node_depth.len());
+                (start..end)
+                    .map(|i| (self.node_depth[i], self.node_vis[i]))
+                    .collect()
+            })
+            .collect()
+    }
 }
 
 /// Counters of the last frame beyond [`DeepStats`].
@@ -416,7 +464,7 @@ impl DeepShadows {
             pipes.push(pipe(
                 "deep sort",
                 spirv::DEEP_SORT_COMP,
-                &[UNIFORM, s, s, s, s, s, s, s],
+                &[UNIFORM, s, s, s, s, s, s, s, s, s],
                 std::mem::size_of::<SortPush>(),
                 64,
             )?);
@@ -468,11 +516,13 @@ impl DeepShadows {
     }
 
     /// Clamps (estimates) or rejects (explicit sizes) a pool the device
-    /// cannot address: each entry array must fit in maxStorageBufferRange and
-    /// links must stay below the terminator.
+    /// cannot address: each entry array and each node array (twice as long)
+    /// must fit in maxStorageBufferRange and links must stay below the
+    /// terminator. (The range bound also keeps node indices, 2 x entry, in u32.)
     fn check_capacity(ctx: &Context, chunks: u64, clamp: bool) -> Result<u32> {
         let range = ctx.props.limits.max_storage_buffer_range as u64;
-        let by_range = (range.saturating_sub(GUARD_WORDS * 4) / 4) / CHUNK as u64;
+        let by_range =
+            (range.saturating_sub(GUARD_WORDS * 4) / (4 * NODES_PER_ENTRY)) / CHUNK as u64;
         let max = by_range.min(max_chunks_hard() as u64).max(1);
         if chunks <= max {
             Ok(chunks as u32)
@@ -481,7 +531,7 @@ impl DeepShadows {
         } else {
             Err(Error::Invalid(format!(
                 "deep shadow lists: a pool of {chunks} chunks ({} entries) exceeds what the device can address \
-                 ({max} chunks: maxStorageBufferRange {range} bytes per entry array); lower --issm-size",
+                 ({max} chunks: maxStorageBufferRange {range} bytes per node array); lower --issm-size",
                 chunks * CHUNK as u64
             )))
         }
@@ -641,6 +691,8 @@ impl DeepShadows {
             &l.next,
             &l.trans,
             &self.counters,
+            &l.node_depth,
+            &l.node_vis,
         ];
         self.sort
             .dispatch_groups(ctx, cmd, &bufs, &push, [tx, ty, 1])?;
@@ -721,6 +773,8 @@ impl DeepShadows {
             ids: l.ids.download_pod(ctx, 0, used)?,
             next: l.next.download_pod(ctx, 0, used)?,
             trans: l.trans.download_pod(ctx, 0, used)?,
+            node_depth: l.node_depth.download_pod(ctx, 0, used * NODES_PER_ENTRY)?,
+            node_vis: l.node_vis.download_pod(ctx, 0, used * NODES_PER_ENTRY)?,
             counters,
         })
     }
@@ -748,6 +802,15 @@ impl DeepShadows {
             .collect())
     }
 
+    /// Per texel (row-major over the light map), the nodes (depth, V) of its
+    /// epsilon-compressed visibility function in order: V'(z) = 1 before the
+    /// first node, linear between nodes, a step where two nodes share a
+    /// depth, the last node's V after it. Empty for empty texels.
+    pub fn read_visibility_nodes(&self, ctx: &Context) -> Result<Vec<Vec<(f32, f32)>>> {
+        let raw = self.read_raw(ctx)?;
+        Ok(raw.visibility_nodes())
+    }
+
     fn guarded_buffers(&self) -> Vec<(&Buffer, u64)> {
         let entries = self.entry_capacity() as u64;
         let mut v = vec![
@@ -760,7 +823,13 @@ impl DeepShadows {
                 (self.sphere_count as u64).div_ceil(32).max(1),
             ),
         ];
-        v.extend(self.lists.all().into_iter().map(|b| (b, entries)));
+        v.extend(self.lists.entries().into_iter().map(|b| (b, entries)));
+        v.extend(
+            self.lists
+                .nodes()
+                .into_iter()
+                .map(|b| (b, entries * NODES_PER_ENTRY)),
+        );
         v
     }
 
@@ -787,7 +856,7 @@ impl DeepShadows {
         if needed_chunks > max {
             return Err(Error::Invalid(format!(
                 "deep shadow lists need {needed_chunks} chunks of {CHUNK} entries, more than the device can \
-                 address ({max} chunks: maxStorageBufferRange per entry array); lower --issm-size"
+                 address ({max} chunks: maxStorageBufferRange per node array); lower --issm-size"
             )));
         }
         let capacity = want.min(max) as u32;
@@ -801,11 +870,17 @@ impl DeepShadows {
     }
 
     /// Bytes of the deep-list structure proper (the JSON's `bytes`): the
-    /// entry arrays at their allocated capacity, the texel and tile tables and
-    /// the counters, guard words included; not the band-job scratch.
+    /// entry and node arrays at their allocated capacity, the texel and tile
+    /// tables and the counters, guard words included; not the band-job scratch.
     pub fn list_bytes(&self) -> u64 {
         let fixed = self.texels.size + self.tiles.size + self.counters.size;
-        fixed + self.lists.all().iter().map(|b| b.size).sum::<u64>()
+        let l = &self.lists;
+        fixed
+            + l.entries()
+                .iter()
+                .chain(l.nodes().iter())
+                .map(|b| b.size)
+                .sum::<u64>()
     }
 
     /// Bytes of every buffer this pass owns (lists and band-job scratch).

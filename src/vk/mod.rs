@@ -695,7 +695,6 @@ struct Arenas {
     active: usize,
 }
 
-
 /// A full memory barrier between passes (any stage, any access). Passes are
 /// short and mostly serial, so one global barrier between them is both
 /// simple and right, also around the graphics raster baseline.
