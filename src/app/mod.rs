@@ -29,6 +29,7 @@ use winit::keyboard::{Key, NamedKey};
 use winit::window::{Window, WindowId};
 
 #[derive(clap::Args, Debug)]
+#[command(after_help = HELP)]
 pub struct ViewCmd {
     #[command(flatten)]
     pub scene: SceneArgs,
