@@ -20,7 +20,13 @@ fn agreement_of_every_technique_at_one_million_spheres() {
     let cam = camera(&s, 256, 200, None);
     let light = settings(cam, ShadowMode::None).light;
     let (refs, img) = reference::shadow_image(&s.spheres, &cam, light, 1.0);
-    for mode in [ShadowMode::Issm, ShadowMode::IssmSoft, ShadowMode::Deep, ShadowMode::SmPcf, ShadowMode::Osm] {
+    for mode in [
+        ShadowMode::Issm,
+        ShadowMode::IssmSoft,
+        ShadowMode::Deep,
+        ShadowMode::SmPcf,
+        ShadowMode::Osm,
+    ] {
         let mut r = Renderer::new(&ctx, &s, settings(cam, mode)).expect("renderer");
         r.render_frame().expect("frame");
         let ids = ids_from_vis(&r.read_vis().expect("vis"));
@@ -34,7 +40,11 @@ fn agreement_of_every_technique_at_one_million_spheres() {
             n += 1;
             agree += ((shadow[i] < 0.5) == (rv < 0.5)) as usize;
         }
-        eprintln!("1M capsid {:<10} hard-mask agreement {:.3}% of {n} pixels", mode.name(), 100.0 * agree as f64 / n as f64);
+        eprintln!(
+            "1M capsid {:<10} hard-mask agreement {:.3}% of {n} pixels",
+            mode.name(),
+            100.0 * agree as f64 / n as f64
+        );
         assert!(n > 10_000);
     }
     assert_no_validation_messages(&ctx);
