@@ -94,7 +94,7 @@ fn fill(img: &mut RgbImage, x: u32, y: u32, w: u32, h: u32, c: Rgb<u8>) {
 
 /// Colour of the `i`-th pass name (in order of first appearance).
 pub fn pass_color(i: usize) -> Rgb<u8> {
-    const PALETTE: [[u8; 3]; 12] = [
+    const PALETTE: [[u8; 3]; 18] = [
         [78, 121, 167],
         [242, 142, 43],
         [225, 87, 89],
@@ -107,6 +107,12 @@ pub fn pass_color(i: usize) -> Rgb<u8> {
         [186, 176, 172],
         [31, 119, 180],
         [148, 103, 189],
+        [44, 160, 44],
+        [214, 39, 40],
+        [23, 190, 207],
+        [188, 189, 34],
+        [127, 127, 127],
+        [140, 86, 75],
     ];
     Rgb(PALETTE[i % PALETTE.len()])
 }
