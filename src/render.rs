@@ -185,10 +185,10 @@ impl<'c> Renderer<'c> {
         }
         let cam = &settings.camera;
         let pixels = cam.width as u64 * cam.height as u64;
-        // The baselines fit the same kind of light view, at their own sizes;
-        // built first, so a map the device cannot hold fails before anything
-        // else is allocated.
-        let baseline_light = |size: u32| {
+        // Every light-space technique uses the same view fitted to the
+        // spheres, at its own map size. The baselines are built first, so a
+        // map the device cannot hold fails before anything else is allocated.
+        let fit_light = |size: u32| {
             crate::camera::light_view(
                 scene.spheres.iter().map(|s| (s.center, s.radius)),
                 settings.light,
@@ -198,7 +198,7 @@ impl<'c> Renderer<'c> {
         let shadow_map = match settings.shadows {
             ShadowMode::SmPcf => Some(ShadowMap::new(
                 ctx,
-                baseline_light(settings.shadow_maps.sm_size)?,
+                fit_light(settings.shadow_maps.sm_size)?,
                 &settings.shadow_maps,
             )?),
             _ => None,
@@ -206,7 +206,7 @@ impl<'c> Renderer<'c> {
         let osm = match settings.shadows {
             ShadowMode::Osm => Some(OpacityShadows::new(
                 ctx,
-                baseline_light(settings.shadow_maps.osm_size)?,
+                fit_light(settings.shadow_maps.osm_size)?,
                 scene.spheres.iter().map(|s| (s.center, s.radius)),
                 &settings.shadow_maps,
             )?),
@@ -252,11 +252,7 @@ impl<'c> Renderer<'c> {
             ShadowMode::Issm | ShadowMode::IssmSoft => {
                 let soft = settings.shadows == ShadowMode::IssmSoft;
                 let p = &settings.issm;
-                let light = crate::camera::light_view(
-                    scene.spheres.iter().map(|s| (s.center, s.radius)),
-                    settings.light,
-                    p.size,
-                )?;
+                let light = fit_light(p.size)?;
                 let texel = light.view_height / p.size as f64;
                 let (t, stride) = match p.t {
                     Some(t) => (t, 1),
@@ -291,11 +287,7 @@ impl<'c> Renderer<'c> {
         let deep = match settings.shadows {
             ShadowMode::Deep => {
                 let p = &settings.issm;
-                let light = crate::camera::light_view(
-                    scene.spheres.iter().map(|s| (s.center, s.radius)),
-                    settings.light,
-                    p.size,
-                )?;
+                let light = fit_light(p.size)?;
                 let radii: Vec<f32> = geom.iter().map(|g| g[3]).collect();
                 Some(DeepShadows::new(
                     ctx,
