@@ -16,17 +16,12 @@ use sphereshade::camera::Camera;
 use sphereshade::output::ids_from_vis;
 use sphereshade::reference;
 use sphereshade::render::Renderer;
-use sphereshade::scene::{self, LoadOptions, Scene};
+use sphereshade::scene::{self, Scene};
 use sphereshade::settings::{RenderSettings, ShadowMapParams, ShadowMode};
 use sphereshade::vk::Context;
 
 fn tii() -> Scene {
-    scene::load(
-        &data_file("1tii.pdb"),
-        &LoadOptions::default(),
-        &mut |_, _| {},
-    )
-    .expect("1tii")
+    load_data("1tii.pdb")
 }
 
 fn baseline_settings(scene: &Scene, mode: ShadowMode, p: ShadowMapParams) -> RenderSettings {

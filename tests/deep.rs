@@ -13,7 +13,7 @@ use sphereshade::output::ids_from_vis;
 use sphereshade::passes::deep::{self, CHUNK, DeepRaw, NONE, TILE, TILE_OVERFLOWED};
 use sphereshade::reference;
 use sphereshade::render::Renderer;
-use sphereshade::scene::{self, LoadOptions, Scene, Sphere};
+use sphereshade::scene::{self, Scene, Sphere};
 use sphereshade::settings::{RenderSettings, ShadowMode};
 use sphereshade::vk::Context;
 use std::collections::{HashMap, HashSet};
@@ -770,12 +770,7 @@ fn assert_exact(ctx: &Context, name: &str, scene: &Scene) {
 #[test]
 fn exact_shadows_1tii() {
     let ctx = validated_context();
-    let s = scene::load(
-        &data_file("1tii.pdb"),
-        &LoadOptions::default(),
-        &mut |_, _| {},
-    )
-    .expect("1tii");
+    let s = load_data("1tii.pdb");
     assert_exact(&ctx, "deep-1tii", &s);
     assert_no_validation_messages(&ctx);
 }

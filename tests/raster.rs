@@ -10,7 +10,7 @@ use sphereshade::output::ids_from_vis;
 use sphereshade::passes::raster::{GUARD_PATTERN, VIS_GUARD_WORDS};
 use sphereshade::reference;
 use sphereshade::render::Renderer;
-use sphereshade::scene::{self, LoadOptions, Scene};
+use sphereshade::scene::{self, Scene};
 use sphereshade::settings::{RasterMode, ShadowMode};
 
 /// Renders `scene` with `cam`, compares with the reference, checks guards.
@@ -82,12 +82,7 @@ fn capsid_scene_matches_reference() {
 #[test]
 fn pdb_1tii_matches_reference() {
     let ctx = validated_context();
-    let s = scene::load(
-        &data_file("1tii.pdb"),
-        &LoadOptions::default(),
-        &mut |_, _| {},
-    )
-    .expect("1tii");
+    let s = load_data("1tii.pdb");
     assert_eq!(s.spheres.len(), 5684);
     check_against_reference(&ctx, "1tii-ortho", &s, camera(&s, 300, 240, None));
     check_against_reference(&ctx, "1tii-persp", &s, camera(&s, 300, 240, Some(40.0)));

@@ -10,7 +10,7 @@ use sphereshade::camera::Camera;
 use sphereshade::output::ids_from_vis;
 use sphereshade::reference;
 use sphereshade::render::Renderer;
-use sphereshade::scene::{self, LoadOptions, Scene, Sphere};
+use sphereshade::scene::{self, Scene, Sphere};
 use sphereshade::settings::{IssmParams, RenderSettings, ShadowMode};
 use sphereshade::vk::Context;
 
@@ -159,12 +159,7 @@ fn assert_mask(ctx: &Context, name: &str, scene: &Scene, t: Option<u32>) {
 #[test]
 fn issm_hard_matches_exact_shadows_1tii() {
     let ctx = validated_context();
-    let s = scene::load(
-        &data_file("1tii.pdb"),
-        &LoadOptions::default(),
-        &mut |_, _| {},
-    )
-    .expect("1tii");
+    let s = load_data("1tii.pdb");
     assert_mask(&ctx, "issm-1tii", &s, None);
     // The paper's t = 1 (3x3 patch), for the accuracy/speed trade-off.
     let m = hard_mask_agreement(

@@ -47,6 +47,12 @@ pub fn data_file(name: &str) -> PathBuf {
     p
 }
 
+/// Loads a file of ../shared/data with the default options.
+pub fn load_data(name: &str) -> Scene {
+    sphereshade::scene::load(&data_file(name), &Default::default(), &mut |_, _| {})
+        .unwrap_or_else(|e| panic!("{name}: {e}"))
+}
+
 pub fn out_dir() -> PathBuf {
     let p = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/target/test-output"));
     let _ = std::fs::create_dir_all(&p);
