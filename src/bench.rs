@@ -79,6 +79,24 @@ pub struct BenchReport {
     /// Derived ratios (name -> value), see `ratios`.
     #[serde(default)]
     pub ratios: BTreeMap<String, f64>,
+    /// Runs that could not be made (e.g. a buffer over the device's limit):
+    /// the matrix goes on without them.
+    #[serde(default)]
+    pub failed: Vec<FailedRun>,
+    /// False while the matrix is still running (the JSON is rewritten after
+    /// every run, so an interrupted bench keeps what it measured).
+    #[serde(default = "yes")]
+    pub complete: bool,
+}
+
+fn yes() -> bool {
+    true
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct FailedRun {
+    pub run: String,
+    pub error: String,
 }
 
 fn list<T: ValueEnum + Clone>(s: &Option<String>, default: &[T], flag: &str) -> Result<Vec<T>> {
@@ -150,7 +168,13 @@ fn data_sets(a: &BenchArgs, atoms: &[usize]) -> Result<Vec<DataSet>> {
         color: "element".into(),
     };
     if a.inputs.is_empty() {
-        let names = a.scene.clone().unwrap_or_else(|| "capsid".into());
+        let names = a.scene.clone().unwrap_or_else(|| {
+            if a.quick {
+                "capsid".into()
+            } else {
+                "capsid,lattice".into()
+            }
+        });
         for name in names.split(',') {
             for &n in atoms {
                 let args = SceneArgs {
@@ -354,13 +378,22 @@ pub fn run(a: &BenchArgs) -> Result<BenchReport> {
     eprintln!("bench: device {} ({})", ctx.info.name, ctx.info.driver);
 
     let total = sets.len() * sizes.len() * techniques.len();
-    let mut runs = Vec::new();
-    for set in &sets {
-        for &(w, h) in &sizes {
+    let mut report = BenchReport {
+        runs: Vec::new(),
+        ratios: BTreeMap::new(),
+        failed: Vec::new(),
+        complete: false,
+    };
+    let started = std::time::Instant::now();
+    let mut done = 0usize;
+    // Sizes outermost: the cheaper size's whole matrix is measured (and
+    // written) before the expensive one starts.
+    for &(w, h) in &sizes {
+        for set in &sets {
             for t in &techniques {
-                eprintln!(
-                    "bench: run {}/{total}: {} ({} spheres) {w}x{h} shadows={} ssdo={} raster={} opacity={}",
-                    runs.len() + 1,
+                done += 1;
+                let desc = format!(
+                    "{} ({} spheres) {w}x{h} shadows={} ssdo={} raster={} opacity={}",
                     set.name,
                     set.scene.spheres.len(),
                     t.shadows.name(),
@@ -368,50 +401,87 @@ pub fn run(a: &BenchArgs) -> Result<BenchReport> {
                     t.raster.name(),
                     t.opacity
                 );
-                let view = ViewArgs {
-                    width: w,
-                    height: h,
-                    shadows: t.shadows,
-                    ssdo: t.ssdo,
-                    raster: t.raster,
-                    opacity: t.opacity,
-                    light: a.light,
-                    validate: a.validate,
-                    device: a.device,
-                    ..bench_view_defaults()
+                let elapsed = started.elapsed().as_secs_f64();
+                let eta = if done > 1 {
+                    format!(
+                        ", about {:.0} min left at this rate",
+                        elapsed / (done - 1) as f64 * (total - done + 1) as f64 / 60.0
+                    )
+                } else {
+                    String::new()
                 };
-                let settings = cli::settings_for(&set.scene, &view)?;
-                let base = settings.camera;
-                let frames = a.frames;
-                let orbit = !a.no_orbit && frames > 1;
-                let out = cli::render_run_with(
-                    &ctx,
-                    &set.scene,
-                    &set.name,
-                    settings,
-                    Aov::Color,
-                    a.warmup,
-                    frames,
-                    set.load_ms,
-                    &mut |r, k| {
-                        if orbit {
-                            r.set_camera(orbit_camera(&base, k, frames)?)
-                        } else {
-                            Ok(())
-                        }
-                    },
-                )?;
-                runs.push(out.stats);
+                eprintln!(
+                    "bench: run {done}/{total} ({:.0} s elapsed{eta}): {desc}",
+                    elapsed
+                );
+                match bench_one(&ctx, a, set, t, w, h) {
+                    Ok(stats) => report.runs.push(stats),
+                    Err(e) => {
+                        eprintln!("bench: run {done}/{total} failed: {e}");
+                        report.failed.push(FailedRun {
+                            run: desc,
+                            error: e.to_string(),
+                        });
+                    }
+                }
+                report.ratios = ratios(&report.runs);
+                output::write_json(&a.json, &report)?;
             }
         }
     }
     // Leak reports come at device destruction: charge them to the last run.
     let (n, _) = ctx.finish();
-    if let Some(last) = runs.last_mut() {
+    if let Some(last) = report.runs.last_mut() {
         last.validation_messages = last.validation_messages.max(n);
     }
-    let ratios = ratios(&runs);
-    Ok(BenchReport { runs, ratios })
+    report.ratios = ratios(&report.runs);
+    report.complete = true;
+    Ok(report)
+}
+
+/// Measures one technique on one data set at one size.
+fn bench_one(
+    ctx: &Context,
+    a: &BenchArgs,
+    set: &DataSet,
+    t: &Technique,
+    w: u32,
+    h: u32,
+) -> Result<RunStats> {
+    let view = ViewArgs {
+        width: w,
+        height: h,
+        shadows: t.shadows,
+        ssdo: t.ssdo,
+        raster: t.raster,
+        opacity: t.opacity,
+        light: a.light,
+        validate: a.validate,
+        device: a.device,
+        ..bench_view_defaults()
+    };
+    let settings = cli::settings_for(&set.scene, &view)?;
+    let base = settings.camera;
+    let frames = a.frames;
+    let orbit = !a.no_orbit && frames > 1;
+    let out = cli::render_run_with(
+        ctx,
+        &set.scene,
+        &set.name,
+        settings,
+        Aov::Color,
+        a.warmup,
+        frames,
+        set.load_ms,
+        &mut |r, k| {
+            if orbit {
+                r.set_camera(orbit_camera(&base, k, frames)?)
+            } else {
+                Ok(())
+            }
+        },
+    )?;
+    Ok(out.stats)
 }
 
 /// Default view options (the CLI defaults) for bench runs.
@@ -506,6 +576,31 @@ pub fn ratios(runs: &[RunStats]) -> BTreeMap<String, f64> {
             frame(r) / (r.spheres as f64 / 1e6),
         );
     }
+    // Scaling: the exponent k of frame ms ~ spheres^k between the smallest
+    // and largest count of one data set (1 = linear, below 1 = sub-linear).
+    let mut series: BTreeMap<String, Vec<(u64, f64)>> = BTreeMap::new();
+    for r in runs {
+        let tag = format!(
+            "{} {}x{} {}/{}/{} op={}",
+            r.input, r.width, r.height, r.shadows, r.ssdo, r.raster, r.opacity
+        );
+        series
+            .entry(tag)
+            .or_default()
+            .push((r.spheres, r.total_ms.median));
+    }
+    for (tag, mut pts) in series {
+        pts.sort_by_key(|p| p.0);
+        let (Some(&(n0, t0)), Some(&(n1, t1))) = (pts.first(), pts.last()) else {
+            continue;
+        };
+        if n1 > n0 && t0 > 0.0 && t1 > 0.0 {
+            out.insert(
+                format!("scaling_exponent[{tag} {n0}..{n1}]"),
+                (t1 / t0).ln() / (n1 as f64 / n0 as f64).ln(),
+            );
+        }
+    }
     out
 }
 
@@ -533,6 +628,17 @@ pub fn table(report: &BenchReport) -> String {
             .map(|p| format!("{} {:.2}", p.name, p.median_ms))
             .collect();
         s += &format!("    {}\n", passes.join(" | "));
+        let mem: Vec<String> = r
+            .gpu_memory
+            .iter()
+            .map(|(k, v)| format!("{k} {:.1}", *v as f64 / 1e6))
+            .collect();
+        if !mem.is_empty() {
+            s += &format!("    memory MB: {}\n", mem.join(" | "));
+        }
+    }
+    for f in &report.failed {
+        s += &format!("FAILED {}: {}\n", f.run, f.error);
     }
     if !report.ratios.is_empty() {
         s += "ratios:\n";
@@ -595,6 +701,14 @@ pub fn main(a: &BenchArgs) -> Result<u32> {
             println!("  {run:<60} {pass:<14} {r:.3}");
         }
     }
+    if !report.failed.is_empty() {
+        return Err(Error::Invalid(format!(
+            "{} of {} runs failed (listed above and under \"failed\" in {})",
+            report.failed.len(),
+            report.failed.len() + report.runs.len(),
+            a.json.display()
+        )));
+    }
     Ok(report
         .runs
         .iter()
@@ -634,6 +748,7 @@ mod tests {
             },
             load_ms: 0.0,
             gpu_memory_bytes: 0,
+            gpu_memory: Default::default(),
             validation_messages: 0,
             deep: None,
             image_sha256: String::new(),
@@ -661,14 +776,41 @@ mod tests {
     }
 
     #[test]
+    fn scaling_exponent_is_the_log_log_slope() {
+        let mut runs = Vec::new();
+        for (n, t) in [
+            (100_000, 10.0),
+            (1_000_000, 40.0),
+            (4_000_000, 10.0 * 40f64.sqrt()),
+        ] {
+            let mut r = run("none", 1.0, t);
+            r.spheres = n;
+            runs.push(r);
+        }
+        let r = ratios(&runs);
+        let k: Vec<f64> = r
+            .iter()
+            .filter(|(k, _)| k.starts_with("scaling_exponent"))
+            .map(|(_, v)| *v)
+            .collect();
+        assert_eq!(k.len(), 1, "{r:?}");
+        // Smallest to largest count: 40x spheres, sqrt(40)x time.
+        assert!((k[0] - 0.5).abs() < 1e-12, "{k:?}");
+    }
+
+    #[test]
     fn compare_is_new_over_old_per_pass() {
         let old = BenchReport {
             runs: vec![run("issm", 2.0, 8.0)],
             ratios: Default::default(),
+            failed: Vec::new(),
+            complete: true,
         };
         let new = BenchReport {
             runs: vec![run("issm", 3.0, 4.0), run("none", 1.0, 1.0)],
             ratios: Default::default(),
+            failed: Vec::new(),
+            complete: true,
         };
         let c = compare(&new, &old);
         assert_eq!(c.len(), 2, "only the matching run is compared: {c:?}");

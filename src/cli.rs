@@ -555,6 +555,7 @@ pub fn render_run_with(
         total_ms,
         load_ms,
         gpu_memory_bytes: r.memory_bytes(),
+        gpu_memory: r.memory_by_class(),
         validation_messages: ctx.validation_messages(),
         deep: r.deep_stats.clone(),
         image_sha256: image.sha256(),

@@ -171,6 +171,9 @@ pub struct RunStats {
     pub total_ms: TotalStats,
     pub load_ms: f64,
     pub gpu_memory_bytes: u64,
+    /// `gpu_memory_bytes` by buffer class (an addition to DESIGN.md's object).
+    #[serde(default)]
+    pub gpu_memory: std::collections::BTreeMap<String, u64>,
     pub validation_messages: u32,
     pub deep: Option<DeepStats>,
     pub image_sha256: String,

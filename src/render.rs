@@ -18,9 +18,11 @@ use crate::passes::ssdo::{GBuffer, KeyShadowPush, SsdoPass, SsdoPush};
 use crate::scene::Scene;
 use crate::semantic::{self, LevelChoice};
 use crate::settings::{RasterMode, RenderSettings, ShadowMode, SsdoMode};
+use crate::vk::guard::Destroy;
 use crate::vk::{Buffer, Context, Profiler, barrier};
 use ash::vk;
 use gpu_allocator::MemoryLocation;
+use std::collections::BTreeMap;
 
 /// Fraction of the key light's diffuse term kept in full shadow.
 pub const SHADOW_DIFFUSE: f32 = 0.12;
@@ -195,15 +197,15 @@ impl<'c> Renderer<'c> {
                 size,
             )
         };
-        let shadow_map = match settings.shadows {
+        let shadow_map = ctx.guard(match settings.shadows {
             ShadowMode::SmPcf => Some(ShadowMap::new(
                 ctx,
                 fit_light(settings.shadow_maps.sm_size)?,
                 &settings.shadow_maps,
             )?),
             _ => None,
-        };
-        let osm = match settings.shadows {
+        });
+        let osm = ctx.guard(match settings.shadows {
             ShadowMode::Osm => Some(OpacityShadows::new(
                 ctx,
                 fit_light(settings.shadow_maps.osm_size)?,
@@ -211,7 +213,7 @@ impl<'c> Renderer<'c> {
                 &settings.shadow_maps,
             )?),
             _ => None,
-        };
+        });
         let geom: Vec<GpuSphere> = scene
             .spheres
             .iter()
@@ -227,28 +229,32 @@ impl<'c> Renderer<'c> {
             })
             .collect();
 
-        let spheres = Buffer::storage(ctx, "spheres", (geom.len() * 16) as u64)?;
+        // Each object is guarded until the renderer owns it: an error part
+        // way (a buffer over the device limit) destroys what was made.
+        let storage =
+            |name: &str, size: u64| Ok::<_, Error>(ctx.guard(Buffer::storage(ctx, name, size)?));
+        let spheres = storage("spheres", (geom.len() * 16) as u64)?;
         spheres.upload(ctx, 0, bytemuck::cast_slice(&geom))?;
-        let attr_buf = Buffer::storage(ctx, "sphere attributes", (attrs.len() * 32) as u64)?;
+        let attr_buf = storage("sphere attributes", (attrs.len() * 32) as u64)?;
         attr_buf.upload(ctx, 0, bytemuck::cast_slice(&attrs))?;
 
-        let vis = raster::vis_buffer(ctx, "visibility", pixels)?;
-        let gpos = Buffer::storage(ctx, "gbuffer position", pixels * 16)?;
-        let gnorm = Buffer::storage(ctx, "gbuffer normal", pixels * 16)?;
-        let gregion = Buffer::storage(ctx, "gbuffer regions", pixels * 16)?;
-        let shadow = Buffer::storage(ctx, "key-light visibility", pixels * 4)?;
-        let ambient = Buffer::storage(ctx, "ambient visibility+bounce", pixels * 16)?;
+        let vis = ctx.guard(raster::vis_buffer(ctx, "visibility", pixels)?);
+        let gpos = storage("gbuffer position", pixels * 16)?;
+        let gnorm = storage("gbuffer normal", pixels * 16)?;
+        let gregion = storage("gbuffer regions", pixels * 16)?;
+        let shadow = storage("key-light visibility", pixels * 4)?;
+        let ambient = storage("ambient visibility+bounce", pixels * 16)?;
         let blurred = [
-            Buffer::storage(ctx, "ambient blur tmp", pixels * 16)?,
-            Buffer::storage(ctx, "shadow blur tmp", pixels * 4)?,
-            Buffer::storage(ctx, "ambient blurred", pixels * 16)?,
-            Buffer::storage(ctx, "shadow blurred", pixels * 4)?,
+            storage("ambient blur tmp", pixels * 16)?,
+            storage("shadow blur tmp", pixels * 4)?,
+            storage("ambient blurred", pixels * 16)?,
+            storage("shadow blurred", pixels * 4)?,
         ];
-        let color = Buffer::storage(ctx, "colour", pixels * 4)?;
+        let color = storage("colour", pixels * 4)?;
 
         let (bs_center, bs_radius) = scene.bounding_sphere();
         let depth_offset = (bs_center.as_dvec3() - cam.center).length() + bs_radius as f64 + 1.0;
-        let issm = match settings.shadows {
+        let issm = ctx.guard(match settings.shadows {
             ShadowMode::Issm | ShadowMode::IssmSoft => {
                 let soft = settings.shadows == ShadowMode::IssmSoft;
                 let p = &settings.issm;
@@ -274,17 +280,23 @@ impl<'c> Renderer<'c> {
                     "issm: map {}², texel {texel:.3}, t {t}, stride {stride}",
                     p.size
                 );
+                let map = ctx.guard(raster::vis_buffer(
+                    ctx,
+                    "issm",
+                    p.size as u64 * p.size as u64,
+                )?);
+                let pass = IssmShadowPass::new(ctx)?;
                 Some(IssmState {
-                    map: raster::vis_buffer(ctx, "issm", p.size as u64 * p.size as u64)?,
-                    pass: IssmShadowPass::new(ctx)?,
+                    map: map.keep(),
+                    pass,
                     push: IssmShadowPass::push(p, soft, t, stride),
                     light,
                 })
             }
             _ => None,
-        };
+        });
         // Deep lists use the same tightly fitted light view as the ISSM.
-        let deep = match settings.shadows {
+        let deep = ctx.guard(match settings.shadows {
             ShadowMode::Deep => {
                 let p = &settings.issm;
                 let light = fit_light(p.size)?;
@@ -297,7 +309,7 @@ impl<'c> Renderer<'c> {
                 )?)
             }
             _ => None,
-        };
+        });
         let light_cam = issm
             .as_ref()
             .map(|s| s.light)
@@ -323,7 +335,7 @@ impl<'c> Renderer<'c> {
             params: [0.0; 4],
         };
 
-        let ssdo = match settings.ssdo {
+        let ssdo = ctx.guard(match settings.ssdo {
             SsdoMode::Off => None,
             mode => {
                 let r = typical_radius(scene) as f64;
@@ -335,12 +347,14 @@ impl<'c> Renderer<'c> {
                 let thresholds = settings.semantic_levels.clone().unwrap_or_else(|| {
                     semantic::default_thresholds(levels.len(), 2.0 * bs_radius as f64 * 1.05)
                 });
+                let pass = ctx.guard(SsdoPass::new(ctx)?);
+                let blur = BlurPass::new(ctx)?;
                 Some(SsdoState {
                     radius: r,
                     levels,
                     thresholds,
-                    pass: SsdoPass::new(ctx)?,
-                    blur: BlurPass::new(ctx)?,
+                    pass: pass.keep(),
+                    blur,
                     push: SsdoPush {
                         r_near: (2.0 * r).max(2.0 * px) as f32,
                         r_far: (8.0 * r).max(8.0 * px) as f32,
@@ -373,7 +387,7 @@ impl<'c> Renderer<'c> {
                     },
                 })
             }
-        };
+        });
 
         // Without a shadow pass, key-light visibility is 1 everywhere.
         ctx.one_shot("init shadow", |cmd| {
@@ -384,13 +398,17 @@ impl<'c> Renderer<'c> {
             Ok(())
         })?;
 
-        let raster_graphics = match settings.raster {
+        let raster_graphics = ctx.guard(match settings.raster {
             RasterMode::Graphics => Some(GraphicsRasterPass::new(ctx)?),
             RasterMode::Compute => None,
-        };
-        let slots = (0..crate::vk::FRAME_SLOTS)
-            .map(|i| FrameSlot::new(ctx, i))
-            .collect::<Result<Vec<_>>>()?;
+        });
+        let mut slots = ctx.guard(Vec::new());
+        for i in 0..crate::vk::FRAME_SLOTS {
+            slots.push(FrameSlot::new(ctx, i)?);
+        }
+        let raster = ctx.guard(RasterPass::new(ctx)?);
+        let resolve = ctx.guard(ResolvePass::new(ctx)?);
+        let composite = CompositePass::new(ctx)?;
         Ok(Renderer {
             ctx,
             sphere_count: geom.len() as u32,
@@ -398,27 +416,27 @@ impl<'c> Renderer<'c> {
             globals_data,
             bounds: (bs_center.as_dvec3(), bs_radius as f64),
             bgra: false,
-            slots,
+            slots: slots.keep(),
             next_slot: 0,
-            spheres,
-            attrs: attr_buf,
-            vis,
-            gpos,
-            gnorm,
-            gregion,
-            shadow,
-            ambient,
-            blurred,
-            color,
-            ssdo,
-            raster: RasterPass::new(ctx)?,
-            raster_graphics,
-            resolve: ResolvePass::new(ctx)?,
-            composite: CompositePass::new(ctx)?,
-            issm,
-            deep,
-            shadow_map,
-            osm,
+            spheres: spheres.keep(),
+            attrs: attr_buf.keep(),
+            vis: vis.keep(),
+            gpos: gpos.keep(),
+            gnorm: gnorm.keep(),
+            gregion: gregion.keep(),
+            shadow: shadow.keep(),
+            ambient: ambient.keep(),
+            blurred: blurred.map(|b| b.keep()),
+            color: color.keep(),
+            ssdo: ssdo.keep(),
+            raster: raster.keep(),
+            raster_graphics: raster_graphics.keep(),
+            resolve: resolve.keep(),
+            composite,
+            issm: issm.keep(),
+            deep: deep.keep(),
+            shadow_map: shadow_map.keep(),
+            osm: osm.keep(),
             deep_stats: None,
         })
     }
@@ -476,28 +494,50 @@ impl<'c> Renderer<'c> {
     }
 
     /// Bytes of GPU memory held by this renderer's buffers.
-    pub fn memory_bytes(&self) -> u64 {
-        self.slots.iter().map(|f| f.globals.size).sum::<u64>()
-            + [
-                &self.spheres,
-                &self.attrs,
-                &self.vis,
+    /// Device memory of this renderer's buffers by class (bytes requested,
+    /// before allocator alignment): what a user sizing a data set needs to
+    /// know is which part grows with spheres, pixels or the light map.
+    pub fn memory_by_class(&self) -> BTreeMap<String, u64> {
+        let sum = |bs: &[&Buffer]| bs.iter().map(|b| b.size).sum::<u64>();
+        let mut m = BTreeMap::new();
+        let mut add = |class: &str, bytes: u64| {
+            if bytes > 0 {
+                *m.entry(class.to_string()).or_insert(0) += bytes;
+            }
+        };
+        add("scene", sum(&[&self.spheres, &self.attrs]));
+        add(
+            "uniforms",
+            self.slots.iter().map(|f| f.globals.size).sum::<u64>(),
+        );
+        add("visibility", self.vis.size + self.raster.memory_bytes());
+        add(
+            "gbuffer",
+            sum(&[
                 &self.gpos,
                 &self.gnorm,
                 &self.gregion,
                 &self.shadow,
                 &self.ambient,
                 &self.color,
-            ]
-            .iter()
-            .chain(self.blurred.iter().collect::<Vec<_>>().iter())
-            .map(|b| b.size)
-            .sum::<u64>()
-            + self.raster.memory_bytes()
-            + self.issm.as_ref().map_or(0, |s| s.map.size)
-            + self.deep.as_ref().map_or(0, |d| d.memory_bytes())
-            + self.shadow_map.as_ref().map_or(0, |s| s.memory_bytes())
-            + self.osm.as_ref().map_or(0, |o| o.memory_bytes())
+            ]) + self.blurred.iter().map(|b| b.size).sum::<u64>(),
+        );
+        add("issm_map", self.issm.as_ref().map_or(0, |s| s.map.size));
+        if let Some(d) = &self.deep {
+            let (pool, tables) = d.memory_split();
+            add("deep_pool", pool);
+            add("deep_tables", tables);
+        }
+        add(
+            "shadow_map",
+            self.shadow_map.as_ref().map_or(0, |s| s.memory_bytes()),
+        );
+        add("osm", self.osm.as_ref().map_or(0, |o| o.memory_bytes()));
+        m
+    }
+
+    pub fn memory_bytes(&self) -> u64 {
+        self.memory_by_class().values().sum()
     }
 
     /// Renders one frame; when the deep-list pool overflowed, grows it and
@@ -936,36 +976,40 @@ pub fn level_choice(
     (levels, choice)
 }
 
+impl Destroy for FrameSlot {
+    fn destroy_with(&mut self, ctx: &Context) {
+        self.destroy(ctx);
+    }
+}
+
+impl Destroy for IssmState {
+    fn destroy_with(&mut self, ctx: &Context) {
+        self.pass.destroy(ctx);
+        self.map.destroy(ctx);
+    }
+}
+
+impl Destroy for SsdoState {
+    fn destroy_with(&mut self, ctx: &Context) {
+        self.pass.destroy(ctx);
+        self.blur.destroy(ctx);
+    }
+}
+
 impl Drop for Renderer<'_> {
     fn drop(&mut self) {
         let ctx = self.ctx;
         ctx.wait_idle();
-        for fs in &mut self.slots {
-            fs.destroy(ctx);
-        }
+        self.slots.destroy_with(ctx);
         self.raster.destroy(ctx);
-        if let Some(gr) = &mut self.raster_graphics {
-            gr.destroy(ctx);
-        }
+        self.raster_graphics.destroy_with(ctx);
         self.resolve.destroy(ctx);
         self.composite.destroy(ctx);
-        if let Some(st) = &mut self.issm {
-            st.pass.destroy(ctx);
-            st.map.destroy(ctx);
-        }
-        if let Some(d) = &mut self.deep {
-            d.destroy(ctx);
-        }
-        if let Some(sm) = &mut self.shadow_map {
-            sm.destroy(ctx);
-        }
-        if let Some(o) = &mut self.osm {
-            o.destroy(ctx);
-        }
-        if let Some(st) = &mut self.ssdo {
-            st.pass.destroy(ctx);
-            st.blur.destroy(ctx);
-        }
+        self.issm.destroy_with(ctx);
+        self.deep.destroy_with(ctx);
+        self.shadow_map.destroy_with(ctx);
+        self.osm.destroy_with(ctx);
+        self.ssdo.destroy_with(ctx);
         for b in [
             &mut self.spheres,
             &mut self.attrs,
@@ -979,8 +1023,6 @@ impl Drop for Renderer<'_> {
         ] {
             b.destroy(ctx);
         }
-        for b in &mut self.blurred {
-            b.destroy(ctx);
-        }
+        self.blurred.destroy_with(ctx);
     }
 }

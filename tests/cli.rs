@@ -166,6 +166,13 @@ fn validated_render_writes_schema_json_and_stable_hash() {
             assert!(v.get(key).is_some(), "JSON lacks {key}");
         }
         assert_eq!(v["validation_messages"], 0);
+        // Memory by class adds up to the total; the classes this frame needs are there.
+        let classes = v["gpu_memory"].as_object().expect("gpu_memory object");
+        let sum: u64 = classes.values().map(|b| b.as_u64().unwrap()).sum();
+        assert_eq!(sum, v["gpu_memory_bytes"].as_u64().unwrap());
+        for class in ["scene", "visibility", "gbuffer", "issm_map"] {
+            assert!(classes[class].as_u64().unwrap() > 0, "{class}: {classes:?}");
+        }
         assert_eq!(v["spheres"], 500);
         assert_eq!(v["shadows"], "issm-soft");
         assert_eq!(v["ssdo"], "semantic");
@@ -310,4 +317,54 @@ fn bench_writes_runs_and_ratios() {
     ]);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     assert!(String::from_utf8_lossy(&o.stdout).contains("compare"));
+}
+
+/// A run the device cannot make (a G-buffer over the storage-buffer limit)
+/// is reported and the matrix goes on; the JSON keeps the good runs and the
+/// exit status says something failed.
+#[test]
+fn bench_keeps_going_past_a_failed_run() {
+    let json = tmp("bench-fail.json");
+    let o = run(&[
+        "bench",
+        "--validate",
+        "--scene",
+        "random",
+        "--atoms",
+        "300",
+        "--size",
+        "64x48,16384x16384",
+        "--shadows",
+        "none",
+        "--ssdo",
+        "off",
+        "--frames",
+        "1",
+        "--warmup",
+        "0",
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("1 of 2 runs failed"), "{}", stderr(&o));
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(v["runs"].as_array().unwrap().len(), 1);
+    assert_eq!(v["complete"], true);
+    // The buffers made before the failing one were destroyed: validation
+    // reports no leak at device destruction (charged to the last good run).
+    assert_eq!(v["runs"][0]["validation_messages"], 0, "{}", stderr(&o));
+    let failed = v["failed"].as_array().unwrap();
+    assert_eq!(failed.len(), 1);
+    assert!(
+        failed[0]["run"].as_str().unwrap().contains("16384x16384"),
+        "{failed:?}"
+    );
+    assert!(
+        failed[0]["error"]
+            .as_str()
+            .unwrap()
+            .contains("maxStorageBufferRange"),
+        "{failed:?}"
+    );
 }

@@ -180,7 +180,7 @@ struct Lists {
 impl Lists {
     fn new(ctx: &Context, chunks: u32) -> Result<Self> {
         let n = chunks as u64 * CHUNK as u64;
-        let mut made: Vec<Buffer> = Vec::new();
+        let mut made = ctx.guard(Vec::new());
         for (name, words) in [
             ("deep depth", n),
             ("deep alpha", n),
@@ -190,17 +190,14 @@ impl Lists {
             ("deep node depth", n * NODES_PER_ENTRY),
             ("deep node visibility", n * NODES_PER_ENTRY),
         ] {
-            match guarded(ctx, name, words, vk::BufferUsageFlags::STORAGE_BUFFER) {
-                Ok(b) => made.push(b),
-                Err(e) => {
-                    for b in &mut made {
-                        b.destroy(ctx);
-                    }
-                    return Err(e);
-                }
-            }
+            made.push(guarded(
+                ctx,
+                name,
+                words,
+                vk::BufferUsageFlags::STORAGE_BUFFER,
+            )?);
         }
-        let mut it = made.into_iter();
+        let mut it = made.keep().into_iter();
         let mut take = || it.next().expect("seven buffers");
         Ok(Lists {
             depth: take(),
@@ -886,6 +883,19 @@ impl DeepShadows {
     /// Bytes of every buffer this pass owns (lists and band-job scratch).
     pub fn memory_bytes(&self) -> u64 {
         self.guarded_buffers().iter().map(|(b, _)| b.size).sum()
+    }
+
+    /// (chunk pool: entries and visibility nodes, everything else: texel
+    /// heads, tile tables, counters, jobs).
+    pub fn memory_split(&self) -> (u64, u64) {
+        let pool: u64 = self
+            .lists
+            .entries()
+            .into_iter()
+            .chain(self.lists.nodes())
+            .map(|b| b.size)
+            .sum();
+        (pool, self.memory_bytes() - pool)
     }
 
     pub fn destroy(&mut self, ctx: &Context) {

@@ -28,3 +28,16 @@ pub(crate) fn destroy_all(ctx: &Context, pipelines: &[&crate::vk::ComputePipelin
         p.destroy(ctx);
     }
 }
+
+crate::impl_destroy!(
+    raster::RasterPass,
+    raster_graphics::GraphicsRasterPass,
+    resolve::ResolvePass,
+    composite::CompositePass,
+    issm::IssmShadowPass,
+    deep::DeepShadows,
+    shadow_map::ShadowMap,
+    osm::OpacityShadows,
+    ssdo::SsdoPass,
+    blur::BlurPass,
+);

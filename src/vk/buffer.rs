@@ -23,6 +23,17 @@ impl Buffer {
         location: MemoryLocation,
     ) -> Result<Self> {
         let size = size.max(16);
+        // Every storage buffer is bound whole, so it must fit the device's
+        // range; saying so beats the allocator's bare "out of memory".
+        let range = ctx.props.limits.max_storage_buffer_range as u64;
+        if usage.contains(vk::BufferUsageFlags::STORAGE_BUFFER) && size > range {
+            return Err(Error::Invalid(format!(
+                "'{name}' needs {:.1} MiB, more than this device's maxStorageBufferRange ({} MiB): \
+                 lower the image size (--width/--height) or the light-map size",
+                size as f64 / (1u64 << 20) as f64,
+                range >> 20
+            )));
+        }
         let info = vk::BufferCreateInfo::default()
             .size(size)
             .usage(usage | vk::BufferUsageFlags::TRANSFER_SRC | vk::BufferUsageFlags::TRANSFER_DST)

@@ -4,6 +4,7 @@
 
 pub mod buffer;
 pub mod debug;
+pub mod guard;
 pub mod pipeline;
 pub mod timestamps;
 
