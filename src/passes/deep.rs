@@ -44,6 +44,7 @@
 //! every list and counter buffer carries [`GUARD_WORDS`] guard words after
 //! its payload, filled once with [`GUARD_PATTERN`]; see [`DeepShadows::damaged_guards`].
 
+use super::bands::{BandArgs, BandCounters};
 use super::{LOCAL_SIZE, spirv};
 use crate::camera::Camera;
 use crate::error::{Error, Result};
@@ -134,12 +135,6 @@ struct SplatPush {
     entry_capacity: u32,
     opacity: f32,
     pad: u32,
-}
-
-#[repr(C)]
-#[derive(Clone, Copy, Pod, Zeroable)]
-struct ArgsPush {
-    job_capacity: u32,
 }
 
 #[repr(C)]
@@ -328,7 +323,7 @@ pub struct DeepShadows {
     inline_bits: Buffer,
     lists: Lists,
     splat: ComputePipeline,
-    args: ComputePipeline,
+    args: BandArgs,
     alloc: ComputePipeline,
     sort: ComputePipeline,
     shadow: ComputePipeline,
@@ -413,86 +408,65 @@ impl DeepShadows {
                 )
             };
         // Build everything, releasing what was made if a later step fails.
-        let mut bufs: Vec<Buffer> = Vec::new();
-        let mut pipes: Vec<ComputePipeline> = Vec::new();
-        let built = (|| -> Result<()> {
-            bufs.push(guarded(ctx, "deep texels", texel_count * 4, storage)?);
-            bufs.push(guarded(ctx, "deep tiles", tile_count(&light) * 4, storage)?);
-            bufs.push(guarded(
-                ctx,
-                "deep counters",
-                COUNTER_WORDS,
-                storage | vk::BufferUsageFlags::INDIRECT_BUFFER,
-            )?);
-            bufs.push(guarded(
-                ctx,
-                "deep band jobs",
-                JOB_CAPACITY as u64 * 2,
-                storage,
-            )?);
-            bufs.push(guarded(
-                ctx,
-                "deep inline spheres",
-                (sphere_count as u64).div_ceil(32).max(1),
-                storage,
-            )?);
-            let s = STORAGE;
-            pipes.push(pipe(
-                "deep splat",
-                spirv::DEEP_SPLAT_COMP,
-                &[UNIFORM, s, s, s, s, s, s, s, s, s],
-                std::mem::size_of::<SplatPush>(),
-                LOCAL_SIZE,
-            )?);
-            pipes.push(pipe(
-                "deep band args",
-                spirv::DEEP_ARGS_COMP,
-                &[s],
-                std::mem::size_of::<ArgsPush>(),
-                1,
-            )?);
-            pipes.push(pipe(
-                "deep alloc",
-                spirv::DEEP_ALLOC_COMP,
-                &[UNIFORM, s, s, s],
-                std::mem::size_of::<AllocPush>(),
-                64,
-            )?);
-            pipes.push(pipe(
-                "deep sort",
-                spirv::DEEP_SORT_COMP,
-                &[UNIFORM, s, s, s, s, s, s, s, s, s],
-                std::mem::size_of::<SortPush>(),
-                64,
-            )?);
-            pipes.push(pipe(
-                "deep shadow",
-                spirv::DEEP_SHADOW_COMP,
-                &[UNIFORM, s, s, s, s, s, s, s, s, s, s],
-                std::mem::size_of::<ShadowPush>(),
-                LOCAL_SIZE,
-            )?);
-            Ok(())
-        })();
-        let lists = built.and_then(|_| Lists::new(ctx, capacity));
-        let lists = match lists {
-            Ok(l) => l,
-            Err(e) => {
-                for b in &mut bufs {
-                    b.destroy(ctx);
-                }
-                for p in &pipes {
-                    p.destroy(ctx);
-                }
-                return Err(e);
-            }
-        };
-        let mut b = bufs.into_iter();
-        let mut p = pipes.into_iter();
+        let mut bufs = ctx.guard(Vec::new());
+        let mut pipes = ctx.guard(Vec::new());
+        let args = ctx.guard(BandArgs::new(ctx, "deep band args")?);
+        bufs.push(guarded(ctx, "deep texels", texel_count * 4, storage)?);
+        bufs.push(guarded(ctx, "deep tiles", tile_count(&light) * 4, storage)?);
+        bufs.push(guarded(
+            ctx,
+            "deep counters",
+            COUNTER_WORDS,
+            storage | vk::BufferUsageFlags::INDIRECT_BUFFER,
+        )?);
+        bufs.push(guarded(
+            ctx,
+            "deep band jobs",
+            JOB_CAPACITY as u64 * 2,
+            storage,
+        )?);
+        bufs.push(guarded(
+            ctx,
+            "deep inline spheres",
+            (sphere_count as u64).div_ceil(32).max(1),
+            storage,
+        )?);
+        let s = STORAGE;
+        pipes.push(pipe(
+            "deep splat",
+            spirv::DEEP_SPLAT_COMP,
+            &[UNIFORM, s, s, s, s, s, s, s, s, s],
+            std::mem::size_of::<SplatPush>(),
+            LOCAL_SIZE,
+        )?);
+        pipes.push(pipe(
+            "deep alloc",
+            spirv::DEEP_ALLOC_COMP,
+            &[UNIFORM, s, s, s],
+            std::mem::size_of::<AllocPush>(),
+            64,
+        )?);
+        pipes.push(pipe(
+            "deep sort",
+            spirv::DEEP_SORT_COMP,
+            &[UNIFORM, s, s, s, s, s, s, s, s, s],
+            std::mem::size_of::<SortPush>(),
+            64,
+        )?);
+        pipes.push(pipe(
+            "deep shadow",
+            spirv::DEEP_SHADOW_COMP,
+            &[UNIFORM, s, s, s, s, s, s, s, s, s, s],
+            std::mem::size_of::<ShadowPush>(),
+            LOCAL_SIZE,
+        )?);
+        let lists = Lists::new(ctx, capacity)?;
+        let mut b = bufs.keep().into_iter();
+        let mut p = pipes.keep().into_iter();
         let mut nb = || b.next().expect("buffers");
         let (texels, tiles, counters, jobs, inline_bits) = (nb(), nb(), nb(), nb(), nb());
         let mut np = || p.next().expect("pipelines");
-        let (splat, args, alloc, sort, shadow) = (np(), np(), np(), np(), np());
+        let (splat, alloc, sort, shadow) = (np(), np(), np(), np());
         Ok(DeepShadows {
             light,
             sphere_count,
@@ -505,7 +479,7 @@ impl DeepShadows {
             inline_bits,
             lists,
             splat,
-            args,
+            args: args.keep(),
             alloc,
             sort,
             shadow,
@@ -602,7 +576,12 @@ impl DeepShadows {
             opacity: opacity.clamp(0.0, 1.0),
             pad: 0,
         };
-        let args_offset = counter::ARGS as u64 * 4;
+        let band_counters = BandCounters {
+            job_capacity,
+            requested: counter::BANDS_REQ as u32,
+            run: counter::BANDS_RUN as u32,
+            args: counter::ARGS as u32,
+        };
         let (tx, ty) = self.tiles_xy();
 
         prof.begin(ctx, cmd, "deep_count")?;
@@ -613,29 +592,15 @@ impl DeepShadows {
             dev.cmd_fill_buffer(cmd, self.inline_bits.raw, 0, inline_words * 4, 0);
         }
         barrier(dev, cmd);
-        self.splat.dispatch(
+        self.args.record(
             ctx,
             cmd,
+            (&self.splat, &splat(MODE_COUNT, 0)),
+            (&self.splat, &splat(MODE_COUNT, 1)),
             &splat_bufs,
-            &splat(MODE_COUNT, 0),
-            self.sphere_count as u64,
-        )?;
-        barrier(dev, cmd);
-        self.args.dispatch_groups(
-            ctx,
-            cmd,
-            &[&self.counters],
-            &ArgsPush { job_capacity },
-            [1, 1, 1],
-        )?;
-        barrier(dev, cmd);
-        self.splat.dispatch_indirect(
-            ctx,
-            cmd,
-            &splat_bufs,
-            &splat(MODE_COUNT, 1),
+            self.sphere_count,
             &self.counters,
-            args_offset,
+            &band_counters,
         )?;
         prof.end(ctx, cmd)?;
         barrier(dev, cmd);
@@ -655,21 +620,17 @@ impl DeepShadows {
         barrier(dev, cmd);
 
         prof.begin(ctx, cmd, "deep_fill")?;
-        self.splat.dispatch(
+        // The count pass left the band arguments; recomputing them is one
+        // invocation and keeps one recorded sequence for both modes.
+        self.args.record(
             ctx,
             cmd,
+            (&self.splat, &splat(MODE_FILL, 0)),
+            (&self.splat, &splat(MODE_FILL, 1)),
             &splat_bufs,
-            &splat(MODE_FILL, 0),
-            self.sphere_count as u64,
-        )?;
-        barrier(dev, cmd);
-        self.splat.dispatch_indirect(
-            ctx,
-            cmd,
-            &splat_bufs,
-            &splat(MODE_FILL, 1),
+            self.sphere_count,
             &self.counters,
-            args_offset,
+            &band_counters,
         )?;
         prof.end(ctx, cmd)?;
         barrier(dev, cmd);
@@ -899,16 +860,8 @@ impl DeepShadows {
     }
 
     pub fn destroy(&mut self, ctx: &Context) {
-        super::destroy_all(
-            ctx,
-            &[
-                &self.splat,
-                &self.args,
-                &self.alloc,
-                &self.sort,
-                &self.shadow,
-            ],
-        );
+        super::destroy_all(ctx, &[&self.splat, &self.alloc, &self.sort, &self.shadow]);
+        self.args.destroy(ctx);
         for b in [
             &mut self.texels,
             &mut self.tiles,

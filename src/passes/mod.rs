@@ -1,6 +1,7 @@
 //! One file per pass. Each pass owns its pipelines (and private buffers),
 //! exposes `NAME` (its debug label and timestamp scope) and a `record()`.
 
+pub mod bands;
 pub mod blur;
 pub mod composite;
 pub mod deep;
@@ -40,4 +41,5 @@ crate::impl_destroy!(
     osm::OpacityShadows,
     ssdo::SsdoPass,
     blur::BlurPass,
+    bands::BandArgs,
 );

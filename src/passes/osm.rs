@@ -26,6 +26,8 @@
 //! [`ALPHA_MAX`], so a fully opaque sphere leaves 0.001 of the light through
 //! (below one 8-bit step).
 
+use super::bands::{BandArgs, BandCounters};
+use super::raster::RASTER_COUNTERS;
 use super::{LOCAL_SIZE, spirv};
 use crate::camera::Camera;
 use crate::error::{Error, Result};
@@ -64,12 +66,6 @@ struct RasterPush {
 
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
-struct ArgsPush {
-    job_capacity: u32,
-}
-
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable)]
 struct PrefixPush {
     texels: u32,
     slices: u32,
@@ -92,6 +88,12 @@ pub fn tau_fixed(alpha: f32) -> u32 {
     (-(1.0 - a).ln() * FIXED_SCALE as f64).round() as u32
 }
 
+/// Same counter words as the camera raster (glsl/osm_raster.comp).
+const OSM_COUNTERS: BandCounters = BandCounters {
+    job_capacity: JOB_CAPACITY,
+    ..RASTER_COUNTERS
+};
+
 pub struct OpacityShadows {
     pub light: Camera,
     slices: u32,
@@ -104,7 +106,7 @@ pub struct OpacityShadows {
     /// [0] bands requested, [1] bands run, [4..7] indirect dispatch args.
     counters: Buffer,
     raster: ComputePipeline,
-    args: ComputePipeline,
+    args: BandArgs,
     prefix: ComputePipeline,
     shadow: ComputePipeline,
 }
@@ -170,71 +172,54 @@ impl OpacityShadows {
                 )
             };
         let s = STORAGE;
-        let mut bufs: Vec<Buffer> = Vec::new();
-        let mut pipes: Vec<ComputePipeline> = Vec::new();
-        let built = (|| -> Result<()> {
-            let map = Buffer::storage(ctx, "osm opacity slices", (words + GUARD_WORDS) * 4)?;
-            let guard = vec![GUARD_PATTERN; GUARD_WORDS as usize];
-            let up = map.upload(ctx, words * 4, bytemuck::cast_slice(&guard));
-            bufs.push(map);
-            up?;
-            bufs.push(Buffer::storage(
-                ctx,
-                "osm band jobs",
-                JOB_CAPACITY as u64 * 8,
-            )?);
-            bufs.push(Buffer::new(
-                ctx,
-                "osm counters",
-                32,
-                vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::INDIRECT_BUFFER,
-                MemoryLocation::GpuOnly,
-            )?);
-            pipes.push(pipe(
-                "osm raster",
-                spirv::OSM_RASTER_COMP,
-                &[UNIFORM, s, s, s, s],
-                std::mem::size_of::<RasterPush>(),
-                LOCAL_SIZE,
-            )?);
-            pipes.push(pipe(
-                "osm band args",
-                spirv::RASTER_ARGS_COMP,
-                &[s],
-                std::mem::size_of::<ArgsPush>(),
-                1,
-            )?);
-            pipes.push(pipe(
-                "osm prefix",
-                spirv::OSM_PREFIX_COMP,
-                &[s],
-                std::mem::size_of::<PrefixPush>(),
-                LOCAL_SIZE,
-            )?);
-            pipes.push(pipe(
-                "osm shadow",
-                spirv::OSM_SHADOW_COMP,
-                &[UNIFORM, s, s, s, s, s],
-                std::mem::size_of::<ShadowPush>(),
-                LOCAL_SIZE,
-            )?);
-            Ok(())
-        })();
-        if let Err(e) = built {
-            for b in &mut bufs {
-                b.destroy(ctx);
-            }
-            for p in &pipes {
-                p.destroy(ctx);
-            }
-            return Err(e);
-        }
-        let mut b = bufs.into_iter();
+        // Guarded: an error part way destroys what was made.
+        let mut bufs = ctx.guard(Vec::new());
+        let mut pipes = ctx.guard(Vec::new());
+        let args = ctx.guard(BandArgs::new(ctx, "osm band args")?);
+        let map = Buffer::storage(ctx, "osm opacity slices", (words + GUARD_WORDS) * 4)?;
+        let guard = vec![GUARD_PATTERN; GUARD_WORDS as usize];
+        let up = map.upload(ctx, words * 4, bytemuck::cast_slice(&guard));
+        bufs.push(map);
+        up?;
+        bufs.push(Buffer::storage(
+            ctx,
+            "osm band jobs",
+            JOB_CAPACITY as u64 * 8,
+        )?);
+        bufs.push(Buffer::new(
+            ctx,
+            "osm counters",
+            32,
+            vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::INDIRECT_BUFFER,
+            MemoryLocation::GpuOnly,
+        )?);
+        pipes.push(pipe(
+            "osm raster",
+            spirv::OSM_RASTER_COMP,
+            &[UNIFORM, s, s, s, s],
+            std::mem::size_of::<RasterPush>(),
+            LOCAL_SIZE,
+        )?);
+        pipes.push(pipe(
+            "osm prefix",
+            spirv::OSM_PREFIX_COMP,
+            &[s],
+            std::mem::size_of::<PrefixPush>(),
+            LOCAL_SIZE,
+        )?);
+        pipes.push(pipe(
+            "osm shadow",
+            spirv::OSM_SHADOW_COMP,
+            &[UNIFORM, s, s, s, s, s],
+            std::mem::size_of::<ShadowPush>(),
+            LOCAL_SIZE,
+        )?);
+        let mut b = bufs.keep().into_iter();
         let mut nb = || b.next().expect("buffers");
         let (opacity_map, jobs, counters) = (nb(), nb(), nb());
-        let mut p = pipes.into_iter();
+        let mut p = pipes.keep().into_iter();
         let mut np = || p.next().expect("pipelines");
-        let (raster, args, prefix, shadow) = (np(), np(), np(), np());
+        let (raster, prefix, shadow) = (np(), np(), np());
         log::info!(
             "osm: {slices} slices of {}², depth {z_min:.2}..{z_max:.2} (slice {:.3}), texel {:.3}",
             light.width,
@@ -251,7 +236,7 @@ impl OpacityShadows {
             jobs,
             counters,
             raster,
-            args,
+            args: args.keep(),
             prefix,
             shadow,
         })
@@ -328,21 +313,16 @@ impl OpacityShadows {
             z_min: self.z_min,
             inv_dz,
         };
-        self.raster
-            .dispatch(ctx, cmd, &bufs, &push(0), self.sphere_count as u64)?;
-        barrier(dev, cmd);
-        self.args.dispatch_groups(
+        self.args.record(
             ctx,
             cmd,
-            &[&self.counters],
-            &ArgsPush {
-                job_capacity: JOB_CAPACITY,
-            },
-            [1, 1, 1],
+            (&self.raster, &push(0)),
+            (&self.raster, &push(1)),
+            &bufs,
+            self.sphere_count,
+            &self.counters,
+            &OSM_COUNTERS,
         )?;
-        barrier(dev, cmd);
-        self.raster
-            .dispatch_indirect(ctx, cmd, &bufs, &push(1), &self.counters, 16)?;
         prof.end(ctx, cmd)?;
         barrier(dev, cmd);
 
@@ -396,7 +376,8 @@ impl OpacityShadows {
     }
 
     pub fn destroy(&mut self, ctx: &Context) {
-        super::destroy_all(ctx, &[&self.raster, &self.args, &self.prefix, &self.shadow]);
+        super::destroy_all(ctx, &[&self.raster, &self.prefix, &self.shadow]);
+        self.args.destroy(ctx);
         self.opacity_map.destroy(ctx);
         self.jobs.destroy(ctx);
         self.counters.destroy(ctx);

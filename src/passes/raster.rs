@@ -1,6 +1,7 @@
 //! Compute rasterization of sphere impostors into a 64-bit depth|id
 //! visibility buffer (camera view or key-light view, same code).
 
+use super::bands::{BandArgs, BandCounters};
 use super::{LOCAL_SIZE, spirv};
 use crate::error::Result;
 use crate::vk::pipeline::{PipelineDesc, STORAGE, UNIFORM};
@@ -24,6 +25,14 @@ pub const JOB_CAPACITY: u32 = 1 << 20;
 /// not check atomics, so tests look at these instead).
 pub const VIS_GUARD_WORDS: u64 = 64;
 pub const GUARD_PATTERN: u64 = 0x5AFE_C0DE_5AFE_C0DE;
+/// Counter words (glsl/raster.comp): [0] bands requested, [1] bands run,
+/// [4..7] indirect dispatch arguments.
+pub const RASTER_COUNTERS: BandCounters = BandCounters {
+    job_capacity: JOB_CAPACITY,
+    requested: 0,
+    run: 1,
+    args: 4,
+};
 
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable)]
@@ -32,12 +41,6 @@ struct RasterPush {
     big_area: u32,
     job_capacity: u32,
     sphere_count: u32,
-}
-
-#[repr(C)]
-#[derive(Clone, Copy, Pod, Zeroable)]
-struct ArgsPush {
-    job_capacity: u32,
 }
 
 #[repr(C)]
@@ -55,7 +58,7 @@ pub enum ViewIndex {
 
 pub struct RasterPass {
     spheres: ComputePipeline,
-    args: ComputePipeline,
+    args: BandArgs,
     bands: ComputePipeline,
     jobs: Buffer,
     big_area: u32,
@@ -84,17 +87,7 @@ impl RasterPass {
                 constants: &[],
             },
         )?;
-        let args = ComputePipeline::new(
-            ctx,
-            &PipelineDesc {
-                name: "raster band args",
-                spirv: spirv::RASTER_ARGS_COMP,
-                bindings: &[STORAGE],
-                push_size: std::mem::size_of::<ArgsPush>() as u32,
-                local_size: 1,
-                constants: &[],
-            },
-        )?;
+        let args = BandArgs::new(ctx, "raster band args")?;
         let bands = ComputePipeline::new(
             ctx,
             &PipelineDesc {
@@ -155,30 +148,21 @@ impl RasterPass {
             job_capacity: JOB_CAPACITY,
             sphere_count,
         };
-        self.spheres
-            .dispatch(ctx, cmd, &bufs, &push, sphere_count as u64)?;
-        barrier(dev, cmd);
-        self.args.dispatch_groups(
+        self.args.record(
             ctx,
             cmd,
-            &[&self.counters],
-            &ArgsPush {
-                job_capacity: JOB_CAPACITY,
-            },
-            [1, 1, 1],
-        )?;
-        barrier(dev, cmd);
-        self.bands.dispatch_indirect(
-            ctx,
-            cmd,
+            (&self.spheres, &push),
+            (
+                &self.bands,
+                &BandsPush {
+                    view_index: view as u32,
+                },
+            ),
             &bufs,
-            &BandsPush {
-                view_index: view as u32,
-            },
+            sphere_count,
             &self.counters,
-            16,
-        )?;
-        Ok(())
+            &RASTER_COUNTERS,
+        )
     }
 
     /// Convenience: record inside a named timestamp scope, with a trailing barrier.
@@ -204,7 +188,8 @@ impl RasterPass {
     }
 
     pub fn destroy(&mut self, ctx: &Context) {
-        super::destroy_all(ctx, &[&self.spheres, &self.args, &self.bands]);
+        super::destroy_all(ctx, &[&self.spheres, &self.bands]);
+        self.args.destroy(ctx);
         self.jobs.destroy(ctx);
         self.counters.destroy(ctx);
     }

@@ -1,0 +1,24 @@
+#version 460
+// Band jobs: turns the number of bands the per-sphere pass queued into
+// indirect dispatch arguments (2D so any count fits under
+// maxComputeWorkGroupCount) and records how many bands will run. The word
+// positions in the pass's counter buffer come as push constants, so raster,
+// deep lists and opacity maps share this shader.
+layout(local_size_x = 1) in;
+layout(set = 0, binding = 0) buffer Counters { uint counters[]; };
+layout(push_constant) uniform Push {
+    uint job_capacity;
+    uint requested; // word: bands requested (atomic counter of the splat)
+    uint run;       // word: bands that fit and will run
+    uint args;      // words args..args+2: vkCmdDispatchIndirect arguments
+} pc;
+
+const uint MAX_X = 65535u;
+
+void main() {
+    uint n = min(counters[pc.requested], pc.job_capacity);
+    counters[pc.run] = n;
+    counters[pc.args] = min(n, MAX_X);
+    counters[pc.args + 1u] = n == 0u ? 0u : (n + MAX_X - 1u) / MAX_X;
+    counters[pc.args + 2u] = 1u;
+}
