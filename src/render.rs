@@ -5,6 +5,7 @@ use crate::camera::Camera;
 use crate::error::{Error, Result, VkContext};
 use crate::gpu::{Globals, GpuSphere, SphereAttr};
 use crate::output::DeepStats;
+use crate::passes::ShadowInputs;
 use crate::passes::blur::{Axis, BlurPass, BlurPush};
 use crate::passes::composite::{CompositeInputs, CompositePass, CompositePush};
 use crate::passes::deep::DeepShadows;
@@ -735,50 +736,33 @@ impl<'c> Renderer<'c> {
         prof.end(ctx, cmd)?;
         barrier(&ctx.device, cmd);
 
+        let inputs = ShadowInputs {
+            globals,
+            spheres: &self.spheres,
+            vis: &self.vis,
+            gpos: &self.gpos,
+            gnorm: &self.gnorm,
+            shadow: &self.shadow,
+            opacity: self.settings.opacity,
+            pixels,
+        };
         if let Some(d) = &self.deep {
-            let (g, s, v, gp, sh) = (globals, &self.spheres, &self.vis, &self.gpos, &self.shadow);
-            d.record(
-                ctx,
-                cmd,
-                prof,
-                g,
-                s,
-                v,
-                gp,
-                sh,
-                self.settings.opacity,
-                pixels,
-            )?;
+            d.record(ctx, cmd, prof, &inputs)?;
         }
 
         if let Some(st) = &self.issm {
             prof.begin(ctx, cmd, IssmShadowPass::NAME)?;
-            let (g, s) = (globals, &self.spheres);
-            st.pass.record(
-                ctx,
-                cmd,
-                g,
-                s,
-                &self.vis,
-                &self.gpos,
-                &st.map,
-                &self.shadow,
-                &st.push,
-                pixels,
-            )?;
+            st.pass.record(ctx, cmd, &inputs, &st.map, &st.push)?;
             prof.end(ctx, cmd)?;
             barrier(&ctx.device, cmd);
         }
 
         if let Some(sm) = &self.shadow_map {
-            let (g, v, gp, gn) = (globals, &self.vis, &self.gpos, &self.gnorm);
-            sm.record_shadow(ctx, cmd, prof, g, v, gp, gn, &self.shadow, pixels)?;
+            sm.record_shadow(ctx, cmd, prof, &inputs)?;
         }
 
         if let Some(o) = &self.osm {
-            let (g, s, v, gp) = (globals, &self.spheres, &self.vis, &self.gpos);
-            let opacity = self.settings.opacity;
-            o.record(ctx, cmd, prof, g, s, v, gp, &self.shadow, opacity, pixels)?;
+            o.record(ctx, cmd, prof, &inputs)?;
         }
 
         // Light-space shadows (exact or baseline) replace the screen-space ones.

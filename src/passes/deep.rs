@@ -45,7 +45,7 @@
 //! its payload, filled once with [`GUARD_PATTERN`]; see [`DeepShadows::damaged_guards`].
 
 use super::bands::{BandArgs, BandCounters};
-use super::{LOCAL_SIZE, spirv};
+use super::{LOCAL_SIZE, ShadowInputs, spirv};
 use crate::camera::Camera;
 use crate::error::{Error, Result};
 use crate::output::DeepStats;
@@ -537,20 +537,15 @@ impl DeepShadows {
         self.light.width as u64 * self.light.height as u64
     }
 
-    #[allow(clippy::too_many_arguments)]
     pub fn record(
         &self,
         ctx: &Context,
         cmd: vk::CommandBuffer,
         prof: &mut Profiler,
-        globals: &Buffer,
-        spheres: &Buffer,
-        vis: &Buffer,
-        gpos: &Buffer,
-        shadow: &Buffer,
-        opacity: f32,
-        pixels: u64,
+        f: &ShadowInputs,
     ) -> Result<()> {
+        let (globals, spheres, vis, gpos, shadow) = (f.globals, f.spheres, f.vis, f.gpos, f.shadow);
+        let (opacity, pixels) = (f.opacity, f.pixels);
         let dev = &ctx.device;
         let l = &self.lists;
         let splat_bufs = [

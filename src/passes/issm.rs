@@ -3,7 +3,7 @@
 //! see raster.rs), then `issm_shadow` tests each visible point's light ray
 //! against the spheres of a (2t+1)^2 texel patch.
 
-use super::{LOCAL_SIZE, spirv};
+use super::{LOCAL_SIZE, ShadowInputs, spirv};
 use crate::error::Result;
 use crate::settings::IssmParams;
 use crate::vk::pipeline::{PipelineDesc, STORAGE, UNIFORM};
@@ -76,26 +76,20 @@ impl IssmShadowPass {
         }
     }
 
-    #[allow(clippy::too_many_arguments)]
     pub fn record(
         &self,
         ctx: &Context,
         cmd: vk::CommandBuffer,
-        globals: &Buffer,
-        spheres: &Buffer,
-        vis: &Buffer,
-        gpos: &Buffer,
+        f: &ShadowInputs,
         issm: &Buffer,
-        shadow: &Buffer,
         push: &IssmPush,
-        pixels: u64,
     ) -> Result<()> {
         self.pipeline.dispatch(
             ctx,
             cmd,
-            &[globals, spheres, vis, gpos, issm, shadow],
+            &[f.globals, f.spheres, f.vis, f.gpos, issm, f.shadow],
             push,
-            pixels,
+            f.pixels,
         )
     }
 

@@ -23,6 +23,21 @@ pub mod spirv {
     include!(concat!(env!("OUT_DIR"), "/shaders.rs"));
 }
 
+/// What every light-space shadow technique reads and writes in a frame: the
+/// scene, the camera's visibility buffer and G-buffer, and the key-light
+/// visibility it fills (one f32 per pixel).
+pub struct ShadowInputs<'a> {
+    pub globals: &'a crate::vk::Buffer,
+    pub spheres: &'a crate::vk::Buffer,
+    pub vis: &'a crate::vk::Buffer,
+    pub gpos: &'a crate::vk::Buffer,
+    pub gnorm: &'a crate::vk::Buffer,
+    pub shadow: &'a crate::vk::Buffer,
+    /// Sphere opacity for the translucent techniques (1 = opaque).
+    pub opacity: f32,
+    pub pixels: u64,
+}
+
 /// Destroys a list of pipelines (helper for the passes' `destroy`).
 pub(crate) fn destroy_all(ctx: &Context, pipelines: &[&crate::vk::ComputePipeline]) {
     for p in pipelines {

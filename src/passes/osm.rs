@@ -28,7 +28,7 @@
 
 use super::bands::{BandArgs, BandCounters};
 use super::raster::RASTER_COUNTERS;
-use super::{LOCAL_SIZE, spirv};
+use super::{LOCAL_SIZE, ShadowInputs, spirv};
 use crate::camera::Camera;
 use crate::error::{Error, Result};
 use crate::settings::ShadowMapParams;
@@ -270,20 +270,15 @@ impl OpacityShadows {
         self.opacity_map.size + self.jobs.size + self.counters.size
     }
 
-    #[allow(clippy::too_many_arguments)]
     pub fn record(
         &self,
         ctx: &Context,
         cmd: vk::CommandBuffer,
         prof: &mut Profiler,
-        globals: &Buffer,
-        spheres: &Buffer,
-        vis: &Buffer,
-        gpos: &Buffer,
-        shadow: &Buffer,
-        opacity: f32,
-        pixels: u64,
+        f: &ShadowInputs,
     ) -> Result<()> {
+        let (globals, spheres, vis, gpos, shadow) = (f.globals, f.spheres, f.vis, f.gpos, f.shadow);
+        let (opacity, pixels) = (f.opacity, f.pixels);
         let dev = &ctx.device;
         let texels = self.texels();
         let words = texels * self.slices as u64;

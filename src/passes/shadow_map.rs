@@ -25,7 +25,7 @@
 //! sphere (the id the rasterizer stores beside the depth) counts as
 //! unoccluded; everything else is the plain biased depth test.
 
-use super::{LOCAL_SIZE, spirv};
+use super::{LOCAL_SIZE, ShadowInputs, spirv};
 use crate::camera::Camera;
 use crate::error::Result;
 use crate::settings::ShadowMapParams;
@@ -164,19 +164,15 @@ impl ShadowMap {
     }
 
     /// `sm_shadow`: key-light visibility per visible pixel into `shadow`.
-    #[allow(clippy::too_many_arguments)]
     pub fn record_shadow(
         &self,
         ctx: &Context,
         cmd: vk::CommandBuffer,
         prof: &mut Profiler,
-        globals: &Buffer,
-        vis: &Buffer,
-        gpos: &Buffer,
-        gnorm: &Buffer,
-        shadow: &Buffer,
-        pixels: u64,
+        f: &ShadowInputs,
     ) -> Result<()> {
+        let (globals, vis, gpos, gnorm, shadow) = (f.globals, f.vis, f.gpos, f.gnorm, f.shadow);
+        let pixels = f.pixels;
         prof.begin(ctx, cmd, Self::NAME)?;
         self.pipeline.dispatch(
             ctx,
