@@ -368,3 +368,66 @@ fn bench_keeps_going_past_a_failed_run() {
         "{failed:?}"
     );
 }
+
+/// Regression: on lavapipe a graphics-raster run used to leave the queue
+/// binning timestamps, so every compute run after it read 0 ms for all
+/// passes after the first. Each compute pass that does work must time > 0.
+#[test]
+fn graphics_runs_leave_compute_timings_alone() {
+    let json = tmp("bench-graphics.json");
+    let o = run(&[
+        "bench",
+        "--scene",
+        "capsid",
+        "--atoms",
+        "3000",
+        "--size",
+        "96x64",
+        "--shadows",
+        "none,issm",
+        "--raster",
+        "graphics,compute",
+        "--ssdo",
+        "off",
+        "--frames",
+        "2",
+        "--warmup",
+        "1",
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let runs = v["runs"].as_array().unwrap();
+    assert_eq!(runs.len(), 4);
+    // After the raster the two modes run the same passes on the same
+    // G-buffer, so those passes must take comparable time (the bug gave the
+    // compute runs ~3 % of the graphics runs' time).
+    let ms = |shadows: &str, raster: &str, pass: &str| {
+        let r = runs
+            .iter()
+            .find(|r| r["shadows"] == shadows && r["raster"] == raster)
+            .expect("run");
+        r["passes"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|p| p["name"] == pass)
+            .and_then(|p| p["median_ms"].as_f64())
+            .expect("pass")
+    };
+    for (shadows, pass) in [
+        ("none", "resolve"),
+        ("none", "composite"),
+        ("issm", "resolve"),
+        ("issm", "issm_shadow"),
+        ("issm", "composite"),
+    ] {
+        let (c, g) = (ms(shadows, "compute", pass), ms(shadows, "graphics", pass));
+        assert!(
+            c > 0.25 * g,
+            "{shadows} {pass}: compute run {c} ms vs graphics run {g} ms"
+        );
+    }
+}
