@@ -70,6 +70,10 @@ pub struct BenchArgs {
     /// every fourth one zoomed in 4x).
     #[arg(long)]
     pub no_orbit: bool,
+    /// Run nothing: print the table and summary of the existing --json
+    /// file (e.g. of an interrupted bench).
+    #[arg(long)]
+    pub summarize: bool,
 }
 
 /// The whole bench output.
@@ -667,6 +671,100 @@ pub fn table(report: &BenchReport) -> String {
     s
 }
 
+/// Short column label of a technique, e.g. `issm-soft+semantic`,
+/// `deep a0.5`, `none gfx`.
+fn technique_label(r: &RunStats) -> String {
+    let mut l = r.shadows.clone();
+    if r.ssdo != "off" {
+        l += &format!("+{}", r.ssdo);
+    }
+    if r.opacity < 1.0 {
+        l += &format!(" a{}", r.opacity);
+    }
+    if r.raster != "compute" {
+        l += " gfx";
+    }
+    l
+}
+
+/// A compact markdown matrix: one row per data set and size with the frame
+/// median (ms) of every technique, the largest GPU memory of the row, and
+/// the row's main ratios; runs that failed show as `-`.
+pub fn summary(report: &BenchReport) -> String {
+    let mut cols: Vec<String> = Vec::new();
+    let mut rows: Vec<(String, u64, u32, u32)> = Vec::new();
+    for r in &report.runs {
+        let c = technique_label(r);
+        if !cols.contains(&c) {
+            cols.push(c);
+        }
+        let row = (r.input.clone(), r.spheres, r.width, r.height);
+        if !rows.contains(&row) {
+            rows.push(row);
+        }
+    }
+    let ratio_cols = [
+        ("issm_overhead", "ISSM/local"),
+        ("soft_over_hard", "soft/hard"),
+        ("deep_over_issm", "deep/ISSM"),
+        ("semantic_over_plain", "sem/plain"),
+        ("graphics_over_compute_raster", "gfx/compute raster"),
+    ];
+    let mut s = format!(
+        "| data set | spheres | size | {} | max MB | {} |\n",
+        cols.join(" | "),
+        ratio_cols.map(|c| c.1).join(" | ")
+    );
+    s += &format!(
+        "|---|---:|---|{}\n",
+        "---:|".repeat(cols.len() + 1 + ratio_cols.len())
+    );
+    for (input, spheres, w, h) in &rows {
+        let in_row: Vec<&RunStats> = report
+            .runs
+            .iter()
+            .filter(|r| (&r.input, r.spheres, r.width, r.height) == (input, *spheres, *w, *h))
+            .collect();
+        let cells: Vec<String> = cols
+            .iter()
+            .map(|c| {
+                in_row
+                    .iter()
+                    .find(|r| &technique_label(r) == c)
+                    .map_or("-".into(), |r| format!("{:.0}", r.total_ms.median))
+            })
+            .collect();
+        let mem = in_row.iter().map(|r| r.gpu_memory_bytes).max().unwrap_or(0);
+        let tag = format!("[{input} {spheres}sph {w}x{h}]");
+        let ratios: Vec<String> = ratio_cols
+            .iter()
+            .map(|(k, _)| {
+                report
+                    .ratios
+                    .get(&format!("{k}{tag}"))
+                    .map_or("-".into(), |v| format!("{v:.2}"))
+            })
+            .collect();
+        s += &format!(
+            "| {} | {spheres} | {w}x{h} | {} | {:.0} | {} |\n",
+            input.rsplit('/').next().unwrap_or(input),
+            cells.join(" | "),
+            mem as f64 / 1e6,
+            ratios.join(" | ")
+        );
+    }
+    let scaling: Vec<String> = report
+        .ratios
+        .iter()
+        .filter(|(k, _)| k.starts_with("scaling_exponent"))
+        .map(|(k, v)| format!("- {k} = {v:.2}"))
+        .collect();
+    if !scaling.is_empty() {
+        s += &format!("\n{}\n", scaling.join("\n"));
+    }
+    s
+}
+
 /// Per-pass ratios new/old for runs present in both reports.
 pub fn compare(new: &BenchReport, old: &BenchReport) -> Vec<(String, String, f64)> {
     let mut out = Vec::new();
@@ -703,9 +801,16 @@ pub fn read_report(path: &std::path::Path) -> Result<BenchReport> {
 
 /// The `bench` subcommand: run, print, write, compare.
 pub fn main(a: &BenchArgs) -> Result<u32> {
+    if a.summarize {
+        let report = read_report(&a.json)?;
+        print!("{}", table(&report));
+        print!("{}", summary(&report));
+        return Ok(0);
+    }
     let old = a.compare.as_deref().map(read_report).transpose()?;
     let report = run(a)?;
     print!("{}", table(&report));
+    print!("{}", summary(&report));
     output::write_json(&a.json, &report)?;
     if let Some(c) = &a.chart {
         output::AovImage::Rgba8(
@@ -814,6 +919,28 @@ mod tests {
         assert_eq!(k.len(), 1, "{r:?}");
         // Smallest to largest count: 40x spheres, sqrt(40)x time.
         assert!((k[0] - 0.5).abs() < 1e-12, "{k:?}");
+    }
+
+    #[test]
+    fn summary_has_one_row_per_data_set_and_a_column_per_technique() {
+        let mut runs = vec![run("none", 1.0, 10.0), run("issm", 1.0, 11.0)];
+        let mut big = run("none", 1.0, 40.0);
+        big.spheres = 4_000_000;
+        runs.push(big);
+        let report = BenchReport {
+            ratios: ratios(&runs),
+            runs,
+            failed: Vec::new(),
+            complete: true,
+        };
+        let s = summary(&report);
+        let lines: Vec<&str> = s.lines().collect();
+        assert!(lines[0].contains("| none | issm |"), "{s}");
+        assert!(lines[2].contains("| 2000000 | 64x48 | 10 | 11 |"), "{s}");
+        assert!(lines[2].contains("| 1.10 |"), "ISSM overhead: {s}");
+        // The 4M row has no ISSM run: a dash, not a number.
+        assert!(lines[3].contains("| 4000000 | 64x48 | 40 | - |"), "{s}");
+        assert!(s.contains("scaling_exponent"), "{s}");
     }
 
     #[test]
