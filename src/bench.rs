@@ -799,12 +799,22 @@ pub fn read_report(path: &std::path::Path) -> Result<BenchReport> {
         .map_err(|e| Error::Invalid(format!("{}: not a bench JSON: {e}", path.display())))
 }
 
+fn write_chart(report: &BenchReport, path: &std::path::Path) -> Result<()> {
+    output::AovImage::Rgba8(
+        image::DynamicImage::ImageRgb8(crate::chart::bar_chart(report)).to_rgba8(),
+    )
+    .save_png(path)
+}
+
 /// The `bench` subcommand: run, print, write, compare.
 pub fn main(a: &BenchArgs) -> Result<u32> {
     if a.summarize {
         let report = read_report(&a.json)?;
         print!("{}", table(&report));
         print!("{}", summary(&report));
+        if let Some(c) = &a.chart {
+            write_chart(&report, c)?;
+        }
         return Ok(0);
     }
     let old = a.compare.as_deref().map(read_report).transpose()?;
@@ -813,10 +823,7 @@ pub fn main(a: &BenchArgs) -> Result<u32> {
     print!("{}", summary(&report));
     output::write_json(&a.json, &report)?;
     if let Some(c) = &a.chart {
-        output::AovImage::Rgba8(
-            image::DynamicImage::ImageRgb8(crate::chart::bar_chart(&report)).to_rgba8(),
-        )
-        .save_png(c)?;
+        write_chart(&report, c)?;
     }
     if let Some(old) = old {
         println!("compare (new / old median ms):");
