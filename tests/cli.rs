@@ -25,6 +25,42 @@ fn run(args: &[&str]) -> Output {
     bin().args(args).output().expect("run sphereshade")
 }
 
+/// `bench` on a small procedural matrix: scene, sphere counts, sizes,
+/// shadow modes, SSDO off, `frames` measured after `warmup`, then `extra`.
+#[allow(clippy::too_many_arguments)]
+fn bench(
+    scene: &str,
+    atoms: &str,
+    size: &str,
+    shadows: &str,
+    frames: &str,
+    warmup: &str,
+    json: &std::path::Path,
+    extra: &[&str],
+) -> Output {
+    let mut a = vec![
+        "bench",
+        "--scene",
+        scene,
+        "--atoms",
+        atoms,
+        "--size",
+        size,
+        "--shadows",
+        shadows,
+        "--ssdo",
+        "off",
+        "--frames",
+        frames,
+        "--warmup",
+        warmup,
+        "--json",
+    ];
+    a.push(json.to_str().unwrap());
+    a.extend(extra);
+    run(&a)
+}
+
 const SMALL: [&str; 6] = ["--width", "96", "--height", "64", "--scene", "random"];
 
 #[test]
@@ -262,25 +298,16 @@ fn aov_encodings_follow_design() {
 #[test]
 fn bench_writes_runs_and_ratios() {
     let json = tmp("bench.json");
-    let o = run(&[
-        "bench",
-        "--scene",
+    let o = bench(
         "random",
-        "--atoms",
         "1500",
-        "--size",
         "64x48",
-        "--shadows",
         "none,issm,issm-soft",
-        "--ssdo",
-        "off",
-        "--frames",
         "2",
-        "--warmup",
         "0",
-        "--json",
-        json.to_str().unwrap(),
-    ]);
+        &json,
+        &[],
+    );
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     let v: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
@@ -294,27 +321,16 @@ fn bench_writes_runs_and_ratios() {
             .any(|k| k.starts_with("issm_overhead"))
     );
     // --compare against itself: every ratio is exactly 1
-    let o = run(&[
-        "bench",
-        "--scene",
+    let o = bench(
         "random",
-        "--atoms",
         "1500",
-        "--size",
         "64x48",
-        "--shadows",
         "none",
-        "--ssdo",
-        "off",
-        "--frames",
         "1",
-        "--warmup",
         "0",
-        "--json",
-        tmp("bench2.json").to_str().unwrap(),
-        "--compare",
-        json.to_str().unwrap(),
-    ]);
+        &tmp("bench2.json"),
+        &["--compare", json.to_str().unwrap()],
+    );
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     assert!(String::from_utf8_lossy(&o.stdout).contains("compare"));
 }
@@ -325,26 +341,16 @@ fn bench_writes_runs_and_ratios() {
 #[test]
 fn bench_keeps_going_past_a_failed_run() {
     let json = tmp("bench-fail.json");
-    let o = run(&[
-        "bench",
-        "--validate",
-        "--scene",
+    let o = bench(
         "random",
-        "--atoms",
         "300",
-        "--size",
         "64x48,16384x16384",
-        "--shadows",
         "none",
-        "--ssdo",
-        "off",
-        "--frames",
         "1",
-        "--warmup",
         "0",
-        "--json",
-        json.to_str().unwrap(),
-    ]);
+        &json,
+        &["--validate"],
+    );
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
     assert!(stderr(&o).contains("1 of 2 runs failed"), "{}", stderr(&o));
     let v: serde_json::Value =
@@ -371,31 +377,20 @@ fn bench_keeps_going_past_a_failed_run() {
 
 /// Regression: on lavapipe a graphics-raster run used to leave the queue
 /// binning timestamps, so every compute run after it read 0 ms for all
-/// passes after the first. Each compute pass that does work must time > 0.
+/// passes after the first. The passes both modes share must time alike.
 #[test]
 fn graphics_runs_leave_compute_timings_alone() {
     let json = tmp("bench-graphics.json");
-    let o = run(&[
-        "bench",
-        "--scene",
+    let o = bench(
         "capsid",
-        "--atoms",
         "3000",
-        "--size",
         "96x64",
-        "--shadows",
         "none,issm",
-        "--raster",
-        "graphics,compute",
-        "--ssdo",
-        "off",
-        "--frames",
         "2",
-        "--warmup",
         "1",
-        "--json",
-        json.to_str().unwrap(),
-    ]);
+        &json,
+        &["--raster", "graphics,compute"],
+    );
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     let v: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
