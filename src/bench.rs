@@ -218,13 +218,6 @@ fn data_sets(a: &BenchArgs, atoms: &[usize]) -> Result<Vec<DataSet>> {
     Ok(sets)
 }
 
-/// Modes a run can use today; others are rejected up front with a clear line.
-fn check_supported(shadows: ShadowMode, raster: RasterMode) -> Result<()> {
-    let _ = raster; // both raster modes are implemented
-    let _ = shadows; // every shadow mode is implemented (deep included)
-    Ok(())
-}
-
 /// One technique combination of the matrix.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Technique {
@@ -333,9 +326,6 @@ pub fn run(a: &BenchArgs) -> Result<BenchReport> {
     } else {
         default_techniques()
     };
-    for t in &techniques {
-        check_supported(t.shadows, t.raster)?;
-    }
     let def_atoms = if a.quick {
         vec![100_000]
     } else {
@@ -530,6 +520,11 @@ fn key(r: &RunStats) -> (String, u64, u32, u32, String, String, String, u64) {
     )
 }
 
+/// Data set and size of a run, as ratio names carry it in brackets.
+fn data_tag(r: &RunStats) -> String {
+    format!("{} {}sph {}x{}", r.input, r.spheres, r.width, r.height)
+}
+
 fn pass_ms(r: &RunStats, name: &str) -> Option<f64> {
     r.passes
         .iter()
@@ -559,7 +554,7 @@ pub fn ratios(runs: &[RunStats]) -> BTreeMap<String, f64> {
         r.shadows == "none" && r.ssdo == "off" && r.raster == "compute" && r.opacity == 1.0
     });
     for r in bases {
-        let tag = format!("{} {}sph {}x{}", r.input, r.spheres, r.width, r.height);
+        let tag = data_tag(r);
         let frame = |x: &RunStats| x.total_ms.median;
         let hard = find(r, "issm", "off", "compute", 1.0);
         let soft = find(r, "issm-soft", "off", "compute", 1.0);
@@ -735,7 +730,7 @@ pub fn summary(report: &BenchReport) -> String {
             })
             .collect();
         let mem = in_row.iter().map(|r| r.gpu_memory_bytes).max().unwrap_or(0);
-        let tag = format!("[{input} {spheres}sph {w}x{h}]");
+        let tag = format!("[{}]", data_tag(in_row[0]));
         let ratios: Vec<String> = ratio_cols
             .iter()
             .map(|(k, _)| {

@@ -538,6 +538,7 @@ pub fn render_run_with(
     let times = run_frames_with(&mut r, warmup, frames, before)?;
     let image = aov_image(&r, aov)?;
     let (passes, total_ms) = output::summarize(&times);
+    let gpu_memory = r.memory_by_class();
     let s = &r.settings;
     let stats = RunStats {
         device: ctx.info.name.clone(),
@@ -554,8 +555,8 @@ pub fn render_run_with(
         passes,
         total_ms,
         load_ms,
-        gpu_memory_bytes: r.memory_bytes(),
-        gpu_memory: r.memory_by_class(),
+        gpu_memory_bytes: gpu_memory.values().sum(),
+        gpu_memory,
         validation_messages: ctx.validation_messages(),
         deep: r.deep_stats.clone(),
         image_sha256: image.sha256(),

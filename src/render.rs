@@ -494,7 +494,6 @@ impl<'c> Renderer<'c> {
         self.settings.camera.width as u64 * self.settings.camera.height as u64
     }
 
-    /// Bytes of GPU memory held by this renderer's buffers.
     /// Device memory of this renderer's buffers by class (bytes requested,
     /// before allocator alignment): what a user sizing a data set needs to
     /// know is which part grows with spheres, pixels or the light map.
@@ -535,10 +534,6 @@ impl<'c> Renderer<'c> {
         );
         add("osm", self.osm.as_ref().map_or(0, |o| o.memory_bytes()));
         m
-    }
-
-    pub fn memory_bytes(&self) -> u64 {
-        self.memory_by_class().values().sum()
     }
 
     /// Renders one frame; when the deep-list pool overflowed, grows it and
@@ -960,11 +955,7 @@ pub fn level_choice(
     (levels, choice)
 }
 
-impl Destroy for FrameSlot {
-    fn destroy_with(&mut self, ctx: &Context) {
-        self.destroy(ctx);
-    }
-}
+crate::impl_destroy!(FrameSlot);
 
 impl Destroy for IssmState {
     fn destroy_with(&mut self, ctx: &Context) {

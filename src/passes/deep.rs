@@ -544,13 +544,11 @@ impl DeepShadows {
         prof: &mut Profiler,
         f: &ShadowInputs,
     ) -> Result<()> {
-        let (globals, spheres, vis, gpos, shadow) = (f.globals, f.spheres, f.vis, f.gpos, f.shadow);
-        let (opacity, pixels) = (f.opacity, f.pixels);
         let dev = &ctx.device;
         let l = &self.lists;
         let splat_bufs = [
-            globals,
-            spheres,
+            f.globals,
+            f.spheres,
             &self.texels,
             &self.tiles,
             &l.depth,
@@ -568,7 +566,7 @@ impl DeepShadows {
             big_area: BIG_AREA,
             job_capacity,
             entry_capacity: self.entry_capacity(),
-            opacity: opacity.clamp(0.0, 1.0),
+            opacity: f.opacity.clamp(0.0, 1.0),
             pad: 0,
         };
         let band_counters = BandCounters {
@@ -607,7 +605,7 @@ impl DeepShadows {
         self.alloc.dispatch_groups(
             ctx,
             cmd,
-            &[globals, &self.texels, &self.tiles, &self.counters],
+            &[f.globals, &self.texels, &self.tiles, &self.counters],
             &push,
             [tx, ty, 1],
         )?;
@@ -636,7 +634,7 @@ impl DeepShadows {
             entry_capacity: self.entry_capacity(),
         };
         let bufs = [
-            globals,
+            f.globals,
             &self.texels,
             &l.depth,
             &l.alpha,
@@ -658,19 +656,19 @@ impl DeepShadows {
             sphere_count: self.sphere_count,
         };
         let bufs = [
-            globals,
-            spheres,
-            vis,
-            gpos,
+            f.globals,
+            f.spheres,
+            f.vis,
+            f.gpos,
             &self.texels,
             &self.tiles,
             &l.depth,
             &l.alpha,
             &l.ids,
             &l.next,
-            shadow,
+            f.shadow,
         ];
-        self.shadow.dispatch(ctx, cmd, &bufs, &push, pixels)?;
+        self.shadow.dispatch(ctx, cmd, &bufs, &push, f.pixels)?;
         prof.end(ctx, cmd)?;
         barrier(dev, cmd);
         Ok(())

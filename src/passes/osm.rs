@@ -277,12 +277,10 @@ impl OpacityShadows {
         prof: &mut Profiler,
         f: &ShadowInputs,
     ) -> Result<()> {
-        let (globals, spheres, vis, gpos, shadow) = (f.globals, f.spheres, f.vis, f.gpos, f.shadow);
-        let (opacity, pixels) = (f.opacity, f.pixels);
         let dev = &ctx.device;
         let texels = self.texels();
         let words = texels * self.slices as u64;
-        let tau = tau_fixed(opacity);
+        let tau = tau_fixed(f.opacity);
         let inv_dz = self.inv_dz();
 
         prof.begin(ctx, cmd, Self::RASTER_NAME)?;
@@ -292,8 +290,8 @@ impl OpacityShadows {
         }
         barrier(dev, cmd);
         let bufs = [
-            globals,
-            spheres,
+            f.globals,
+            f.spheres,
             &self.opacity_map,
             &self.jobs,
             &self.counters,
@@ -340,7 +338,14 @@ impl OpacityShadows {
         self.shadow.dispatch(
             ctx,
             cmd,
-            &[globals, spheres, vis, gpos, &self.opacity_map, shadow],
+            &[
+                f.globals,
+                f.spheres,
+                f.vis,
+                f.gpos,
+                &self.opacity_map,
+                f.shadow,
+            ],
             &ShadowPush {
                 tau_fixed: tau,
                 slices: self.slices,
@@ -348,7 +353,7 @@ impl OpacityShadows {
                 inv_dz,
                 inv_scale: 1.0 / FIXED_SCALE,
             },
-            pixels,
+            f.pixels,
         )?;
         prof.end(ctx, cmd)?;
         barrier(dev, cmd);

@@ -171,15 +171,13 @@ impl ShadowMap {
         prof: &mut Profiler,
         f: &ShadowInputs,
     ) -> Result<()> {
-        let (globals, vis, gpos, gnorm, shadow) = (f.globals, f.vis, f.gpos, f.gnorm, f.shadow);
-        let pixels = f.pixels;
         prof.begin(ctx, cmd, Self::NAME)?;
         self.pipeline.dispatch(
             ctx,
             cmd,
-            &[globals, vis, gpos, gnorm, &self.map, shadow],
+            &[f.globals, f.vis, f.gpos, f.gnorm, &self.map, f.shadow],
             &self.push,
-            pixels,
+            f.pixels,
         )?;
         prof.end(ctx, cmd)?;
         barrier(&ctx.device, cmd);
