@@ -4,6 +4,8 @@
 // maxComputeWorkGroupCount) and records how many bands will run. The word
 // positions in the pass's counter buffer come as push constants, so raster,
 // deep lists and opacity maps share this shader.
+#include "constants.glsl"
+
 layout(local_size_x = 1) in;
 layout(set = 0, binding = 0) buffer Counters { uint counters[]; };
 layout(push_constant) uniform Push {
@@ -13,12 +15,10 @@ layout(push_constant) uniform Push {
     uint args;      // words args..args+2: vkCmdDispatchIndirect arguments
 } pc;
 
-const uint MAX_X = 65535u;
-
 void main() {
     uint n = min(counters[pc.requested], pc.job_capacity);
     counters[pc.run] = n;
-    counters[pc.args] = min(n, MAX_X);
-    counters[pc.args + 1u] = n == 0u ? 0u : (n + MAX_X - 1u) / MAX_X;
+    counters[pc.args] = min(n, MAX_GROUPS_X);
+    counters[pc.args + 1u] = n == 0u ? 0u : (n + MAX_GROUPS_X - 1u) / MAX_GROUPS_X;
     counters[pc.args + 2u] = 1u;
 }

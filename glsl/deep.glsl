@@ -1,5 +1,5 @@
 // Deep shadow lists (seed 002): definitions shared by the deep_*.comp passes.
-// Mirrors the constants and structs of src/passes/deep.rs.
+// Mirrors the structs of src/passes/deep.rs.
 //
 // Layout (the CUDA paper's, adapted): the key light's N x N map is split into
 // 8x8-texel tiles; entries live in chunks of 64 in structure-of-arrays
@@ -17,16 +17,8 @@
 
 #include "shared.glsl"
 
-const uint DEEP_NONE = 0xFFFFFFFFu;
-const uint DEEP_CHUNK = 64u;   // entries per chunk
-const uint DEEP_TILE = 8u;     // tile side in texels (one 64-invocation workgroup)
-const uint DEEP_BAND_ROWS = 8u;
-const uint DEEP_MAX_X = 65535u;
-
-// Disk radius enlargement in texels: the footprint must be conservative
-// (a sphere missing from a texel its disk touches would leak light), and an
-// extra entry only costs one exact ray test.
-const float DEEP_DISK_SLACK = 0.01;
+// DEEP_NONE, DEEP_CHUNK, DEEP_TILE, DEEP_DISK_SLACK, DEEP_TILE_OVERFLOWED
+// and the counter word indices C_* come from constants.glsl (src/gpu_consts.rs).
 
 struct DeepTexel {
     uint count; // entries counted (count pass)
@@ -41,22 +33,6 @@ struct DeepTile {
     uint entries;     // entries of all its texels
     uint flags;       // DEEP_TILE_OVERFLOWED
 };
-const uint DEEP_TILE_OVERFLOWED = 1u;
-
-// counters[] (u32 words)
-const uint C_CHUNKS = 0u;       // chunks requested from the pool (may exceed capacity)
-const uint C_OVERFLOW = 1u;     // 1 if a tile did not fit
-const uint C_ENTRIES = 2u;      // entries counted
-const uint C_MAX_COUNT = 3u;    // largest entry count of a texel (depth complexity)
-const uint C_NODES = 4u;        // compressed visibility nodes, all texels
-const uint C_FILL_ERRORS = 5u;  // fill slots outside their texel's run (must stay 0)
-const uint C_MAX_NODES = 6u;    // most compressed nodes of a texel
-const uint C_NONEMPTY = 7u;     // texels with at least one entry
-const uint C_DROPPED = 8u;      // entries of overflowed tiles (not stored)
-const uint C_BANDS_REQ = 16u;   // band jobs requested
-const uint C_BANDS_RUN = 17u;   // band jobs dispatched
-const uint C_ARGS = 20u;        // [20..22] indirect dispatch arguments
-
 const uint DEEP_COUNT = 0u; // splat mode: count entries per texel
 const uint DEEP_FILL = 1u;  // splat mode: write entries
 

@@ -42,8 +42,8 @@ void main() {
     View L = g.light;
     vec3 dl = -L.dir.xyz; // toward the light
     vec3 q = p - L.center.xyz;
-    float ppu = L.center.w, n = L.right.w, hh = L.up.w;
-    vec2 u = vec2(dot(q, L.right.xyz) * ppu + 0.5 * n, 0.5 * hh - dot(q, L.up.xyz) * ppu);
+    float n = L.right.w, hh = L.up.w;
+    vec2 u = light_uv(L, p);
     // The texel containing P (clamped: the light view encloses every sphere).
     ivec2 t = clamp(ivec2(floor(u)), ivec2(0), ivec2(int(n) - 1, int(hh) - 1));
     uint map_w = L.dims.x;

@@ -16,11 +16,12 @@
 // passes every atomic is wait-free and each texel's entries end up
 // contiguous, which also makes the per-texel sort and the walk cheap.
 //
-// Large footprints (more than big_area texels) are cut into 8-row bands:
-// the count pass appends them to a job list that whole workgroups process
-// (bands = 1, dispatched indirectly), so one big sphere never serialises
-// thousands of texels on one invocation. If the job list is full the sphere
-// is marked in inline_bits and its own invocation loops (both modes agree).
+// Large footprints (more than big_area texels) are cut into 8-row bands
+// (the skeleton of bands.glsl): the count pass appends them to a job list
+// that whole workgroups process, so one big sphere never serialises
+// thousands of texels on one invocation; the fill pass replays the same
+// jobs. If the job list is full the sphere is marked in inline_bits and its
+// own invocation loops in both modes. The mode is specialization constant 2.
 #include "deep.glsl"
 
 layout(local_size_x_id = 0) in;
@@ -36,21 +37,24 @@ layout(set = 0, binding = 7) buffer Counters { uint counters[]; };
 layout(set = 0, binding = 8) buffer Jobs { uvec2 jobs[]; };
 layout(set = 0, binding = 9) buffer Inline { uint inline_bits[]; };
 
+layout(constant_id = 2) const uint MODE = DEEP_COUNT;
+
 layout(push_constant) uniform Push {
-    uint mode;           // DEEP_COUNT or DEEP_FILL
-    uint bands;          // 0: one invocation per sphere; 1: one workgroup per band job
     uint sphere_count;
     uint big_area;       // footprints above this many texels go to band jobs
     uint job_capacity;   // entries of jobs[]
     uint entry_capacity; // entries of the list arrays (pool chunks * 64)
     float opacity;       // alpha of every entry
-    uint pad;
+    uint pad0, pad1, pad2;
 } pc;
 
-void visit(uint id, Footprint f, ivec2 t, uint map_w) {
+Footprint band_footprint(uint id) { return deep_footprint(g.light, spheres[id]); }
+
+void visit(uint id, Footprint f, ivec2 t) {
     if (!deep_overlaps(f, t)) return;
+    uint map_w = g.light.dims.x;
     uint ti = uint(t.y) * map_w + uint(t.x);
-    if (pc.mode == DEEP_COUNT) {
+    if (MODE == DEEP_COUNT) {
         atomicAdd(texels[ti].count, 1u);
         return;
     }
@@ -70,68 +74,11 @@ void visit(uint id, Footprint f, ivec2 t, uint map_w) {
     e_id[addr] = id;
 }
 
-void visit_rect(uint id, Footprint f, ivec4 rc, uint map_w) {
-    for (int y = rc.y; y <= rc.w; ++y) {
-        for (int x = rc.x; x <= rc.z; ++x) {
-            visit(id, f, ivec2(x, y), map_w);
-        }
-    }
-}
-
-bool is_inline(uint id) {
-    return (inline_bits[id >> 5] & (1u << (id & 31u))) != 0u;
-}
-
-void sphere_main() {
-    uint id = FLAT_ID;
-    if (id >= pc.sphere_count) return;
-    View L = g.light;
-    uint map_w = L.dims.x;
-    Footprint f = deep_footprint(L, spheres[id]);
-    ivec4 rc = f.rect;
-    if (rc.x > rc.z || rc.y > rc.w) return;
-    uint area = uint(rc.z - rc.x + 1) * uint(rc.w - rc.y + 1);
-    if (area <= pc.big_area) {
-        visit_rect(id, f, rc, map_w);
-        return;
-    }
-    uint nb = uint(rc.w - rc.y) / DEEP_BAND_ROWS + 1u;
-    if (pc.mode == DEEP_COUNT) {
-        uint base = atomicAdd(counters[C_BANDS_REQ], nb);
-        if (base < pc.job_capacity && nb <= pc.job_capacity - base) {
-            for (uint b = 0u; b < nb; ++b) jobs[base + b] = uvec2(id, uint(rc.y) + b * DEEP_BAND_ROWS);
-            return;
-        }
-        // The job list is full: void the slots we got and loop here instead.
-        for (uint j = base; j < min(base + nb, pc.job_capacity); ++j) jobs[j] = uvec2(DEEP_NONE, 0u);
-        atomicOr(inline_bits[id >> 5], 1u << (id & 31u));
-        visit_rect(id, f, rc, map_w);
-    } else if (is_inline(id)) {
-        visit_rect(id, f, rc, map_w);
-    }
-}
-
-void band_main() {
-    uint job = gl_WorkGroupID.x + gl_WorkGroupID.y * DEEP_MAX_X;
-    if (job >= counters[C_BANDS_RUN]) return;
-    uvec2 jb = jobs[job];
-    if (jb.x == DEEP_NONE) return;
-    View L = g.light;
-    uint map_w = L.dims.x;
-    Footprint f = deep_footprint(L, spheres[jb.x]);
-    ivec4 rc = f.rect;
-    int y0 = int(jb.y);
-    int rows = min(int(DEEP_BAND_ROWS), rc.w - y0 + 1);
-    int width = rc.z - rc.x + 1;
-    for (int i = int(gl_LocalInvocationID.x); i < width * rows; i += int(gl_WorkGroupSize.x)) {
-        visit(jb.x, f, ivec2(rc.x + i % width, y0 + i / width), map_w);
-    }
-}
-
-void main() {
-    if (pc.bands != 0u) {
-        band_main();
-    } else {
-        sphere_main();
-    }
-}
+// The count pass queues the band jobs; the fill pass replays them (and the
+// spheres whose job list was full, marked in inline_bits).
+bool band_queue() { return MODE == DEEP_COUNT; }
+void band_inline(uint id) { atomicOr(inline_bits[id >> 5], 1u << (id & 31u)); }
+bool band_replay(uint id) { return (inline_bits[id >> 5] & (1u << (id & 31u))) != 0u; }
+#define BAND_REQ C_BANDS_REQ
+#define BAND_RUN C_BANDS_RUN
+#include "bands.glsl"

@@ -67,9 +67,7 @@ void main() {
     vec3 p = gpos[i].xyz;
     View L = g.light;
     vec3 dl = -L.dir.xyz; // toward the light
-    vec3 q = p - L.center.xyz;
-    float n = L.right.w, ppu = L.center.w;
-    ivec2 c = ivec2(round(vec2(dot(q, L.right.xyz) * ppu + 0.5 * n - 0.5, 0.5 * n - dot(q, L.up.xyz) * ppu - 0.5)));
+    ivec2 c = ivec2(round(light_uv(L, p) - 0.5));
     int size = int(L.dims.x);
     float v = 1.0;
     // Neighbouring texels mostly hold the same sphere: remember the last two

@@ -20,7 +20,7 @@
 // common at 64 slices); and the texel-centre rays differ from P's own ray
 // near occluder silhouettes (softened by the bilinear filter).
 //
-// Keep texel_entry_slice() identical to the one in osm_raster.comp.
+// texel_entry_slice() is shared with osm_raster.comp (osm_common.glsl).
 #include "shared.glsl"
 
 layout(local_size_x_id = 0) in;
@@ -40,14 +40,7 @@ layout(push_constant) uniform Push {
     float inv_scale;  // fixed point -> optical depth
 } pc;
 
-int texel_entry_slice(View L, vec3 cv, float r, ivec2 t) {
-    vec2 p = pixel_plane(L, vec2(t));
-    vec2 dxy = p - cv.xy;
-    float disc = r * r - dot(dxy, dxy);
-    if (disc < 0.0) return -1;
-    float z = cv.z - sqrt(disc);
-    return clamp(int(floor((z - pc.z_min) * pc.inv_dz)), 0, int(pc.slices) - 1);
-}
+#include "osm_common.glsl"
 
 // Optical depth in front of slice position u at texel t, without the
 // receiver's own deposit (own = receiver centre in view space, radius).
@@ -80,9 +73,8 @@ void main() {
     View L = g.light;
     vec3 own_cv = view_space(L, s.xyz);
     vec3 q = p - L.center.xyz;
-    float n = L.right.w, ppu = L.center.w;
-    vec2 uv = vec2(dot(q, L.right.xyz) * ppu + 0.5 * n - 0.5,
-                   0.5 * n - dot(q, L.up.xyz) * ppu - 0.5);
+    float n = L.right.w;
+    vec2 uv = light_uv(L, p) - 0.5;
     float z = dot(q, L.dir.xyz);
     float u = clamp((z - pc.z_min) * pc.inv_dz, 0.0, float(pc.slices));
 

@@ -1,9 +1,9 @@
 #version 460
-// Compute rasterization of sphere impostors, one invocation per sphere: small
-// footprints are tested pixel by pixel here (exact ray-sphere, 64-bit
-// atomicMin of depth|id); large ones are split into 8-row bands appended to a
-// job list that raster_bands.comp handles with a whole workgroup per band, so
-// one big sphere never serialises thousands of pixels on one invocation.
+// Compute rasterization of sphere impostors (camera or key-light view, push
+// constant view_index): exact ray-sphere test per covered pixel and a 64-bit
+// atomicMin of depth|id into the visibility buffer. The band skeleton
+// (bands.glsl) gives small footprints to one invocation per sphere and
+// large ones, in 8-row bands, to whole workgroups (BAND_PASS = 1).
 #extension GL_EXT_shader_atomic_int64 : require
 #include "raster_common.glsl"
 
@@ -12,8 +12,8 @@ layout(local_size_x_id = 0) in;
 layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
 layout(set = 0, binding = 1) readonly buffer Spheres { vec4 spheres[]; };
 layout(set = 0, binding = 2) buffer Vis { uint64_t vis[]; };
-layout(set = 0, binding = 3) writeonly buffer Jobs { uvec2 jobs[]; };
-layout(set = 0, binding = 4) buffer Counters { uint counters[]; }; // [0] bands requested
+layout(set = 0, binding = 3) buffer Jobs { uvec2 jobs[]; };
+layout(set = 0, binding = 4) buffer Counters { uint counters[]; };
 
 layout(push_constant) uniform Push {
     uint view_index;   // 0 camera, 1 key light
@@ -22,40 +22,33 @@ layout(push_constant) uniform Push {
     uint sphere_count;
 } pc;
 
-const uint BAND_ROWS = 8;
+struct Footprint {
+    vec3 cv;
+    float r;
+    ivec4 rect;
+};
 
-void raster_rect(View v, vec3 cv, float r, uint id, ivec4 rc) {
-    uint w = v.dims.x;
-    for (int y = rc.y; y <= rc.w; ++y) {
-        for (int x = rc.x; x <= rc.z; ++x) {
-            float d = hit_depth(v, cv, r, vec2(x, y));
-            if (d >= 0.0) atomicMin(vis[uint(y) * w + uint(x)], vis_key(d, id));
-        }
-    }
-}
+View raster_view() { return pc.view_index == 0u ? g.cam : g.light; }
 
-void main() {
-    uint id = FLAT_ID;
-    if (id >= pc.sphere_count) return;
-    View v = pc.view_index == 0 ? g.cam : g.light;
+Footprint band_footprint(uint id) {
+    View v = raster_view();
     vec4 s = spheres[id];
-    vec3 cv = view_space(v, s.xyz);
-    ivec4 rc = sphere_rect(v, cv, s.w);
-    if (rc.x > rc.z || rc.y > rc.w) return;
-    uint area = uint(rc.z - rc.x + 1) * uint(rc.w - rc.y + 1);
-    if (area <= pc.big_area) {
-        raster_rect(v, cv, s.w, id, rc);
-        return;
-    }
-    uint bands = uint(rc.w - rc.y) / BAND_ROWS + 1;
-    uint base = atomicAdd(counters[0], bands);
-    for (uint b = 0; b < bands; ++b) {
-        int y0 = rc.y + int(b * BAND_ROWS);
-        if (base + b < pc.job_capacity) {
-            jobs[base + b] = uvec2(id, uint(y0));
-        } else {
-            // Job list full: rasterize this band here (slow but exact).
-            raster_rect(v, cv, s.w, id, ivec4(rc.x, y0, rc.z, min(y0 + int(BAND_ROWS) - 1, rc.w)));
-        }
-    }
+    Footprint f;
+    f.cv = view_space(v, s.xyz);
+    f.r = s.w;
+    f.rect = sphere_rect(v, f.cv, s.w);
+    return f;
 }
+
+void visit(uint id, Footprint f, ivec2 t) {
+    View v = raster_view();
+    float d = hit_depth(v, f.cv, f.r, vec2(t));
+    if (d >= 0.0) atomicMin(vis[uint(t.y) * v.dims.x + uint(t.x)], vis_key(d, id));
+}
+
+bool band_queue() { return true; }
+void band_inline(uint id) {}
+bool band_replay(uint id) { return false; }
+#define BAND_REQ R_BANDS_REQ
+#define BAND_RUN R_BANDS_RUN
+#include "bands.glsl"

@@ -70,10 +70,9 @@ void main() {
     vec3 n = gnorm[i].xyz;
     View L = g.light;
     vec3 q = p - L.center.xyz;
-    float size = L.right.w, ppu = L.center.w;
+    float size = L.right.w;
     // Texel-index coordinates (texel centres at integers).
-    vec2 uv = vec2(dot(q, L.right.xyz) * ppu + 0.5 * size - 0.5,
-                   0.5 * size - dot(q, L.up.xyz) * ppu - 0.5);
+    vec2 uv = light_uv(L, p) - 0.5;
     float pd = dot(q, L.dir.xyz) + L.depth.x;
 
     float ndl = dot(n, -L.dir.xyz);

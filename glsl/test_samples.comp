@@ -4,7 +4,7 @@
 #include "ssdo_common.glsl"
 layout(local_size_x = 64) in;
 layout(set = 0, binding = 0) writeonly buffer Out { vec4 dirs[]; };
-layout(push_constant) uniform Push { vec4 normal; uint count; float rot; } pc;
+layout(push_constant) uniform Push { vec4 normal; uint count; float rot; uint pad0, pad1; } pc;
 void main() {
     uint i = gl_GlobalInvocationID.x;
     if (i >= pc.count) return;

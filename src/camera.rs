@@ -4,6 +4,7 @@
 
 use crate::error::{Error, Result};
 use crate::gpu::GpuView;
+use crate::scene::Scene;
 use glam::DVec3;
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -34,29 +35,27 @@ impl Camera {
         height: u32,
     ) -> Result<Self> {
         if !(view_dir.length() > 0.0) || !view_dir.is_finite() {
-            return Err(Error::Invalid(
-                "--view-dir must be a non-zero vector".into(),
-            ));
+            return Err(Error::Input("--view-dir must be a non-zero vector".into()));
         }
         let dir = view_dir.normalize();
         let r = dir.cross(up_hint);
         if !(r.length() > 1e-9) {
-            return Err(Error::Invalid(
+            return Err(Error::Input(
                 "--up must not be parallel to --view-dir".into(),
             ));
         }
         if !(view_height > 0.0) || !view_height.is_finite() {
-            return Err(Error::Invalid("--view-height must be positive".into()));
+            return Err(Error::Input("--view-height must be positive".into()));
         }
         if let Some(f) = fov_deg
             && !(f > 0.0 && f < 179.0)
         {
-            return Err(Error::Invalid(
+            return Err(Error::Input(
                 "--fov must be between 0 and 179 degrees".into(),
             ));
         }
         if width == 0 || height == 0 || width > 16384 || height > 16384 {
-            return Err(Error::Invalid(
+            return Err(Error::Input(
                 "--width/--height must be between 1 and 16384".into(),
             ));
         }
@@ -138,9 +137,7 @@ pub fn light_view(
     size: u32,
 ) -> Result<Camera> {
     if !(light_dir.length() > 0.0) || !light_dir.is_finite() {
-        return Err(Error::Invalid(
-            "--light must be a non-zero direction".into(),
-        ));
+        return Err(Error::Input("--light must be a non-zero direction".into()));
     }
     let d = light_dir.normalize();
     // Any up not parallel to d.
@@ -163,4 +160,22 @@ pub fn light_view(
     // Square texels; a hair of margin keeps border spheres off the edge.
     let extent = (hi.x - lo.x).max(hi.y - lo.y).max(1e-3) * 1.001;
     Camera::new(center, d, up, extent, None, size, size)
+}
+
+/// Builds the DESIGN.md default camera for a scene, overridable per field.
+#[allow(clippy::too_many_arguments)]
+pub fn default_camera(
+    scene: &Scene,
+    width: u32,
+    height: u32,
+    view_dir: DVec3,
+    up: DVec3,
+    center: Option<DVec3>,
+    view_height: Option<f64>,
+    fov: Option<f64>,
+) -> Result<Camera> {
+    let (bs_center, bs_radius) = scene.bounding_sphere();
+    let center = center.unwrap_or(bs_center.as_dvec3());
+    let h = view_height.unwrap_or((2.0 * bs_radius as f64 * 1.05).max(1e-3));
+    Camera::new(center, view_dir, up, h, fov, width, height)
 }

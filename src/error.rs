@@ -1,4 +1,6 @@
-//! Library errors. The binary adds context with anyhow at its edge.
+//! Library errors: typed, each with the one-line message the binary prints
+//! (the binary adds nothing but the `sphereshade: error:` prefix, through
+//! anyhow at its edge).
 
 use ash::vk;
 
@@ -31,8 +33,15 @@ pub enum Error {
     },
     #[error(transparent)]
     Scene(#[from] crate::scene::SceneError),
+    /// Bad input: a file, an option, a combination of them.
     #[error("{0}")]
-    Invalid(String),
+    Input(String),
+    /// The device cannot do it (a buffer over maxStorageBufferRange, ...).
+    #[error("{0}")]
+    DeviceLimit(String),
+    /// A bug or a broken invariant inside sphereshade.
+    #[error("internal error: {0}")]
+    Internal(String),
     #[error("{path}: {source}")]
     Io {
         path: String,

@@ -58,3 +58,16 @@ const _: () = assert!(std::mem::size_of::<GpuView>() == 96);
 const _: () = assert!(std::mem::size_of::<Globals>() == 2 * 96 + 4 * 16);
 const _: () = assert!(std::mem::size_of::<SphereAttr>() == 32);
 const _: () = assert!(std::mem::size_of::<GpuSphere>() == 16);
+
+/// Turns the shared constant list into `pub const`s (build.rs turns the same
+/// list into glsl `constants.glsl`).
+macro_rules! gpu_constants {
+    ($($(#[doc = $doc:expr])* $name:ident : $ty:ty = $val:expr;)*) => {
+        $( $(#[doc = $doc])* pub const $name: $ty = $val; )*
+        /// Every shared constant as (name, value as f64), for tests.
+        pub const ALL_CONSTANTS: &[(&str, f64)] = &[$((stringify!($name), { let v: $ty = $val; v as f64 })),*];
+    };
+}
+pub mod consts {
+    include!("gpu_consts.rs");
+}

@@ -1,8 +1,9 @@
 //! sphereshade: a Vulkan compute renderer for millions of spheres.
 //!
-//! `vk` wraps the device, `scene` reads structures and builds procedural
-//! scenes, `passes` holds one file per GPU pass, `render` is the frame graph,
-//! `reference` the independent CPU references the tests compare against.
+//! Arrows point one way: `cli` → `app` | `bench` → `run` → `render` (the
+//! frame graph) → `passes` → `vk`; `scene`, `camera`, `settings`, `gpu` are
+//! leaves. `reference` holds the independent CPU references the tests
+//! compare against.
 
 // `!(x > 0.0)` is used on purpose: unlike `x <= 0.0` it also rejects NaN.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
@@ -10,7 +11,6 @@
 pub mod app;
 pub mod bench;
 pub mod camera;
-pub mod chart;
 pub mod cli;
 pub mod error;
 pub mod gpu;
@@ -18,6 +18,7 @@ pub mod output;
 pub mod passes;
 pub mod reference;
 pub mod render;
+pub mod run;
 pub mod scene;
 pub mod semantic;
 pub mod settings;

@@ -3,7 +3,9 @@
 
 use crate::error::{Error, Result};
 use crate::gpu::VIS_EMPTY;
+use crate::passes::shadows::deep::DeepStats;
 use crate::settings::Aov;
+use crate::vk::PassTimes;
 use serde::Serialize;
 use sha2::{Digest, Sha256};
 use std::path::Path;
@@ -35,7 +37,7 @@ impl AovImage {
         };
         let file_name = path
             .file_name()
-            .ok_or_else(|| Error::Invalid(format!("{}: not a file name", path.display())))?;
+            .ok_or_else(|| Error::Input(format!("{}: not a file name", path.display())))?;
         let tmp = path.with_file_name(format!(".{}.tmp", file_name.to_string_lossy()));
         let saved = match self {
             AovImage::Rgba8(i) => i.save_with_format(&tmp, image::ImageFormat::Png),
@@ -44,7 +46,7 @@ impl AovImage {
         };
         if let Err(e) = saved {
             let _ = std::fs::remove_file(&tmp);
-            return Err(Error::Invalid(format!(
+            return Err(Error::Input(format!(
                 "{}: cannot write PNG: {e}",
                 path.display()
             )));
@@ -143,16 +145,6 @@ pub struct TotalStats {
     pub max: f64,
 }
 
-#[derive(Clone, Debug, Serialize, serde::Deserialize, PartialEq)]
-pub struct DeepStats {
-    pub entries: u64,
-    pub chunks_used: u64,
-    pub chunk_capacity: u64,
-    pub bytes: u64,
-    pub fixed_layer_bytes: u64,
-    pub overflowed: bool,
-}
-
 /// One run, exactly the DESIGN.md JSON object.
 #[derive(Clone, Debug, Serialize, serde::Deserialize, PartialEq)]
 pub struct RunStats {
@@ -192,10 +184,10 @@ fn median(v: &mut [f64]) -> f64 {
 }
 
 /// Median/min/max per pass (in first-frame order) and of the frame total.
-pub fn summarize(frames: &[crate::render::PassTimes]) -> (Vec<PassStats>, TotalStats) {
+pub fn summarize(frames: &[PassTimes]) -> (Vec<PassStats>, TotalStats) {
     let mut passes = Vec::new();
     if let Some(first) = frames.first() {
-        for (name, _) in first {
+        for (name, _) in first.iter() {
             let mut v: Vec<f64> = frames
                 .iter()
                 .filter_map(|f| f.iter().find(|(n, _)| n == name).map(|(_, t)| *t))
@@ -212,10 +204,7 @@ pub fn summarize(frames: &[crate::render::PassTimes]) -> (Vec<PassStats>, TotalS
             });
         }
     }
-    let mut totals: Vec<f64> = frames
-        .iter()
-        .map(|f| f.iter().map(|(_, t)| t).sum())
-        .collect();
+    let mut totals: Vec<f64> = frames.iter().map(|f| f.total_ms).collect();
     let (mn, mx) = (
         totals.iter().cloned().fold(f64::MAX, f64::min),
         totals.iter().cloned().fold(f64::MIN, f64::max),
@@ -239,7 +228,7 @@ pub fn summarize(frames: &[crate::render::PassTimes]) -> (Vec<PassStats>, TotalS
 /// Writes JSON to a temporary file and renames it into place.
 pub fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<()> {
     let text =
-        serde_json::to_string_pretty(value).map_err(|e| Error::Invalid(format!("JSON: {e}")))?;
+        serde_json::to_string_pretty(value).map_err(|e| Error::Internal(format!("JSON: {e}")))?;
     let tmp = path.with_extension("json.tmp");
     let io_err = |e: std::io::Error| Error::Io {
         path: path.display().to_string(),

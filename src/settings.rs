@@ -1,8 +1,16 @@
-//! Render settings shared by `render`, `bench` and `view`.
+//! Render settings shared by `render`, `bench`, `view` and the library:
+//! [`Options`] and [`Axes`] are what a user sets (their `Default` impls are
+//! the one source of every default: clap, bench, the viewer and the tests
+//! read them), [`RenderSettings`] is what the renderer runs with, resolved
+//! against a scene (camera fit) and validated by [`Options::resolve`].
 
 use crate::camera::Camera;
+use crate::error::{Error, Result};
+use crate::scene::Scene;
 use glam::DVec3;
 use serde::Serialize;
+use std::fmt;
+use std::str::FromStr;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, Serialize)]
 #[serde(rename_all = "kebab-case")]
@@ -50,6 +58,11 @@ macro_rules! value_name {
                 clap::ValueEnum::to_possible_value(&self)
                     .map(|v| v.get_name().to_string())
                     .unwrap_or_default()
+            }
+        }
+        impl fmt::Display for $t {
+            fn fmt(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str(&self.name())
             }
         }
     };
@@ -141,4 +154,338 @@ pub struct RenderSettings {
     /// Zoom thresholds (visible height in world units, descending) where the
     /// next finer region level takes over; None = relative to scene size.
     pub semantic_levels: Option<Vec<f64>>,
+}
+
+impl RenderSettings {
+    /// Whether SSDO runs.
+    pub fn ssdo_on(&self) -> bool {
+        self.ssdo != SsdoMode::Off
+    }
+}
+
+/// A 3-vector option (`X,Y,Z`); Display writes what FromStr reads.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct V3(pub DVec3);
+
+impl FromStr for V3 {
+    type Err = String;
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        let parts: Vec<&str> = s.split(',').collect();
+        if parts.len() != 3 {
+            return Err(format!("'{s}': expected X,Y,Z"));
+        }
+        let mut v = [0.0; 3];
+        for (o, p) in v.iter_mut().zip(&parts) {
+            *o = p
+                .trim()
+                .parse::<f64>()
+                .map_err(|_| format!("'{s}': '{p}' is not a number"))?;
+            if !o.is_finite() {
+                return Err(format!("'{s}': components must be finite"));
+            }
+        }
+        Ok(V3(DVec3::from_array(v)))
+    }
+}
+
+impl fmt::Display for V3 {
+    fn fmt(&self, f: &mut fmt::Formatter) -> fmt::Result {
+        write!(f, "{},{},{}", self.0.x, self.0.y, self.0.z)
+    }
+}
+
+/// `--issm-t T|auto`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub struct IssmT(pub Option<u32>);
+
+impl FromStr for IssmT {
+    type Err = String;
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        if s == "auto" {
+            return Ok(IssmT(None));
+        }
+        s.parse::<u32>()
+            .ok()
+            .filter(|t| *t <= 32)
+            .map(|t| IssmT(Some(t)))
+            .ok_or_else(|| format!("'{s}': expected 0..32 or `auto`"))
+    }
+}
+
+impl fmt::Display for IssmT {
+    fn fmt(&self, f: &mut fmt::Formatter) -> fmt::Result {
+        match self.0 {
+            None => f.write_str("auto"),
+            Some(t) => write!(f, "{t}"),
+        }
+    }
+}
+
+/// `on|off` switches.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum OnOff {
+    On,
+    Off,
+}
+value_name!(OnOff);
+
+impl OnOff {
+    pub fn on(self) -> bool {
+        self == OnOff::On
+    }
+}
+
+/// `--semantic-levels T0,T1,...`: positive, descending.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Levels(pub Vec<f64>);
+
+impl FromStr for Levels {
+    type Err = String;
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        let t: Vec<f64> = s
+            .split(',')
+            .map(|p| {
+                p.trim()
+                    .parse::<f64>()
+                    .ok()
+                    .filter(|x| *x > 0.0 && x.is_finite())
+            })
+            .collect::<Option<_>>()
+            .ok_or_else(|| format!("'{s}': expected positive numbers"))?;
+        if t.windows(2).any(|w| w[1] >= w[0]) {
+            return Err(format!("'{s}': thresholds must descend"));
+        }
+        Ok(Levels(t))
+    }
+}
+
+/// The axes a benchmark crosses (`bench` takes lists of them); single
+/// values for `render` and `view`.
+#[derive(Clone, Debug, PartialEq, clap::Args)]
+pub struct Axes {
+    /// Image width in pixels.
+    #[arg(long, default_value_t = Axes::default().width)]
+    pub width: u32,
+    /// Image height in pixels.
+    #[arg(long, default_value_t = Axes::default().height)]
+    pub height: u32,
+    /// Key-light shadow technique.
+    #[arg(long, value_enum, default_value_t = Axes::default().shadows)]
+    pub shadows: ShadowMode,
+    /// Ambient occlusion + bounce.
+    #[arg(long, value_enum, default_value_t = Axes::default().ssdo)]
+    pub ssdo: SsdoMode,
+    /// Compute rasterizer or the vertex/fragment impostor baseline.
+    #[arg(long, value_enum, default_value_t = Axes::default().raster)]
+    pub raster: RasterMode,
+    /// Opacity of every sphere (0..1): translucent shadows (deep, osm).
+    #[arg(long, default_value_t = Axes::default().opacity, allow_negative_numbers = true)]
+    pub opacity: f32,
+}
+
+impl Default for Axes {
+    fn default() -> Self {
+        Axes {
+            width: 1920,
+            height: 1080,
+            shadows: ShadowMode::IssmSoft,
+            ssdo: SsdoMode::Semantic,
+            raster: RasterMode::Compute,
+            opacity: 1.0,
+        }
+    }
+}
+
+/// Every other render option of DESIGN.md: camera, light and technique
+/// parameters, and the device. Shared by render, bench and view.
+#[derive(Clone, Debug, PartialEq, clap::Args)]
+pub struct Options {
+    /// Key-light direction, from the light toward the scene.
+    #[arg(long, default_value_t = Options::default().light, allow_hyphen_values = true)]
+    pub light: V3,
+    /// Camera view direction.
+    #[arg(long, default_value_t = Options::default().view_dir, allow_hyphen_values = true)]
+    pub view_dir: V3,
+    /// Camera up hint.
+    #[arg(long, default_value_t = Options::default().up, allow_hyphen_values = true)]
+    pub up: V3,
+    /// View centre (default: centre of the bounding box of the sphere centres).
+    #[arg(long, allow_hyphen_values = true)]
+    pub view_center: Option<V3>,
+    /// Orthographic view height in world units (default: the bounding-sphere
+    /// diameter times 1.05).
+    #[arg(long, allow_negative_numbers = true)]
+    pub view_height: Option<f64>,
+    /// Perspective vertical field of view in degrees (default: orthographic).
+    #[arg(long, allow_negative_numbers = true)]
+    pub fov: Option<f64>,
+    /// ISSM (and deep-list) light map side in texels.
+    #[arg(long, default_value_t = Options::default().issm_size)]
+    pub issm_size: u32,
+    /// ISSM patch half-size t (0..32), or `auto`.
+    #[arg(long, default_value_t = Options::default().issm_t)]
+    pub issm_t: IssmT,
+    /// Soft shadows: radius enlargement s in world units.
+    #[arg(long, default_value_t = Options::default().soft_s, allow_negative_numbers = true)]
+    pub soft_s: f32,
+    /// Soft shadows: falloff exponent x of (1 - s'/s)^x.
+    #[arg(long, default_value_t = Options::default().soft_x, allow_negative_numbers = true)]
+    pub soft_x: f32,
+    /// Soft shadows: distance b over which the penumbra reaches full width.
+    #[arg(long, default_value_t = Options::default().soft_b, allow_negative_numbers = true)]
+    pub soft_b: f32,
+    /// Depth shadow map side in texels (`--shadows sm-pcf`).
+    #[arg(long, default_value_t = Options::default().sm_size)]
+    pub sm_size: u32,
+    /// Constant depth bias of the shadow map, in map texels.
+    #[arg(long, default_value_t = Options::default().sm_bias, allow_negative_numbers = true)]
+    pub sm_bias: f32,
+    /// Slope-scaled bias factor: times tan(N, light) times the lookup reach
+    /// (half a texel diagonal + PCF radius), in texels.
+    #[arg(long, default_value_t = Options::default().sm_slope_bias, allow_negative_numbers = true)]
+    pub sm_slope_bias: f32,
+    /// PCF taps on a Vogel disk rotated per pixel (0 or 1 = single tap).
+    #[arg(long, default_value_t = Options::default().pcf_samples)]
+    pub pcf_samples: u32,
+    /// PCF disk radius in shadow-map texels.
+    #[arg(long, default_value_t = Options::default().pcf_radius, allow_negative_numbers = true)]
+    pub pcf_radius: f32,
+    /// Opacity shadow map side in texels (`--shadows osm`).
+    #[arg(long, default_value_t = Options::default().osm_size)]
+    pub osm_size: u32,
+    /// Depth slices of the opacity shadow map.
+    #[arg(long, default_value_t = Options::default().osm_slices)]
+    pub osm_slices: u32,
+    /// Bilateral blur of ambient occlusion.
+    #[arg(long, value_enum, default_value_t = Options::default().blur)]
+    pub blur: OnOff,
+    /// Initial deep-list pool size in chunks of 64 entries (grown on overflow).
+    #[arg(long)]
+    pub deep_pool_chunks: Option<u32>,
+    /// Zoom thresholds for semantic SSDO levels: comma list of visible
+    /// heights (world units, descending) where the next finer level takes over.
+    #[arg(long)]
+    pub semantic_levels: Option<Levels>,
+    /// Enable validation (GPU-assisted + synchronization); exit 3 on any message.
+    #[arg(long)]
+    pub validate: bool,
+    /// Physical device index (see `sphereshade info`).
+    #[arg(long)]
+    pub device: Option<usize>,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        let issm = IssmParams::default();
+        let sm = ShadowMapParams::default();
+        Options {
+            light: V3(DVec3::new(-1.0, -1.0, -1.0)),
+            view_dir: V3(DVec3::new(0.0, 0.0, -1.0)),
+            up: V3(DVec3::Y),
+            view_center: None,
+            view_height: None,
+            fov: None,
+            issm_size: issm.size,
+            issm_t: IssmT(issm.t),
+            soft_s: issm.soft_s,
+            soft_x: issm.soft_x,
+            soft_b: issm.soft_b,
+            sm_size: sm.sm_size,
+            sm_bias: sm.sm_bias,
+            sm_slope_bias: sm.sm_slope_bias,
+            pcf_samples: sm.pcf_samples,
+            pcf_radius: sm.pcf_radius,
+            osm_size: sm.osm_size,
+            osm_slices: sm.osm_slices,
+            blur: OnOff::On,
+            deep_pool_chunks: None,
+            semantic_levels: None,
+            validate: false,
+            device: None,
+        }
+    }
+}
+
+impl Options {
+    /// Validates the options and resolves them against a scene: the camera
+    /// defaults are fitted to its spheres.
+    pub fn resolve(&self, axes: &Axes, scene: &Scene) -> Result<RenderSettings> {
+        let input = |m: String| Err(Error::Input(m));
+        let camera = crate::camera::default_camera(
+            scene,
+            axes.width,
+            axes.height,
+            self.view_dir.0,
+            self.up.0,
+            self.view_center.map(|v| v.0),
+            self.view_height,
+            self.fov,
+        )?;
+        if !(0.0..=1.0).contains(&axes.opacity) {
+            return input("--opacity must be between 0 and 1".into());
+        }
+        if !(self.light.0.length() > 0.0) {
+            return input("--light must be a non-zero direction".into());
+        }
+        if !(16..=8192).contains(&self.issm_size) {
+            return input("--issm-size must be between 16 and 8192".into());
+        }
+        for (x, name) in [
+            (self.soft_s, "--soft-s"),
+            (self.soft_x, "--soft-x"),
+            (self.soft_b, "--soft-b"),
+        ] {
+            if !(x > 0.0 && x.is_finite()) {
+                return input(format!("{name} must be positive"));
+            }
+        }
+        if !(16..=8192).contains(&self.sm_size) {
+            return input("--sm-size must be between 16 and 8192".into());
+        }
+        for (x, name) in [
+            (self.sm_bias, "--sm-bias"),
+            (self.sm_slope_bias, "--sm-slope-bias"),
+            (self.pcf_radius, "--pcf-radius"),
+        ] {
+            if !(0.0..=1e4).contains(&x) {
+                return input(format!("{name} must be between 0 and 10000 (texels)"));
+            }
+        }
+        if self.pcf_samples > 256 {
+            return input("--pcf-samples must be between 0 and 256".into());
+        }
+        if !(16..=4096).contains(&self.osm_size) {
+            return input("--osm-size must be between 16 and 4096".into());
+        }
+        if !(1..=1024).contains(&self.osm_slices) {
+            return input("--osm-slices must be between 1 and 1024".into());
+        }
+        Ok(RenderSettings {
+            camera,
+            light: self.light.0,
+            shadows: axes.shadows,
+            issm: IssmParams {
+                size: self.issm_size,
+                t: self.issm_t.0,
+                soft_s: self.soft_s,
+                soft_x: self.soft_x,
+                soft_b: self.soft_b,
+            },
+            shadow_maps: ShadowMapParams {
+                sm_size: self.sm_size,
+                sm_bias: self.sm_bias,
+                sm_slope_bias: self.sm_slope_bias,
+                pcf_samples: self.pcf_samples,
+                pcf_radius: self.pcf_radius,
+                osm_size: self.osm_size,
+                osm_slices: self.osm_slices,
+            },
+            opacity: axes.opacity,
+            ssdo: axes.ssdo,
+            blur: self.blur.on(),
+            raster: axes.raster,
+            deep_pool_chunks: self.deep_pool_chunks,
+            semantic_levels: self.semantic_levels.as_ref().map(|l| l.0.clone()),
+        })
+    }
 }

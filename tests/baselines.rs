@@ -91,7 +91,7 @@ fn render(ctx: &Context, scene: &Scene, s: RenderSettings) -> Frame {
     if mode == ShadowMode::Deep {
         let bad = r.deep().expect("deep").damaged_guards(ctx).expect("guards");
         assert!(bad.is_empty(), "deep guards damaged: {bad:?}");
-        map_bytes = r.deep_stats.clone().expect("deep stats").bytes;
+        map_bytes = r.deep_stats().expect("deep stats").bytes;
     }
     Frame {
         shadow: r.read_shadow().expect("shadow"),

@@ -10,7 +10,7 @@ use common::*;
 use glam::DVec3;
 use sphereshade::camera::Camera;
 use sphereshade::output::ids_from_vis;
-use sphereshade::passes::deep::{self, CHUNK, DeepRaw, NONE, TILE, TILE_OVERFLOWED};
+use sphereshade::passes::shadows::deep::{self, CHUNK, DeepRaw, NONE, TILE, TILE_OVERFLOWED};
 use sphereshade::reference;
 use sphereshade::render::Renderer;
 use sphereshade::scene::{self, Scene, Sphere};
@@ -537,7 +537,7 @@ fn lists_match_cpu_model() {
             if frame == 0 {
                 check_lists(name, &scene, &d.light, &raw, &lists, opacity);
                 let c = d.read_counters(&ctx).expect("counters");
-                let st = r.deep_stats.clone().expect("stats");
+                let st = r.deep_stats().expect("stats");
                 let slots = st.chunk_capacity * CHUNK as u64;
                 assert!(
                     st.bytes >= slots * deep::BYTES_PER_ENTRY,
@@ -548,7 +548,8 @@ fn lists_match_cpu_model() {
                 assert!(d.memory_bytes() > st.bytes);
                 eprintln!(
                     "{name}: {} band jobs, stats {:?}",
-                    c.band_jobs, r.deep_stats
+                    c.band_jobs,
+                    r.deep_stats()
                 );
                 if name.starts_with("mixed") {
                     assert!(
@@ -633,7 +634,7 @@ fn overflow_grows_pool_and_matches_big_pool() {
         let mut r = Renderer::new(&ctx, &scene, s).expect("renderer");
         r.render_frame().expect("frame");
         guards_ok("overflow", &ctx, &r);
-        let stats = r.deep_stats.clone().expect("deep stats");
+        let stats = r.deep_stats().expect("deep stats");
         let c = r.deep().unwrap().read_counters(&ctx).unwrap();
         assert_eq!(c.fill_errors, 0);
         assert!(!c.overflowed, "the final frame must fit");
@@ -720,7 +721,7 @@ fn deep_agreement(
         }
     }
     let pct = 100.0 * agree as f64 / compared.max(1) as f64;
-    let st = r.deep_stats.clone().expect("stats");
+    let st = r.deep_stats().expect("stats");
     let d = r.deep().expect("deep");
     let (nodes, max_err) = check_nodes(
         name,
@@ -819,7 +820,7 @@ fn lattice_stress_along_the_light() {
     r.render_frame().expect("frame");
     let secs = t0.elapsed().as_secs_f64();
     guards_ok("lattice", &ctx, &r);
-    let st = r.deep_stats.clone().expect("stats");
+    let st = r.deep_stats().expect("stats");
     let c = r.deep().unwrap().read_counters(&ctx).unwrap();
     assert_eq!(c.fill_errors, 0);
     assert!(!c.overflowed);

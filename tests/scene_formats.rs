@@ -1,4 +1,5 @@
-//! Loads every real structure file in ../shared/data and checks the counts
+//! Loads every real structure file in tests/data (copied from ../shared/data,
+//! provenance in tests/data/README.md) and checks the counts
 //! and quirks documented in its README (atom, chain and model counts,
 //! assemblies, element guessing).
 
@@ -10,11 +11,11 @@ use sphereshade::scene::elements::Element;
 use sphereshade::scene::{LoadOptions, ModelSelect, Scene, SceneError, load};
 
 fn data_dir() -> PathBuf {
-    let dir = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/"));
+    let dir = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/"));
     assert!(
         dir.is_dir(),
         "test data directory {} is missing: these tests need the shared structure files \
-         described in shared/data/README.md",
+         described in tests/data/README.md",
         dir.display()
     );
     dir

@@ -9,12 +9,13 @@ use common::*;
 use glam::DVec3;
 use sphereshade::camera::Camera;
 use sphereshade::gpu::Globals;
-use sphereshade::passes::blur::{Axis, BlurPass, BlurPush};
+use sphereshade::passes::blur::{Axis, BlurIo, BlurPass, BlurPush};
 use sphereshade::passes::spirv;
 use sphereshade::render::{Renderer, level_choice};
 use sphereshade::scene::{self, Scene, Sphere};
 use sphereshade::settings::{ShadowMode, SsdoMode};
-use sphereshade::vk::pipeline::{PipelineDesc, STORAGE};
+use sphereshade::vk::Grid;
+use sphereshade::vk::pipeline::{PipelineDesc, wo};
 use sphereshade::vk::{Buffer, ComputePipeline, Context};
 
 #[repr(C)]
@@ -29,12 +30,12 @@ struct SamplePush {
 #[test]
 fn hemisphere_samples_are_cosine_weighted() {
     let ctx = validated_context();
-    let p = ComputePipeline::new(
+    let mut p = ComputePipeline::new(
         &ctx,
         &PipelineDesc {
             name: "sample probe",
-            spirv: spirv::TEST_SAMPLES_COMP,
-            bindings: &[STORAGE],
+            shader: spirv::TEST_SAMPLES_COMP,
+            bindings: &[wo("Out")],
             push_size: 32,
             local_size: 64,
             constants: &[],
@@ -56,8 +57,11 @@ fn hemisphere_samples_are_cosine_weighted() {
             rot,
             pad: [0; 2],
         };
-        ctx.one_shot("samples", |cmd| {
-            p.dispatch_groups(&ctx, cmd, &[&out], &push, [n / 64, 1, 1])
+        ctx.one_shot_passes("samples", |rec| {
+            rec.pass("samples", |pass| {
+                pass.dispatch(&p, &push, Grid::Groups([n / 64, 1, 1]), &[("Out", &out)]);
+                Ok(())
+            })
         })
         .expect("run");
         let d: Vec<[f32; 4]> = out.download_pod(&ctx, 0, n as u64).expect("read");
@@ -293,32 +297,22 @@ fn bilateral_blur_keeps_depth_edges_and_smooths_flat_areas() {
         blur_shadow: 0,
         pad: [0.0; 3],
     };
-    ctx.one_shot("blur", |cmd| {
+    ctx.one_shot_passes("blur", |rec| {
         let b = &bufs;
-        let geo = [&b[1], &b[2], &b[3]];
-        blur.record(
-            &ctx,
-            cmd,
-            Axis::Horizontal,
-            &b[0],
-            geo,
-            [&b[4], &b[5]],
-            [&b[6], &b[7]],
-            &push,
-            n as u64,
-        )?;
-        sphereshade::vk::barrier(&ctx.device, cmd);
-        blur.record(
-            &ctx,
-            cmd,
-            Axis::Vertical,
-            &b[0],
-            geo,
-            [&b[6], &b[7]],
-            [&b[8], &b[9]],
-            &push,
-            n as u64,
-        )
+        let geometry = [&b[1], &b[2], &b[3]];
+        for (axis, input, output) in [
+            (Axis::Horizontal, [&b[4], &b[5]], [&b[6], &b[7]]),
+            (Axis::Vertical, [&b[6], &b[7]], [&b[8], &b[9]]),
+        ] {
+            let io = BlurIo {
+                globals: &b[0],
+                geometry,
+                input,
+                output,
+            };
+            blur.record(rec, axis, &io, &push, n as u64)?;
+        }
+        Ok(())
     })
     .expect("run");
     let out: Vec<[f32; 4]> = bufs[8].download_pod(&ctx, 0, n as u64).expect("read");

@@ -7,19 +7,20 @@ mod common;
 use common::*;
 use sphereshade::gpu::{Globals, SphereAttr};
 use sphereshade::passes::spirv;
-use sphereshade::vk::pipeline::{PipelineDesc, STORAGE, UNIFORM};
+use sphereshade::vk::Grid;
+use sphereshade::vk::pipeline::{PipelineDesc, ro, rw, uniform, wo};
 use sphereshade::vk::{Buffer, ComputePipeline};
 
 #[test]
 fn out_of_bounds_store_is_reported_by_gpu_av() {
     let ctx = validated_context();
     let before = ctx.validation_messages();
-    let p = ComputePipeline::new(
+    let mut p = ComputePipeline::new(
         &ctx,
         &PipelineDesc {
             name: "test oob",
-            spirv: spirv::TEST_OOB_COMP,
-            bindings: &[STORAGE],
+            shader: spirv::TEST_OOB_COMP,
+            bindings: &[rw("Out")],
             push_size: 4,
             local_size: 1,
             constants: &[],
@@ -27,8 +28,11 @@ fn out_of_bounds_store_is_reported_by_gpu_av() {
     )
     .expect("pipeline");
     let mut buf = Buffer::storage(&ctx, "oob target", 64).expect("buffer");
-    ctx.one_shot("oob", |cmd| {
-        p.dispatch_groups(&ctx, cmd, &[&buf], &16u32, [1, 1, 1])
+    ctx.one_shot_passes("oob", |rec| {
+        rec.pass("oob", |pass| {
+            pass.dispatch(&p, &16u32, Grid::Groups([1, 1, 1]), &[("Out", &buf)]);
+            Ok(())
+        })
     })
     .expect("dispatch");
     let after = ctx.validation_messages();
@@ -83,20 +87,28 @@ fn gpu_struct_layout_matches_glsl() {
     abuf.upload(&ctx, 0, bytemuck::cast_slice(&attrs))
         .expect("upload");
     let mut out = Buffer::storage(&ctx, "probe out", (total * 4) as u64).expect("out");
-    let p = ComputePipeline::new(
+    let mut p = ComputePipeline::new(
         &ctx,
         &PipelineDesc {
             name: "layout probe",
-            spirv: spirv::LAYOUT_PROBE_COMP,
-            bindings: &[UNIFORM, STORAGE, STORAGE],
+            shader: spirv::LAYOUT_PROBE_COMP,
+            bindings: &[uniform("GlobalsBlock"), ro("Attrs"), wo("Out")],
             push_size: 0,
             local_size: 1,
             constants: &[],
         },
     )
     .expect("pipeline");
-    ctx.one_shot("probe", |cmd| {
-        p.dispatch_groups(&ctx, cmd, &[&gbuf, &abuf, &out], &(), [1, 1, 1])
+    ctx.one_shot_passes("probe", |rec| {
+        rec.pass("probe", |pass| {
+            pass.dispatch(
+                &p,
+                &(),
+                Grid::Groups([1, 1, 1]),
+                &[("GlobalsBlock", &gbuf), ("Attrs", &abuf), ("Out", &out)],
+            );
+            Ok(())
+        })
     })
     .expect("run");
     let words: Vec<u32> = out.download_pod(&ctx, 0, total as u64).expect("read");

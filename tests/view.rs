@@ -19,7 +19,7 @@ fn view_smoke_with_resize_matches_render() {
     let dir = std::env::temp_dir().join(format!("sphereshade-view-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let shot = dir.join("view.png");
-    let input = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/1tii.pdb");
+    let input = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/1tii.pdb");
     let o = Command::new("xvfb-run")
         .args(["-a", "-s", "-screen 0 1024x768x24"])
         .arg(env!("CARGO_BIN_EXE_sphereshade"))

@@ -6,12 +6,12 @@
 
 mod swapchain;
 
-use crate::cli::{self, Exit, SceneArgs, ViewArgs};
 use crate::error::{Error, Result};
 use crate::output;
 use crate::render::Renderer;
+use crate::run::{self, Exit, SceneArgs};
 use crate::scene::Scene;
-use crate::settings::{RenderSettings, ShadowMode, SsdoMode};
+use crate::settings::{Axes, Options, ShadowMode, SsdoMode};
 use crate::vk::{Context, ContextOptions};
 use glam::DVec3;
 use raw_window_handle::{HasDisplayHandle, HasWindowHandle};
@@ -34,7 +34,9 @@ pub struct ViewCmd {
     #[command(flatten)]
     pub scene: SceneArgs,
     #[command(flatten)]
-    pub view: ViewArgs,
+    pub axes: Axes,
+    #[command(flatten)]
+    pub options: Options,
     /// Render this many frames, then exit (smoke test).
     #[arg(long)]
     pub frames: Option<u32>,
@@ -44,6 +46,36 @@ pub struct ViewCmd {
     /// Resize the window half-way through --frames (+40 x +24 pixels).
     #[arg(long)]
     pub resize_test: bool,
+    /// Replay input, one action per frame, through the same handlers as
+    /// keys and mouse (tests, measurements): `toggle-all` presses every mode
+    /// key through all its states and drags the light 8 steps.
+    #[arg(long, value_parser = ["toggle-all"])]
+    pub script: Option<String>,
+}
+
+/// One scripted input action.
+#[derive(Clone, Copy, Debug)]
+enum Action {
+    Key(&'static str),
+    LightDrag(f64, f64),
+}
+
+fn script(name: &str) -> Vec<Action> {
+    match name {
+        "toggle-all" => {
+            let mut v = Vec::new();
+            // S cycles none -> issm -> issm-soft -> deep -> sm-pcf -> osm -> none.
+            v.extend([Action::Key("s"); 6]);
+            v.extend([Action::Key("o"); 3]);
+            v.extend([Action::Key("b"); 2]);
+            v.extend([Action::Key("-"), Action::Key("+")]);
+            v.extend([Action::LightDrag(6.0, 3.0); 8]);
+            // and once more with every technique alive, the light moved
+            v.extend([Action::Key("s"); 6]);
+            v
+        }
+        _ => Vec::new(),
+    }
 }
 
 pub const HELP: &str = "controls: left drag orbit | right/middle drag pan | wheel zoom | shift+drag light | \
@@ -65,7 +97,8 @@ enum Loading {
         std::thread::JoinHandle<Result<(Scene, f64)>>,
         Arc<AtomicU64>,
     ),
-    Done(Scene),
+    /// The scene is on the GPU (the renderer keeps what it needs).
+    Done,
     Taken,
 }
 
@@ -76,7 +109,6 @@ struct App<'c> {
     swapchain: Option<Swapchain>,
     renderer: Option<Renderer<'c>>,
     loading: Loading,
-    settings: Option<RenderSettings>,
     home: Option<Orbit>,
     orbit: Option<Orbit>,
     size: (u32, u32),
@@ -92,6 +124,10 @@ struct App<'c> {
     fps_frames: u32,
     error: Option<Error>,
     exit: Exit,
+    actions: std::collections::VecDeque<Action>,
+    /// Seconds spent in mode toggles and light-drag steps (handler only).
+    toggle_times: Vec<f64>,
+    drag_times: Vec<f64>,
 }
 
 fn rotate(v: DVec3, axis: DVec3, angle: f64) -> DVec3 {
@@ -104,22 +140,23 @@ impl<'c> App<'c> {
         el.exit();
     }
 
-    /// (Re)creates the renderer for the current settings, camera and size.
-    fn rebuild(&mut self) -> Result<()> {
-        let Loading::Done(scene) = &self.loading else {
-            return Ok(());
-        };
-        let (Some(s), Some(o)) = (&mut self.settings, self.orbit) else {
-            return Ok(());
+    /// The camera of the current orbit and window size.
+    fn camera(&self) -> Result<Option<crate::camera::Camera>> {
+        let Some(o) = self.orbit else {
+            return Ok(None);
         };
         let (w, h) = self.size;
-        self.renderer = None; // free the old one's memory first
-        s.camera = crate::camera::Camera::new(o.center, o.dir, o.up, o.height, o.fov, w, h)?;
-        let mut r = Renderer::new(self.ctx, scene, s.clone())?;
-        if let Some(sc) = &self.swapchain {
-            r.set_bgra(sc.is_bgra());
+        crate::camera::Camera::new(o.center, o.dir, o.up, o.height, o.fov, w, h).map(Some)
+    }
+
+    /// The window size changed: new screen targets, nothing else.
+    fn resize_renderer(&mut self) -> Result<()> {
+        let Some(cam) = self.camera()? else {
+            return Ok(());
+        };
+        if let Some(r) = &mut self.renderer {
+            r.resize(cam)?;
         }
-        self.renderer = Some(r);
         Ok(())
     }
 
@@ -144,7 +181,7 @@ impl<'c> App<'c> {
                 *c = u32::from_le_bytes([b[2], b[1], b[0], b[3]]);
             }
         }
-        let (w, h) = (r.settings.camera.width, r.settings.camera.height);
+        let (w, h) = (r.settings().camera.width, r.settings().camera.height);
         output::color_image(w, h, &color).save_png(path)?;
         eprintln!("view: wrote {}", path.display());
         Ok(())
@@ -162,10 +199,8 @@ impl<'c> App<'c> {
         self.last_title = Instant::now();
         let gpu: f64 = times.iter().map(|t| t.1).sum();
         let passes: Vec<String> = times.iter().map(|(n, t)| format!("{n} {t:.1}")).collect();
-        let (n, s) = match (&self.renderer, &self.settings) {
-            (Some(r), Some(s)) => (r.sphere_count, s),
-            _ => return,
-        };
+        let Some(r) = &self.renderer else { return };
+        let (n, s) = (r.sphere_count(), r.settings());
         win.set_title(&format!(
             "sphereshade | {n} spheres | {fps:.1} fps | gpu {gpu:.1} ms | shadows {} ssdo {} blur {} opacity {:.2} | {} | H help",
             s.shadows.name(),
@@ -194,8 +229,13 @@ impl<'c> App<'c> {
             };
             let (scene, _) = handle
                 .join()
-                .map_err(|_| Error::Invalid("scene loader thread panicked".into()))??;
-            let settings = cli::settings_for(&scene, &self.cmd.view)?;
+                .map_err(|_| Error::Internal("scene loader thread panicked".into()))??;
+            let axes = Axes {
+                width: self.size.0.max(1),
+                height: self.size.1.max(1),
+                ..self.cmd.axes.clone()
+            };
+            let settings = self.cmd.options.resolve(&axes, &scene)?;
             let c = settings.camera;
             let o = Orbit {
                 center: c.center,
@@ -206,9 +246,22 @@ impl<'c> App<'c> {
             };
             self.home = Some(o);
             self.orbit = Some(o);
-            self.settings = Some(settings);
-            self.loading = Loading::Done(scene);
-            self.rebuild()?;
+            let started = Instant::now();
+            let mut r = Renderer::new(self.ctx, &scene, settings)?;
+            if let Some(sc) = &self.swapchain {
+                r.set_bgra(sc.is_bgra());
+            }
+            eprintln!(
+                "view: renderer ready in {:.0} ms ({} spheres)",
+                started.elapsed().as_secs_f64() * 1e3,
+                r.sphere_count()
+            );
+            self.renderer = Some(r);
+            self.loading = Loading::Done;
+            drop(scene);
+        }
+        if let Some(a) = self.actions.pop_front() {
+            self.act(a)?;
         }
         if self.size.0 == 0 || self.size.1 == 0 {
             return Ok(()); // minimised
@@ -228,7 +281,7 @@ impl<'c> App<'c> {
             let ext = (sc.extent.width, sc.extent.height);
             if ext != self.size || stale {
                 self.size = ext;
-                self.rebuild()?;
+                self.resize_renderer()?;
             }
             return Ok(());
         }
@@ -263,55 +316,63 @@ impl<'c> App<'c> {
         Ok(())
     }
 
+    /// Replays one scripted action through the input handlers.
+    fn act(&mut self, a: Action) -> Result<()> {
+        match a {
+            Action::Key(k) => self.key(&Key::Character(k.into())),
+            Action::LightDrag(dx, dy) => {
+                let (shift, buttons) = (self.shift, self.buttons);
+                self.shift = true;
+                self.buttons = [true, false, false];
+                let r = self.drag(dx, dy);
+                (self.shift, self.buttons) = (shift, buttons);
+                r
+            }
+        }
+    }
+
     fn key(&mut self, key: &Key) -> Result<()> {
-        let Some(s) = &mut self.settings else {
+        let Some(r) = &mut self.renderer else {
             return Ok(());
         };
-        let mut rebuild = true;
+        let s = r.settings().clone();
+        let started = Instant::now();
         match key.as_ref() {
-            Key::Character("s" | "S") => {
-                s.shadows = match s.shadows {
-                    ShadowMode::None => ShadowMode::Issm,
-                    ShadowMode::Issm => ShadowMode::IssmSoft,
-                    ShadowMode::IssmSoft => ShadowMode::Deep,
-                    ShadowMode::Deep => ShadowMode::SmPcf,
-                    ShadowMode::SmPcf => ShadowMode::Osm,
-                    ShadowMode::Osm => ShadowMode::None,
-                }
-            }
-            Key::Character("o" | "O") => {
-                s.ssdo = match s.ssdo {
-                    SsdoMode::Off => SsdoMode::Plain,
-                    SsdoMode::Plain => SsdoMode::Semantic,
-                    SsdoMode::Semantic => SsdoMode::Off,
-                }
-            }
-            Key::Character("b" | "B") => s.blur = !s.blur,
-            Key::Character("+" | "=") => s.opacity = (s.opacity + 0.1).min(1.0),
-            Key::Character("-" | "_") => s.opacity = (s.opacity - 0.1).max(0.0),
+            Key::Character("s" | "S") => r.set_shadows(match s.shadows {
+                ShadowMode::None => ShadowMode::Issm,
+                ShadowMode::Issm => ShadowMode::IssmSoft,
+                ShadowMode::IssmSoft => ShadowMode::Deep,
+                ShadowMode::Deep => ShadowMode::SmPcf,
+                ShadowMode::SmPcf => ShadowMode::Osm,
+                ShadowMode::Osm => ShadowMode::None,
+            })?,
+            Key::Character("o" | "O") => r.set_ssdo(match s.ssdo {
+                SsdoMode::Off => SsdoMode::Plain,
+                SsdoMode::Plain => SsdoMode::Semantic,
+                SsdoMode::Semantic => SsdoMode::Off,
+            })?,
+            Key::Character("b" | "B") => r.set_blur(!s.blur),
+            Key::Character("+" | "=") => r.set_opacity((s.opacity + 0.1).min(1.0))?,
+            Key::Character("-" | "_") => r.set_opacity((s.opacity - 0.1).max(0.0))?,
             Key::Character("r" | "R") => {
                 self.orbit = self.home;
-                rebuild = false;
-                self.update_camera()?;
+                return self.update_camera();
             }
             Key::Character("p" | "P") => {
                 self.screenshots += 1;
                 let p = PathBuf::from(format!("sphereshade-{}.png", self.screenshots));
-                self.screenshot(&p)?;
-                rebuild = false;
+                return self.screenshot(&p);
             }
             Key::Character("h" | "H") => {
                 println!("{HELP}");
                 if let Some(w) = &self.window {
                     w.set_title(HELP);
                 }
-                rebuild = false;
+                return Ok(());
             }
-            _ => rebuild = false,
+            _ => return Ok(()),
         }
-        if rebuild {
-            self.rebuild()?;
-        }
+        self.toggle_times.push(started.elapsed().as_secs_f64());
         Ok(())
     }
 
@@ -322,10 +383,13 @@ impl<'c> App<'c> {
         let right = o.dir.cross(o.up).normalize();
         if self.shift && self.buttons[0] {
             // light direction: rotate around the view axes
-            if let Some(s) = &mut self.settings {
-                s.light = rotate(rotate(s.light, o.up, dx * 0.01), right, dy * 0.01);
+            if let Some(r) = &mut self.renderer {
+                let started = Instant::now();
+                let l = r.settings().light;
+                r.set_light(rotate(rotate(l, o.up, dx * 0.01), right, dy * 0.01))?;
+                self.drag_times.push(started.elapsed().as_secs_f64());
             }
-            return self.rebuild();
+            return Ok(());
         }
         if self.buttons[0] {
             // orbit around the view centre
@@ -356,14 +420,14 @@ impl ApplicationHandler for App<'_> {
         let made = (|| -> Result<()> {
             let window = Arc::new(
                 el.create_window(attrs)
-                    .map_err(|e| Error::Invalid(format!("cannot open a window: {e}")))?,
+                    .map_err(|e| Error::Input(format!("cannot open a window: {e}")))?,
             );
             let dh = window
                 .display_handle()
-                .map_err(|e| Error::Invalid(format!("display handle: {e}")))?;
+                .map_err(|e| Error::Input(format!("display handle: {e}")))?;
             let wh = window
                 .window_handle()
-                .map_err(|e| Error::Invalid(format!("window handle: {e}")))?;
+                .map_err(|e| Error::Input(format!("window handle: {e}")))?;
             let surface = unsafe {
                 ash_window::create_surface(
                     &self.ctx.entry,
@@ -456,12 +520,12 @@ impl ApplicationHandler for App<'_> {
 
 /// Runs the viewer until the window closes or `--frames` are done.
 pub fn run(cmd: ViewCmd) -> Result<Exit> {
-    let event_loop = EventLoop::new()
-        .map_err(|e| Error::Invalid(format!("cannot connect to a display: {e}")))?;
+    let event_loop =
+        EventLoop::new().map_err(|e| Error::Input(format!("cannot connect to a display: {e}")))?;
     event_loop.set_control_flow(ControlFlow::Poll);
     let dh = event_loop
         .display_handle()
-        .map_err(|e| Error::Invalid(format!("display handle: {e}")))?;
+        .map_err(|e| Error::Input(format!("display handle: {e}")))?;
     let exts =
         ash_window::enumerate_required_extensions(dh.as_raw()).map_err(|result| Error::Vk {
             call: "enumerate_required_extensions",
@@ -472,8 +536,8 @@ pub fn run(cmd: ViewCmd) -> Result<Exit> {
         .map(|&p| unsafe { std::ffi::CStr::from_ptr(p) }.to_owned())
         .collect();
     let ctx = Context::new(&ContextOptions {
-        validate: cmd.view.validate,
-        device_index: cmd.view.device,
+        validate: cmd.options.validate,
+        device_index: cmd.options.device,
         instance_extensions,
         swapchain: true,
     })?;
@@ -483,11 +547,12 @@ pub fn run(cmd: ViewCmd) -> Result<Exit> {
     let scene_args = cmd.scene.clone();
     let p2 = pct.clone();
     let handle = std::thread::spawn(move || {
-        cli::load_scene_with_progress(&scene_args, &mut |d, t| {
+        run::load_scene_with_progress(&scene_args, &mut |d, t| {
             p2.store((d * 100).checked_div(t).unwrap_or(0), Ordering::Relaxed);
         })
     });
-    let size = (cmd.view.width, cmd.view.height);
+    let size = (cmd.axes.width, cmd.axes.height);
+    let actions = cmd.script.as_deref().map(script).unwrap_or_default().into();
     let mut app = App {
         ctx: &ctx,
         cmd,
@@ -495,7 +560,6 @@ pub fn run(cmd: ViewCmd) -> Result<Exit> {
         swapchain: None,
         renderer: None,
         loading: Loading::Pending(handle, pct),
-        settings: None,
         home: None,
         orbit: None,
         size,
@@ -510,8 +574,25 @@ pub fn run(cmd: ViewCmd) -> Result<Exit> {
         fps_frames: 0,
         error: None,
         exit: Exit::Ok,
+        actions,
+        toggle_times: Vec::new(),
+        drag_times: Vec::new(),
     };
     let ran = event_loop.run_app(&mut app);
+    let mean_ms = |v: &[f64]| 1e3 * v.iter().sum::<f64>() / v.len().max(1) as f64;
+    if !app.toggle_times.is_empty() || !app.drag_times.is_empty() {
+        eprintln!(
+            "view: {} mode toggles, mean {:.1} ms (max {:.1}); {} light-drag steps, mean {:.1} ms; \
+             renderers created {}, pipelines created {}",
+            app.toggle_times.len(),
+            mean_ms(&app.toggle_times),
+            1e3 * app.toggle_times.iter().cloned().fold(0.0, f64::max),
+            app.drag_times.len(),
+            mean_ms(&app.drag_times),
+            crate::render::RENDERERS_CREATED.load(Ordering::Relaxed),
+            crate::vk::pipeline::CREATED.load(Ordering::Relaxed),
+        );
+    }
     // Destroy in order: renderer, swapchain (and surface), then the context.
     app.renderer = None;
     if let Some(mut sc) = app.swapchain.take() {
@@ -521,7 +602,7 @@ pub fn run(cmd: ViewCmd) -> Result<Exit> {
     if let Some(e) = app.error.take() {
         return Err(e);
     }
-    ran.map_err(|e| Error::Invalid(format!("event loop: {e}")))?;
+    ran.map_err(|e| Error::Input(format!("event loop: {e}")))?;
     let exit = std::mem::replace(&mut app.exit, Exit::Ok);
     drop(app);
     let (n, _) = ctx.finish();

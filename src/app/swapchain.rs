@@ -48,7 +48,7 @@ impl Swapchain {
         }
         .vk("vkGetPhysicalDeviceSurfaceSupportKHR")?;
         if !supported {
-            return Err(Error::Invalid(
+            return Err(Error::Input(
                 "the chosen queue cannot present to this window".into(),
             ));
         }
@@ -124,7 +124,7 @@ impl Swapchain {
             })
             .or(formats.first())
             .copied()
-            .ok_or_else(|| Error::Invalid("the window surface offers no formats".into()))?;
+            .ok_or_else(|| Error::Input("the window surface offers no formats".into()))?;
         let extent = if caps.current_extent.width != u32::MAX {
             caps.current_extent
         } else {

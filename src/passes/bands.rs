@@ -1,12 +1,12 @@
 //! Band jobs, shared by the camera raster, the deep lists and the opacity
-//! maps: a per-sphere pass handles small footprints itself and queues
-//! 8-row bands of big ones; one invocation turns the band count into
-//! indirect dispatch arguments; the band pipeline then runs every band.
+//! maps (the GLSL skeleton is glsl/bands.glsl): a per-sphere dispatch
+//! handles small footprints itself and queues 8-row bands of big ones; one
+//! invocation turns the band count into indirect dispatch arguments; the
+//! band pipeline (same shader, BAND_PASS = 1) then runs every band.
 
 use crate::error::Result;
-use crate::vk::pipeline::{PipelineDesc, STORAGE};
-use crate::vk::{Buffer, ComputePipeline, Context, barrier};
-use ash::vk;
+use crate::vk::pipeline::{PipelineDesc, rw};
+use crate::vk::{Buffer, ComputePipeline, Context, Grid, PassBuilder};
 use bytemuck::{Pod, Zeroable};
 
 /// Where the sequence's words live in the pass's counter buffer.
@@ -35,6 +35,42 @@ pub struct BandArgs {
     pipe: ComputePipeline,
 }
 
+/// The two pipelines of a band-skeleton shader: per sphere and per band.
+pub struct BandPipelines {
+    pub spheres: ComputePipeline,
+    pub bands: ComputePipeline,
+}
+
+impl BandPipelines {
+    /// Both pipelines of `desc`'s shader; `constants` are ids 2, 3, ... (id
+    /// 1 is BAND_PASS).
+    pub fn new(ctx: &Context, desc: &PipelineDesc, constants: &[u32]) -> Result<Self> {
+        let make = |band: u32, suffix: &str| {
+            let mut c = vec![band];
+            c.extend_from_slice(constants);
+            ComputePipeline::new(
+                ctx,
+                &PipelineDesc {
+                    name: &format!("{}{suffix}", desc.name),
+                    constants: &c,
+                    ..*desc
+                },
+            )
+        };
+        let spheres = ctx.guard(make(0, "")?);
+        let bands = make(1, " bands")?;
+        Ok(BandPipelines {
+            spheres: spheres.keep(),
+            bands,
+        })
+    }
+
+    pub fn destroy(&mut self, ctx: &Context) {
+        self.spheres.destroy(ctx);
+        self.bands.destroy(ctx);
+    }
+}
+
 impl BandArgs {
     pub fn new(ctx: &Context, name: &str) -> Result<Self> {
         Ok(BandArgs {
@@ -42,8 +78,8 @@ impl BandArgs {
                 ctx,
                 &PipelineDesc {
                     name,
-                    spirv: super::spirv::BAND_ARGS_COMP,
-                    bindings: &[STORAGE],
+                    shader: super::spirv::BAND_ARGS_COMP,
+                    bindings: &[rw("Counters")],
                     push_size: std::mem::size_of::<BandCounters>() as u32,
                     local_size: 1,
                     constants: &[],
@@ -52,30 +88,43 @@ impl BandArgs {
         })
     }
 
-    /// Per-sphere pass, args, indirect band pass, with barriers between
-    /// (none after: the caller decides what follows).
+    /// Adds the per-sphere dispatch, the args step and the indirect band
+    /// dispatch to a pass (`bindings` serve both pipelines; `counters` is
+    /// the buffer bound as "Counters").
     #[allow(clippy::too_many_arguments)]
-    pub fn record<P: Pod, Q: Pod>(
-        &self,
-        ctx: &Context,
-        cmd: vk::CommandBuffer,
-        (sphere_pipe, sphere_push): (&ComputePipeline, &P),
-        (band_pipe, band_push): (&ComputePipeline, &Q),
-        bufs: &[&Buffer],
+    pub fn steps<'b, P: Pod>(
+        &'b self,
+        p: &mut PassBuilder<'b>,
+        pipes: &'b BandPipelines,
+        push: &P,
+        bindings: &[(&'static str, &'b Buffer)],
         sphere_count: u32,
-        counters: &Buffer,
+        counters: &'b Buffer,
         layout: &BandCounters,
-    ) -> Result<()> {
-        let dev = &ctx.device;
-        sphere_pipe.dispatch(ctx, cmd, bufs, sphere_push, sphere_count as u64)?;
-        barrier(dev, cmd);
-        self.pipe
-            .dispatch_groups(ctx, cmd, &[counters], layout, [1, 1, 1])?;
-        barrier(dev, cmd);
-        band_pipe.dispatch_indirect(ctx, cmd, bufs, band_push, counters, layout.args_offset())
+    ) {
+        p.dispatch(
+            &pipes.spheres,
+            push,
+            Grid::Invocations(sphere_count as u64),
+            bindings,
+        );
+        p.dispatch(
+            &self.pipe,
+            layout,
+            Grid::Groups([1, 1, 1]),
+            &[("Counters", counters)],
+        );
+        p.dispatch(
+            &pipes.bands,
+            push,
+            Grid::Indirect(counters, layout.args_offset()),
+            bindings,
+        );
     }
 
     pub fn destroy(&mut self, ctx: &Context) {
         self.pipe.destroy(ctx);
     }
 }
+
+crate::impl_destroy!(BandPipelines);

@@ -3,9 +3,8 @@
 
 use super::{LOCAL_SIZE, spirv};
 use crate::error::Result;
-use crate::vk::pipeline::{PipelineDesc, STORAGE, UNIFORM};
-use crate::vk::{Buffer, ComputePipeline, Context};
-use ash::vk;
+use crate::vk::pipeline::{PipelineDesc, ro, uniform, wo};
+use crate::vk::{Buffer, ComputePipeline, Context, Grid, Recorder};
 use bytemuck::{Pod, Zeroable};
 
 #[repr(C)]
@@ -40,6 +39,17 @@ pub struct BlurPass {
     v: ComputePipeline,
 }
 
+/// What one blur dispatch reads and writes.
+pub struct BlurIo<'a> {
+    pub globals: &'a Buffer,
+    /// [gpos, gnorm, gregion]
+    pub geometry: [&'a Buffer; 3],
+    /// (ambient, shadow) in
+    pub input: [&'a Buffer; 2],
+    /// (ambient, shadow) out
+    pub output: [&'a Buffer; 2],
+}
+
 impl BlurPass {
     pub fn new(ctx: &Context) -> Result<Self> {
         let make = |axis: Axis| {
@@ -47,9 +57,16 @@ impl BlurPass {
                 ctx,
                 &PipelineDesc {
                     name: axis.name(),
-                    spirv: spirv::BLUR_COMP,
+                    shader: spirv::BLUR_COMP,
                     bindings: &[
-                        UNIFORM, STORAGE, STORAGE, STORAGE, STORAGE, STORAGE, STORAGE, STORAGE,
+                        uniform("GlobalsBlock"),
+                        ro("GPos"),
+                        ro("GNorm"),
+                        ro("GRegion"),
+                        ro("InA"),
+                        ro("InS"),
+                        wo("OutA"),
+                        wo("OutS"),
                     ],
                     push_size: std::mem::size_of::<BlurPush>() as u32,
                     local_size: LOCAL_SIZE,
@@ -57,46 +74,48 @@ impl BlurPass {
                 },
             )
         };
-        Ok(BlurPass {
-            h: make(Axis::Horizontal)?,
-            v: make(Axis::Vertical)?,
-        })
+        let h = ctx.guard(make(Axis::Horizontal)?);
+        let v = make(Axis::Vertical)?;
+        Ok(BlurPass { h: h.keep(), v })
     }
 
-    /// Blurs (ambient, shadow) into (out_ambient, out_shadow) along `axis`;
-    /// `geometry` = [gpos, gnorm, gregion].
-    #[allow(clippy::too_many_arguments)]
+    /// Blurs (ambient, shadow) into (out ambient, out shadow) along `axis`,
+    /// as the pass `axis.name()`.
     pub fn record(
         &self,
-        ctx: &Context,
-        cmd: vk::CommandBuffer,
+        rec: &mut Recorder,
         axis: Axis,
-        globals: &Buffer,
-        geometry: [&Buffer; 3],
-        input: [&Buffer; 2],
-        output: [&Buffer; 2],
+        io: &BlurIo,
         push: &BlurPush,
         pixels: u64,
     ) -> Result<()> {
-        let p = if axis == Axis::Horizontal {
+        let pipe = if axis == Axis::Horizontal {
             &self.h
         } else {
             &self.v
         };
-        let bufs = [
-            globals,
-            geometry[0],
-            geometry[1],
-            geometry[2],
-            input[0],
-            input[1],
-            output[0],
-            output[1],
-        ];
-        p.dispatch(ctx, cmd, &bufs, push, pixels)
+        rec.pass(axis.name(), |p| {
+            p.dispatch(
+                pipe,
+                push,
+                Grid::Invocations(pixels),
+                &[
+                    ("GlobalsBlock", io.globals),
+                    ("GPos", io.geometry[0]),
+                    ("GNorm", io.geometry[1]),
+                    ("GRegion", io.geometry[2]),
+                    ("InA", io.input[0]),
+                    ("InS", io.input[1]),
+                    ("OutA", io.output[0]),
+                    ("OutS", io.output[1]),
+                ],
+            );
+            Ok(())
+        })
     }
 
     pub fn destroy(&mut self, ctx: &Context) {
-        super::destroy_all(ctx, &[&self.h, &self.v]);
+        self.h.destroy(ctx);
+        self.v.destroy(ctx);
     }
 }

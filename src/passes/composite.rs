@@ -3,9 +3,8 @@
 
 use super::{LOCAL_SIZE, spirv};
 use crate::error::Result;
-use crate::vk::pipeline::{PipelineDesc, STORAGE, UNIFORM};
-use crate::vk::{Buffer, ComputePipeline, Context};
-use ash::vk;
+use crate::vk::pipeline::{PipelineDesc, ro, uniform, wo};
+use crate::vk::{Buffer, ComputePipeline, Context, Grid, Recorder};
 use bytemuck::{Pod, Zeroable};
 
 #[repr(C)]
@@ -19,8 +18,9 @@ pub struct CompositePush {
     pub swap_rb: u32,
 }
 
-/// Inputs of the composite pass, in binding order after the globals.
+/// Inputs of the composite pass.
 pub struct CompositeInputs<'a> {
+    pub globals: &'a Buffer,
     pub attrs: &'a Buffer,
     pub vis: &'a Buffer,
     pub gpos: &'a Buffer,
@@ -42,9 +42,16 @@ impl CompositePass {
             ctx,
             &PipelineDesc {
                 name: Self::NAME,
-                spirv: spirv::COMPOSITE_COMP,
+                shader: spirv::COMPOSITE_COMP,
                 bindings: &[
-                    UNIFORM, STORAGE, STORAGE, STORAGE, STORAGE, STORAGE, STORAGE, STORAGE,
+                    uniform("GlobalsBlock"),
+                    ro("Attrs"),
+                    ro("Vis"),
+                    ro("GPos"),
+                    ro("GNorm"),
+                    ro("Shadow"),
+                    ro("Ambient"),
+                    wo("Color"),
                 ],
                 push_size: std::mem::size_of::<CompositePush>() as u32,
                 local_size: LOCAL_SIZE,
@@ -56,17 +63,29 @@ impl CompositePass {
 
     pub fn record(
         &self,
-        ctx: &Context,
-        cmd: vk::CommandBuffer,
-        globals: &Buffer,
+        rec: &mut Recorder,
         io: &CompositeInputs,
         push: &CompositePush,
         pixels: u64,
     ) -> Result<()> {
-        let bufs = [
-            globals, io.attrs, io.vis, io.gpos, io.gnorm, io.shadow, io.ambient, io.color,
-        ];
-        self.pipeline.dispatch(ctx, cmd, &bufs, push, pixels)
+        rec.pass(Self::NAME, |p| {
+            p.dispatch(
+                &self.pipeline,
+                push,
+                Grid::Invocations(pixels),
+                &[
+                    ("GlobalsBlock", io.globals),
+                    ("Attrs", io.attrs),
+                    ("Vis", io.vis),
+                    ("GPos", io.gpos),
+                    ("GNorm", io.gnorm),
+                    ("Shadow", io.shadow),
+                    ("Ambient", io.ambient),
+                    ("Color", io.color),
+                ],
+            );
+            Ok(())
+        })
     }
 
     pub fn destroy(&mut self, ctx: &Context) {

@@ -1,19 +1,19 @@
 //! One file per pass. Each pass owns its pipelines (and private buffers),
-//! exposes `NAME` (its debug label and timestamp scope) and a `record()`.
+//! exposes `NAME` (its debug label, timestamp scope and JSON name) and a
+//! `record()` that lists its steps on a [`crate::vk::Recorder`]; the
+//! recorder derives the barriers. The shadow techniques share one shape
+//! ([`shadows::ShadowTechnique`]).
 
 pub mod bands;
 pub mod blur;
 pub mod composite;
-pub mod deep;
-pub mod issm;
-pub mod osm;
 pub mod raster;
 pub mod raster_graphics;
 pub mod resolve;
-pub mod shadow_map;
+pub mod shadows;
 pub mod ssdo;
 
-use crate::vk::Context;
+use crate::vk::Buffer;
 
 /// Default workgroup size (specialization constant 0 of most shaders).
 pub const LOCAL_SIZE: u32 = 64;
@@ -27,22 +27,18 @@ pub mod spirv {
 /// scene, the camera's visibility buffer and G-buffer, and the key-light
 /// visibility it fills (one f32 per pixel).
 pub struct ShadowInputs<'a> {
-    pub globals: &'a crate::vk::Buffer,
-    pub spheres: &'a crate::vk::Buffer,
-    pub vis: &'a crate::vk::Buffer,
-    pub gpos: &'a crate::vk::Buffer,
-    pub gnorm: &'a crate::vk::Buffer,
-    pub shadow: &'a crate::vk::Buffer,
+    pub globals: &'a Buffer,
+    pub spheres: &'a Buffer,
+    pub vis: &'a Buffer,
+    pub gpos: &'a Buffer,
+    pub gnorm: &'a Buffer,
+    pub shadow: &'a Buffer,
     /// Sphere opacity for the translucent techniques (1 = opaque).
     pub opacity: f32,
     pub pixels: u64,
-}
-
-/// Destroys a list of pipelines (helper for the passes' `destroy`).
-pub(crate) fn destroy_all(ctx: &Context, pipelines: &[&crate::vk::ComputePipeline]) {
-    for p in pipelines {
-        p.destroy(ctx);
-    }
+    pub sphere_count: u32,
+    /// The compute rasterizer (light-space maps are rasterized with it).
+    pub raster: &'a raster::RasterPass,
 }
 
 crate::impl_destroy!(
@@ -50,10 +46,6 @@ crate::impl_destroy!(
     raster_graphics::GraphicsRasterPass,
     resolve::ResolvePass,
     composite::CompositePass,
-    issm::IssmShadowPass,
-    deep::DeepShadows,
-    shadow_map::ShadowMap,
-    osm::OpacityShadows,
     ssdo::SsdoPass,
     blur::BlurPass,
     bands::BandArgs,

@@ -1,11 +1,12 @@
 //! Compute rasterization of sphere impostors into a 64-bit depth|id
 //! visibility buffer (camera view or key-light view, same code).
 
-use super::bands::{BandArgs, BandCounters};
+use super::bands::{BandArgs, BandCounters, BandPipelines};
 use super::{LOCAL_SIZE, spirv};
 use crate::error::Result;
-use crate::vk::pipeline::{PipelineDesc, STORAGE, UNIFORM};
-use crate::vk::{Buffer, ComputePipeline, Context, Profiler, barrier};
+use crate::gpu::consts::{R_ARGS, R_BANDS_REQ, R_BANDS_RUN};
+use crate::vk::pipeline::{PipelineDesc, ro, rw, uniform};
+use crate::vk::{Buffer, Context, PassBuilder};
 use ash::vk;
 use bytemuck::{Pod, Zeroable};
 use gpu_allocator::MemoryLocation;
@@ -25,13 +26,13 @@ pub const JOB_CAPACITY: u32 = 1 << 20;
 /// not check atomics, so tests look at these instead).
 pub const VIS_GUARD_WORDS: u64 = 64;
 pub const GUARD_PATTERN: u64 = 0x5AFE_C0DE_5AFE_C0DE;
-/// Counter words (glsl/raster.comp): [0] bands requested, [1] bands run,
-/// [4..7] indirect dispatch arguments.
+/// Counter words (src/gpu_consts.rs R_*): bands requested, bands run,
+/// indirect dispatch arguments.
 pub const RASTER_COUNTERS: BandCounters = BandCounters {
     job_capacity: JOB_CAPACITY,
-    requested: 0,
-    run: 1,
-    args: 4,
+    requested: R_BANDS_REQ,
+    run: R_BANDS_RUN,
+    args: R_ARGS,
 };
 
 #[repr(C)]
@@ -43,12 +44,6 @@ struct RasterPush {
     sphere_count: u32,
 }
 
-#[repr(C)]
-#[derive(Clone, Copy, Pod, Zeroable)]
-struct BandsPush {
-    view_index: u32,
-}
-
 /// Which view a raster pass draws.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ViewIndex {
@@ -57,12 +52,10 @@ pub enum ViewIndex {
 }
 
 pub struct RasterPass {
-    spheres: ComputePipeline,
+    pipes: BandPipelines,
     args: BandArgs,
-    bands: ComputePipeline,
     jobs: Buffer,
     big_area: u32,
-    /// [0] bands requested, [1] bands run, [4..7] indirect dispatch args.
     counters: Buffer,
 }
 
@@ -70,36 +63,39 @@ pub struct RasterPass {
 pub fn vis_buffer(ctx: &Context, name: &str, pixels: u64) -> Result<Buffer> {
     let buf = Buffer::storage(ctx, name, (pixels + VIS_GUARD_WORDS) * 8)?;
     let guard = vec![GUARD_PATTERN; VIS_GUARD_WORDS as usize];
+    let buf = ctx.guard(buf);
     buf.upload(ctx, pixels * 8, bytemuck::cast_slice(&guard))?;
-    Ok(buf)
+    Ok(buf.keep())
 }
 
 impl RasterPass {
+    pub const NAME: &'static str = "raster";
+
     pub fn new(ctx: &Context) -> Result<Self> {
-        let spheres = ComputePipeline::new(
+        let pipes = ctx.guard(BandPipelines::new(
             ctx,
             &PipelineDesc {
                 name: "raster spheres",
-                spirv: spirv::RASTER_COMP,
-                bindings: &[UNIFORM, STORAGE, STORAGE, STORAGE, STORAGE],
+                shader: spirv::RASTER_COMP,
+                bindings: &[
+                    uniform("GlobalsBlock"),
+                    ro("Spheres"),
+                    rw("Vis"),
+                    rw("Jobs"),
+                    rw("Counters"),
+                ],
                 push_size: std::mem::size_of::<RasterPush>() as u32,
                 local_size: LOCAL_SIZE,
                 constants: &[],
             },
-        )?;
-        let args = BandArgs::new(ctx, "raster band args")?;
-        let bands = ComputePipeline::new(
+            &[],
+        )?);
+        let args = ctx.guard(BandArgs::new(ctx, "raster band args")?);
+        let jobs = ctx.guard(Buffer::storage(
             ctx,
-            &PipelineDesc {
-                name: "raster bands",
-                spirv: spirv::RASTER_BANDS_COMP,
-                bindings: &[UNIFORM, STORAGE, STORAGE, STORAGE, STORAGE],
-                push_size: std::mem::size_of::<BandsPush>() as u32,
-                local_size: LOCAL_SIZE,
-                constants: &[],
-            },
-        )?;
-        let jobs = Buffer::storage(ctx, "raster band jobs", JOB_CAPACITY as u64 * 8)?;
+            "raster band jobs",
+            JOB_CAPACITY as u64 * 8,
+        )?);
         let counters = Buffer::new(
             ctx,
             "raster counters",
@@ -108,10 +104,9 @@ impl RasterPass {
             MemoryLocation::GpuOnly,
         )?;
         Ok(RasterPass {
-            spheres,
-            args,
-            bands,
-            jobs,
+            pipes: pipes.keep(),
+            args: args.keep(),
+            jobs: jobs.keep(),
             big_area: big_area(ctx),
             counters,
         })
@@ -121,74 +116,46 @@ impl RasterPass {
         self.jobs.size + self.counters.size
     }
 
-    /// Clears `vis` (its first `pixels` words) and rasterizes every sphere.
-    /// The caller opens and closes the timestamp scope.
+    /// Clears `vis` (its first `pixels` words) and rasterizes every sphere
+    /// (steps of the caller's pass).
     #[allow(clippy::too_many_arguments)]
-    pub fn record(
-        &self,
-        ctx: &Context,
-        cmd: vk::CommandBuffer,
-        globals: &Buffer,
-        spheres: &Buffer,
+    pub fn steps<'b>(
+        &'b self,
+        p: &mut PassBuilder<'b>,
+        globals: &'b Buffer,
+        spheres: &'b Buffer,
         sphere_count: u32,
-        vis: &Buffer,
+        vis: &'b Buffer,
         pixels: u64,
         view: ViewIndex,
-    ) -> Result<()> {
-        let dev = &ctx.device;
-        unsafe {
-            dev.cmd_fill_buffer(cmd, vis.raw, 0, pixels * 8, u32::MAX);
-            dev.cmd_fill_buffer(cmd, self.counters.raw, 0, 32, 0);
-        }
-        barrier(dev, cmd);
-        let bufs = [globals, spheres, vis, &self.jobs, &self.counters];
+    ) {
+        p.fill(vis, pixels * 8, u32::MAX);
+        p.fill(&self.counters, 32, 0);
         let push = RasterPush {
             view_index: view as u32,
             big_area: self.big_area,
             job_capacity: JOB_CAPACITY,
             sphere_count,
         };
-        self.args.record(
-            ctx,
-            cmd,
-            (&self.spheres, &push),
-            (
-                &self.bands,
-                &BandsPush {
-                    view_index: view as u32,
-                },
-            ),
-            &bufs,
+        self.args.steps(
+            p,
+            &self.pipes,
+            &push,
+            &[
+                ("GlobalsBlock", globals),
+                ("Spheres", spheres),
+                ("Vis", vis),
+                ("Jobs", &self.jobs),
+                ("Counters", &self.counters),
+            ],
             sphere_count,
             &self.counters,
             &RASTER_COUNTERS,
-        )
-    }
-
-    /// Convenience: record inside a named timestamp scope, with a trailing barrier.
-    #[allow(clippy::too_many_arguments)]
-    pub fn record_scoped(
-        &self,
-        ctx: &Context,
-        cmd: vk::CommandBuffer,
-        prof: &mut Profiler,
-        name: &'static str,
-        globals: &Buffer,
-        spheres: &Buffer,
-        sphere_count: u32,
-        vis: &Buffer,
-        pixels: u64,
-        view: ViewIndex,
-    ) -> Result<()> {
-        prof.begin(ctx, cmd, name)?;
-        self.record(ctx, cmd, globals, spheres, sphere_count, vis, pixels, view)?;
-        prof.end(ctx, cmd)?;
-        barrier(&ctx.device, cmd);
-        Ok(())
+        );
     }
 
     pub fn destroy(&mut self, ctx: &Context) {
-        super::destroy_all(ctx, &[&self.spheres, &self.bands]);
+        self.pipes.destroy(ctx);
         self.args.destroy(ctx);
         self.jobs.destroy(ctx);
         self.counters.destroy(ctx);

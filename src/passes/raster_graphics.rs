@@ -5,7 +5,9 @@
 
 use super::spirv;
 use crate::error::{Error, Result, VkContext};
-use crate::vk::{Buffer, Context, barrier};
+use crate::vk::barrier::{Stage, Use};
+use crate::vk::descriptors::DescriptorArena;
+use crate::vk::{Buffer, Context, PassBuilder};
 use ash::vk;
 
 pub struct GraphicsRasterPass {
@@ -14,9 +16,10 @@ pub struct GraphicsRasterPass {
     set_layout: vk::DescriptorSetLayout,
 }
 
-fn module(ctx: &Context, name: &str, spirv: &[u8]) -> Result<vk::ShaderModule> {
-    let words = ash::util::read_spv(&mut std::io::Cursor::new(spirv))
-        .map_err(|e| Error::Invalid(format!("shader {name}: bad SPIR-V: {e}")))?;
+fn module(ctx: &Context, shader: crate::vk::pipeline::Shader) -> Result<vk::ShaderModule> {
+    let name = shader.file;
+    let words = ash::util::read_spv(&mut std::io::Cursor::new(shader.spirv))
+        .map_err(|e| Error::Internal(format!("shader {name}: bad SPIR-V: {e}")))?;
     let m = unsafe {
         ctx.device
             .create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&words), None)
@@ -71,8 +74,8 @@ impl GraphicsRasterPass {
         .vk("vkCreatePipelineLayout")?;
         ctx.name(layout, "raster graphics");
 
-        let vs = module(ctx, "raster_impostor.vert", spirv::RASTER_IMPOSTOR_VERT)?;
-        let fs = module(ctx, "raster_impostor.frag", spirv::RASTER_IMPOSTOR_FRAG)?;
+        let vs = module(ctx, spirv::RASTER_IMPOSTOR_VERT)?;
+        let fs = module(ctx, spirv::RASTER_IMPOSTOR_FRAG)?;
         let stage_info = [
             vk::PipelineShaderStageCreateInfo::default()
                 .stage(vk::ShaderStageFlags::VERTEX)
@@ -111,8 +114,7 @@ impl GraphicsRasterPass {
             .dynamic_state(&dynamic)
             .layout(layout)
             .push_next(&mut rendering)];
-        let created =
-            unsafe { dev.create_graphics_pipelines(vk::PipelineCache::null(), &info, None) };
+        let created = unsafe { dev.create_graphics_pipelines(ctx.pipeline_cache, &info, None) };
         unsafe {
             dev.destroy_shader_module(vs, None);
             dev.destroy_shader_module(fs, None);
@@ -129,22 +131,61 @@ impl GraphicsRasterPass {
         })
     }
 
-    /// Clears `vis` and draws every sphere of view 0 (the camera) at `w`x`h`.
-    #[allow(clippy::too_many_arguments)]
-    pub fn record(
+    /// Steps of the `raster` pass: clear `vis`, draw every sphere of view 0
+    /// (the camera) at `w`x`h`.
+    pub fn steps<'b>(
+        &'b self,
+        p: &mut PassBuilder<'b>,
+        globals: &'b Buffer,
+        spheres: &'b Buffer,
+        sphere_count: u32,
+        vis: &'b Buffer,
+        (w, h): (u32, u32),
+    ) {
+        p.fill(vis, w as u64 * h as u64 * 8, u32::MAX);
+        let uses = vec![
+            Use {
+                buffer: globals.raw,
+                stage: Stage::Graphics,
+                read: true,
+                write: false,
+            },
+            Use {
+                buffer: spheres.raw,
+                stage: Stage::Graphics,
+                read: true,
+                write: false,
+            },
+            Use {
+                buffer: vis.raw,
+                stage: Stage::Graphics,
+                read: true,
+                write: true,
+            },
+        ];
+        p.raw("raster graphics draw", uses, move |ctx, cmd, arena| {
+            self.draw(
+                ctx,
+                cmd,
+                arena,
+                [globals, spheres, vis],
+                sphere_count,
+                (w, h),
+            )
+        });
+    }
+
+    fn draw(
         &self,
         ctx: &Context,
         cmd: vk::CommandBuffer,
-        globals: &Buffer,
-        spheres: &Buffer,
+        arena: &mut DescriptorArena,
+        [globals, spheres, vis]: [&Buffer; 3],
         sphere_count: u32,
-        vis: &Buffer,
         (w, h): (u32, u32),
     ) -> Result<()> {
         let dev = &ctx.device;
-        unsafe { dev.cmd_fill_buffer(cmd, vis.raw, 0, w as u64 * h as u64 * 8, u32::MAX) };
-        barrier(dev, cmd);
-        let set = ctx.allocate_descriptor_set(self.set_layout)?;
+        let set = arena.allocate(ctx, self.set_layout)?;
         let infos = [
             [globals.descriptor()],
             [spheres.descriptor()],
@@ -185,6 +226,8 @@ impl GraphicsRasterPass {
             min_depth: 0.0,
             max_depth: 1.0,
         };
+        // SAFETY: set, pipeline and buffers are live; cmd is recording
+        // outside a render pass.
         unsafe {
             dev.update_descriptor_sets(&writes, &[]);
             dev.cmd_begin_rendering(cmd, &rendering);
@@ -212,12 +255,18 @@ impl GraphicsRasterPass {
         Ok(())
     }
 
+    /// Destroys the pipeline objects; a second call does nothing.
     pub fn destroy(&mut self, ctx: &Context) {
+        if self.pipeline == vk::Pipeline::null() {
+            return;
+        }
+        // SAFETY: called after the last frame using the pipeline finished.
         unsafe {
             ctx.device.destroy_pipeline(self.pipeline, None);
             ctx.device.destroy_pipeline_layout(self.layout, None);
             ctx.device
                 .destroy_descriptor_set_layout(self.set_layout, None);
         }
+        self.pipeline = vk::Pipeline::null();
     }
 }

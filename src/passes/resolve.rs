@@ -1,13 +1,24 @@
-//! Visibility buffer -> G-buffer (world position + depth key, normal).
+//! Visibility buffer -> G-buffer (world position + depth key, normal,
+//! regions of the visible sphere).
 
 use super::{LOCAL_SIZE, spirv};
 use crate::error::Result;
-use crate::vk::pipeline::{PipelineDesc, STORAGE, UNIFORM};
-use crate::vk::{Buffer, ComputePipeline, Context};
-use ash::vk;
+use crate::vk::pipeline::{PipelineDesc, ro, uniform, wo};
+use crate::vk::{Buffer, ComputePipeline, Context, Grid, Recorder};
 
 pub struct ResolvePass {
     pipeline: ComputePipeline,
+}
+
+/// The buffers resolve reads and writes.
+pub struct ResolveIo<'b> {
+    pub globals: &'b Buffer,
+    pub spheres: &'b Buffer,
+    pub attrs: &'b Buffer,
+    pub vis: &'b Buffer,
+    pub gpos: &'b Buffer,
+    pub gnorm: &'b Buffer,
+    pub gregion: &'b Buffer,
 }
 
 impl ResolvePass {
@@ -18,9 +29,15 @@ impl ResolvePass {
             ctx,
             &PipelineDesc {
                 name: Self::NAME,
-                spirv: spirv::RESOLVE_COMP,
+                shader: spirv::RESOLVE_COMP,
                 bindings: &[
-                    UNIFORM, STORAGE, STORAGE, STORAGE, STORAGE, STORAGE, STORAGE,
+                    uniform("GlobalsBlock"),
+                    ro("Spheres"),
+                    ro("Vis"),
+                    wo("GPos"),
+                    wo("GNorm"),
+                    ro("Attrs"),
+                    wo("GRegion"),
                 ],
                 push_size: 0,
                 local_size: LOCAL_SIZE,
@@ -30,27 +47,24 @@ impl ResolvePass {
         Ok(ResolvePass { pipeline })
     }
 
-    #[allow(clippy::too_many_arguments)]
-    pub fn record(
-        &self,
-        ctx: &Context,
-        cmd: vk::CommandBuffer,
-        globals: &Buffer,
-        spheres: &Buffer,
-        vis: &Buffer,
-        gpos: &Buffer,
-        gnorm: &Buffer,
-        attrs: &Buffer,
-        gregion: &Buffer,
-        pixels: u64,
-    ) -> Result<()> {
-        self.pipeline.dispatch(
-            ctx,
-            cmd,
-            &[globals, spheres, vis, gpos, gnorm, attrs, gregion],
-            &(),
-            pixels,
-        )
+    pub fn record(&self, rec: &mut Recorder, io: &ResolveIo, pixels: u64) -> Result<()> {
+        rec.pass(Self::NAME, |p| {
+            p.dispatch(
+                &self.pipeline,
+                &(),
+                Grid::Invocations(pixels),
+                &[
+                    ("GlobalsBlock", io.globals),
+                    ("Spheres", io.spheres),
+                    ("Vis", io.vis),
+                    ("GPos", io.gpos),
+                    ("GNorm", io.gnorm),
+                    ("Attrs", io.attrs),
+                    ("GRegion", io.gregion),
+                ],
+            );
+            Ok(())
+        })
     }
 
     pub fn destroy(&mut self, ctx: &Context) {

@@ -3,9 +3,8 @@
 
 use super::{LOCAL_SIZE, spirv};
 use crate::error::Result;
-use crate::vk::pipeline::{PipelineDesc, STORAGE, UNIFORM};
-use crate::vk::{Buffer, ComputePipeline, Context};
-use ash::vk;
+use crate::vk::pipeline::{PipelineDesc, ro, uniform, wo};
+use crate::vk::{Buffer, ComputePipeline, Context, Grid, Recorder};
 use bytemuck::{Pod, Zeroable};
 
 #[repr(C)]
@@ -34,6 +33,7 @@ pub struct KeyShadowPush {
 
 /// G-buffer inputs shared by the screen-space passes.
 pub struct GBuffer<'a> {
+    pub globals: &'a Buffer,
     pub attrs: &'a Buffer,
     pub vis: &'a Buffer,
     pub gpos: &'a Buffer,
@@ -51,72 +51,107 @@ impl SsdoPass {
     pub const KEY_SHADOW: &'static str = "key_shadow";
 
     pub fn new(ctx: &Context) -> Result<Self> {
-        let ssdo = ComputePipeline::new(
+        let ssdo = ctx.guard(ComputePipeline::new(
             ctx,
             &PipelineDesc {
                 name: Self::NAME,
-                spirv: spirv::SSDO_COMP,
+                shader: spirv::SSDO_COMP,
                 bindings: &[
-                    UNIFORM, STORAGE, STORAGE, STORAGE, STORAGE, STORAGE, STORAGE, STORAGE,
+                    uniform("GlobalsBlock"),
+                    ro("Attrs"),
+                    ro("Vis"),
+                    ro("GPos"),
+                    ro("GNorm"),
+                    ro("GRegion"),
+                    ro("Shadow"),
+                    wo("Ambient"),
                 ],
                 push_size: std::mem::size_of::<SsdoPush>() as u32,
                 local_size: LOCAL_SIZE,
                 constants: &[],
             },
-        )?;
+        )?);
         let key_shadow = ComputePipeline::new(
             ctx,
             &PipelineDesc {
                 name: Self::KEY_SHADOW,
-                spirv: spirv::KEY_SHADOW_COMP,
-                bindings: &[UNIFORM, STORAGE, STORAGE, STORAGE, STORAGE],
+                shader: spirv::KEY_SHADOW_COMP,
+                bindings: &[
+                    uniform("GlobalsBlock"),
+                    ro("Vis"),
+                    ro("GPos"),
+                    ro("GNorm"),
+                    wo("Shadow"),
+                ],
                 push_size: std::mem::size_of::<KeyShadowPush>() as u32,
                 local_size: LOCAL_SIZE,
                 constants: &[],
             },
         )?;
-        Ok(SsdoPass { ssdo, key_shadow })
+        Ok(SsdoPass {
+            ssdo: ssdo.keep(),
+            key_shadow,
+        })
     }
 
-    #[allow(clippy::too_many_arguments)]
+    /// `ssdo`: ambient visibility and bounce into `ambient`.
     pub fn record_ssdo(
         &self,
-        ctx: &Context,
-        cmd: vk::CommandBuffer,
-        globals: &Buffer,
+        rec: &mut Recorder,
         gb: &GBuffer,
         shadow: &Buffer,
         ambient: &Buffer,
         push: &SsdoPush,
         pixels: u64,
     ) -> Result<()> {
-        let bufs = [
-            globals, gb.attrs, gb.vis, gb.gpos, gb.gnorm, gb.gregion, shadow, ambient,
-        ];
-        self.ssdo.dispatch(ctx, cmd, &bufs, push, pixels)
+        rec.pass(Self::NAME, |p| {
+            p.dispatch(
+                &self.ssdo,
+                push,
+                Grid::Invocations(pixels),
+                &[
+                    ("GlobalsBlock", gb.globals),
+                    ("Attrs", gb.attrs),
+                    ("Vis", gb.vis),
+                    ("GPos", gb.gpos),
+                    ("GNorm", gb.gnorm),
+                    ("GRegion", gb.gregion),
+                    ("Shadow", shadow),
+                    ("Ambient", ambient),
+                ],
+            );
+            Ok(())
+        })
     }
 
-    #[allow(clippy::too_many_arguments)]
+    /// `key_shadow`: screen-space key-light visibility into `shadow`.
     pub fn record_key_shadow(
         &self,
-        ctx: &Context,
-        cmd: vk::CommandBuffer,
-        globals: &Buffer,
+        rec: &mut Recorder,
         gb: &GBuffer,
         shadow: &Buffer,
         push: &KeyShadowPush,
         pixels: u64,
     ) -> Result<()> {
-        self.key_shadow.dispatch(
-            ctx,
-            cmd,
-            &[globals, gb.vis, gb.gpos, gb.gnorm, shadow],
-            push,
-            pixels,
-        )
+        rec.pass(Self::KEY_SHADOW, |p| {
+            p.dispatch(
+                &self.key_shadow,
+                push,
+                Grid::Invocations(pixels),
+                &[
+                    ("GlobalsBlock", gb.globals),
+                    ("Vis", gb.vis),
+                    ("GPos", gb.gpos),
+                    ("GNorm", gb.gnorm),
+                    ("Shadow", shadow),
+                ],
+            );
+            Ok(())
+        })
     }
 
     pub fn destroy(&mut self, ctx: &Context) {
-        super::destroy_all(ctx, &[&self.ssdo, &self.key_shadow]);
+        self.ssdo.destroy(ctx);
+        self.key_shadow.destroy(ctx);
     }
 }

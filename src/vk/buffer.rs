@@ -27,7 +27,7 @@ impl Buffer {
         // range; saying so beats the allocator's bare "out of memory".
         let range = ctx.props.limits.max_storage_buffer_range as u64;
         if usage.contains(vk::BufferUsageFlags::STORAGE_BUFFER) && size > range {
-            return Err(Error::Invalid(format!(
+            return Err(Error::DeviceLimit(format!(
                 "'{name}' needs {:.1} MiB, more than this device's maxStorageBufferRange ({} MiB): \
                  lower the image size (--width/--height) or the light-map size",
                 size as f64 / (1u64 << 20) as f64,
@@ -43,7 +43,7 @@ impl Buffer {
         let alloc = ctx
             .allocator
             .lock()
-            .map_err(|_| Error::Invalid("allocator lock poisoned".into()))
+            .map_err(|_| Error::Internal("allocator lock poisoned".into()))
             .and_then(|mut a| {
                 a.allocate(&AllocationCreateDesc {
                     name,
@@ -118,7 +118,7 @@ impl Buffer {
             return Ok(());
         }
         if offset + data.len() as u64 > self.size {
-            return Err(Error::Invalid(format!(
+            return Err(Error::Internal(format!(
                 "upload past the end of {}",
                 self.name
             )));
@@ -133,7 +133,7 @@ impl Buffer {
         let result = (|| {
             let dst = staging
                 .mapped_mut()
-                .ok_or_else(|| Error::Invalid("staging buffer not mapped".into()))?;
+                .ok_or_else(|| Error::Internal("staging buffer not mapped".into()))?;
             dst[..data.len()].copy_from_slice(data);
             ctx.one_shot("upload", |cmd| {
                 let region = [vk::BufferCopy {
@@ -155,7 +155,7 @@ impl Buffer {
     /// Reads `len` bytes at `offset` back to the host (waits for the queue).
     pub fn download(&self, ctx: &Context, offset: u64, len: u64) -> Result<Vec<u8>> {
         if offset + len > self.size {
-            return Err(Error::Invalid(format!(
+            return Err(Error::Internal(format!(
                 "download past the end of {}",
                 self.name
             )));
@@ -169,23 +169,32 @@ impl Buffer {
         )?;
         let result = ctx
             .one_shot("readback", |cmd| {
-                super::barrier(&ctx.device, cmd);
+                super::barrier::Barrier::start_of_submission().record(&ctx.device, cmd);
                 let region = [vk::BufferCopy {
                     src_offset: offset,
                     dst_offset: 0,
                     size: len,
                 }];
+                // SAFETY: both ranges lie inside live buffers (checked above).
                 unsafe {
                     ctx.device
                         .cmd_copy_buffer(cmd, self.raw, staging.raw, &region)
                 };
+                // Make the copy visible to the host read after the fence.
+                super::barrier::Barrier {
+                    src_stage: vk::PipelineStageFlags2::TRANSFER,
+                    src_access: vk::AccessFlags2::TRANSFER_WRITE,
+                    dst_stage: vk::PipelineStageFlags2::HOST,
+                    dst_access: vk::AccessFlags2::HOST_READ,
+                }
+                .record(&ctx.device, cmd);
                 Ok(())
             })
             .and_then(|_| {
                 staging
                     .mapped()
                     .map(|m| m[..len as usize].to_vec())
-                    .ok_or_else(|| Error::Invalid("readback buffer not mapped".into()))
+                    .ok_or_else(|| Error::Internal("readback buffer not mapped".into()))
             });
         staging.destroy(ctx);
         result

@@ -2,10 +2,15 @@
 //! memory, pipelines, timestamps. Everything above this module speaks in
 //! buffers, pipelines and pass scopes.
 
+pub mod barrier;
 pub mod buffer;
+pub mod cache;
 pub mod debug;
+pub mod descriptors;
 pub mod guard;
 pub mod pipeline;
+pub mod record;
+pub mod reflect;
 pub mod timestamps;
 
 use crate::error::{Error, Result, VkContext};
@@ -18,7 +23,8 @@ use std::sync::Mutex;
 pub use buffer::Buffer;
 pub use debug::MessageLog;
 pub use pipeline::ComputePipeline;
-pub use timestamps::Profiler;
+pub use record::{Grid, PassBuilder, Recorder};
+pub use timestamps::{PassTimes, Profiler};
 
 const VALIDATION_LAYER: &CStr = c"VK_LAYER_KHRONOS_validation";
 
@@ -57,8 +63,10 @@ pub struct Context {
     pub props: vk::PhysicalDeviceProperties,
     pub info: DeviceInfo,
     pub device: ash::Device,
-    /// Descriptor sets for the frame being recorded (see `begin_descriptor_frame`).
-    descriptors: Mutex<Arenas>,
+    /// Pipeline cache, loaded from and saved to the user's cache directory
+    /// (see [`cache`]), so a second start creates pipelines quickly.
+    pub pipeline_cache: vk::PipelineCache,
+    cache_file: Option<std::path::PathBuf>,
     pub queue: vk::Queue,
     pub queue_family: u32,
     pub allocator: ManuallyDrop<Mutex<Allocator>>,
@@ -103,8 +111,9 @@ fn missing_features(instance: &ash::Instance, pd: vk::PhysicalDevice) -> Vec<&'s
         missing.push("shaderBufferInt64Atomics");
     }
     let props = unsafe { instance.get_physical_device_properties(pd) };
-    if props.api_version < vk::API_VERSION_1_2 {
-        missing.push("Vulkan 1.2");
+    // synchronization2 and dynamic rendering are used as Vulkan 1.3 core.
+    if props.api_version < vk::API_VERSION_1_3 {
+        missing.push("Vulkan 1.3");
     }
     let mut f13 = vk::PhysicalDeviceVulkan13Features::default();
     let mut f2b = vk::PhysicalDeviceFeatures2::default().push_next(&mut f13);
@@ -351,6 +360,7 @@ impl Context {
         let command_pool =
             unsafe { device.create_command_pool(&pool_info, None) }.vk("vkCreateCommandPool")?;
 
+        let (pipeline_cache, cache_file) = cache::load(&device, &props);
         let ctx = Context {
             entry,
             instance,
@@ -361,7 +371,8 @@ impl Context {
             props,
             info,
             device,
-            descriptors: Mutex::new(Arenas::default()),
+            pipeline_cache,
+            cache_file,
             queue,
             queue_family,
             allocator: ManuallyDrop::new(Mutex::new(allocator)),
@@ -549,84 +560,6 @@ impl Context {
             .unwrap_or(0)
     }
 
-    /// Allocates a descriptor set for one dispatch. Sets live until
-    /// `begin_descriptor_frame` for that slot, which callers invoke only when no submitted work
-    /// can still use them (every submission here waits for its fence).
-    pub fn allocate_descriptor_set(
-        &self,
-        layout: vk::DescriptorSetLayout,
-    ) -> Result<vk::DescriptorSet> {
-        let mut arenas = self
-            .descriptors
-            .lock()
-            .map_err(|_| Error::Invalid("descriptor arena poisoned".into()))?;
-        let active = arenas.active;
-        let arena = &mut arenas.slots[active];
-        loop {
-            if let Some(&pool) = arena.pools.get(arena.current) {
-                let layouts = [layout];
-                let info = vk::DescriptorSetAllocateInfo::default()
-                    .descriptor_pool(pool)
-                    .set_layouts(&layouts);
-                match unsafe { self.device.allocate_descriptor_sets(&info) } {
-                    Ok(sets) => return Ok(sets[0]),
-                    Err(
-                        vk::Result::ERROR_OUT_OF_POOL_MEMORY | vk::Result::ERROR_FRAGMENTED_POOL,
-                    ) => {
-                        arena.current += 1;
-                        continue;
-                    }
-                    Err(result) => {
-                        return Err(Error::Vk {
-                            call: "vkAllocateDescriptorSets",
-                            result,
-                        });
-                    }
-                }
-            }
-            let sizes = [
-                vk::DescriptorPoolSize {
-                    ty: vk::DescriptorType::STORAGE_BUFFER,
-                    descriptor_count: 4096,
-                },
-                vk::DescriptorPoolSize {
-                    ty: vk::DescriptorType::UNIFORM_BUFFER,
-                    descriptor_count: 512,
-                },
-            ];
-            let info = vk::DescriptorPoolCreateInfo::default()
-                .max_sets(512)
-                .pool_sizes(&sizes);
-            let pool = unsafe { self.device.create_descriptor_pool(&info, None) }
-                .vk("vkCreateDescriptorPool")?;
-            self.name(pool, "frame descriptors");
-            arena.pools.push(pool);
-            arena.current = arena.pools.len() - 1;
-        }
-    }
-
-    /// Makes frame slot `slot`'s arena the one sets come from, freeing the
-    /// sets it handed out before: call only once the GPU finished the frame
-    /// that last used this slot (its fence).
-    pub fn begin_descriptor_frame(&self, slot: usize) -> Result<()> {
-        let mut arenas = self
-            .descriptors
-            .lock()
-            .map_err(|_| Error::Invalid("descriptor arena poisoned".into()))?;
-        arenas.active = slot % FRAME_SLOTS;
-        let active = arenas.active;
-        let arena = &mut arenas.slots[active];
-        for &pool in &arena.pools {
-            unsafe {
-                self.device
-                    .reset_descriptor_pool(pool, vk::DescriptorPoolResetFlags::empty())
-            }
-            .vk("vkResetDescriptorPool")?;
-        }
-        arena.current = 0;
-        Ok(())
-    }
-
     pub fn wait_idle(&self) {
         // Nothing useful to do on failure here: the device is lost or gone.
         let _ = unsafe { self.device.device_wait_idle() };
@@ -644,13 +577,13 @@ impl Context {
         unsafe {
             let _ = self.device.device_wait_idle();
             self.device.destroy_command_pool(self.command_pool, None);
-            if let Ok(arenas) = self.descriptors.get_mut() {
-                for arena in &arenas.slots {
-                    for &pool in &arena.pools {
-                        self.device.destroy_descriptor_pool(pool, None);
-                    }
-                }
-            }
+            cache::save(
+                &self.device,
+                self.pipeline_cache,
+                self.cache_file.as_deref(),
+            );
+            self.device
+                .destroy_pipeline_cache(self.pipeline_cache, None);
             // The allocator frees its memory blocks; it must go before the device.
             ManuallyDrop::drop(&mut self.allocator);
             self.device.destroy_device(None);
@@ -677,34 +610,5 @@ impl Drop for Context {
     }
 }
 
-/// Descriptor pools handed out per frame. (Push descriptors would be simpler,
-/// but GPU-assisted validation 1.3.239 reports them as uninitialized:
-/// KhronosGroup/Vulkan-ValidationLayers#5321.)
-#[derive(Default)]
-struct DescriptorArena {
-    pools: Vec<vk::DescriptorPool>,
-    current: usize,
-}
-
 /// Frames that may be in flight at once (the renderer's frame slots).
 pub const FRAME_SLOTS: usize = 2;
-
-/// One arena per frame slot; sets come from the active one.
-#[derive(Default)]
-struct Arenas {
-    slots: [DescriptorArena; FRAME_SLOTS],
-    active: usize,
-}
-
-/// A full memory barrier between passes (any stage, any access). Passes are
-/// short and mostly serial, so one global barrier between them is both
-/// simple and right, also around the graphics raster baseline.
-pub fn barrier(device: &ash::Device, cmd: vk::CommandBuffer) {
-    let mb = [vk::MemoryBarrier2::default()
-        .src_stage_mask(vk::PipelineStageFlags2::ALL_COMMANDS)
-        .src_access_mask(vk::AccessFlags2::MEMORY_WRITE)
-        .dst_stage_mask(vk::PipelineStageFlags2::ALL_COMMANDS)
-        .dst_access_mask(vk::AccessFlags2::MEMORY_READ | vk::AccessFlags2::MEMORY_WRITE)];
-    let dep = vk::DependencyInfo::default().memory_barriers(&mb);
-    unsafe { device.cmd_pipeline_barrier2(cmd, &dep) };
-}

@@ -1,11 +1,78 @@
-//! Compute pipelines: each pass declares its bindings
-//! once, then records `dispatch()` with typed push constants (size checked)
-//! and the buffers for that dispatch. The workgroup size is specialization
-//! constant 0 (`local_size_x_id = 0`), so Rust knows it without reflection.
+//! Compute pipelines. Each pass declares a pipeline's bindings once, by the
+//! GLSL block name and access (`ro("Spheres")`, `rw("Vis")`, ...); at
+//! creation they are checked against the shader's SPIR-V ([`super::reflect`]):
+//! a missing, extra, mistyped or differently qualified binding is an error
+//! naming the shader, the binding and both types. Dispatches then bind
+//! buffers by name (a swapped pair cannot compile into a wrong frame), with
+//! typed push constants whose size is checked against the shader too. The
+//! workgroup size is specialization constant 0 (`local_size_x_id = 0`);
+//! further constants (mode switches) are ids 1, 2, ...
 
+use super::barrier::{Stage, Use};
+use super::descriptors::DescriptorArena;
+use super::record::Grid;
+use super::reflect::{self, Access};
 use super::{Buffer, Context};
 use crate::error::{Error, Result, VkContext};
+use crate::gpu::consts::MAX_GROUPS_X;
 use ash::vk;
+
+/// A shader embedded by build.rs.
+#[derive(Clone, Copy, Debug)]
+pub struct Shader {
+    /// File name under glsl/ (for messages).
+    pub file: &'static str,
+    pub spirv: &'static [u8],
+}
+
+/// One declared binding: the GLSL block name and how the shader uses it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Binding {
+    pub name: &'static str,
+    pub access: Access,
+}
+
+pub const fn uniform(name: &'static str) -> Binding {
+    Binding {
+        name,
+        access: Access::Uniform,
+    }
+}
+/// A `readonly` storage buffer.
+pub const fn ro(name: &'static str) -> Binding {
+    Binding {
+        name,
+        access: Access::Read,
+    }
+}
+/// A `writeonly` storage buffer.
+pub const fn wo(name: &'static str) -> Binding {
+    Binding {
+        name,
+        access: Access::Write,
+    }
+}
+/// A storage buffer without qualifiers (read, written or atomics).
+pub const fn rw(name: &'static str) -> Binding {
+    Binding {
+        name,
+        access: Access::ReadWrite,
+    }
+}
+
+/// What a compute pipeline is made of.
+pub struct PipelineDesc<'a> {
+    /// Debug name (object names, errors).
+    pub name: &'a str,
+    pub shader: Shader,
+    pub bindings: &'a [Binding],
+    pub push_size: u32,
+    /// Workgroup size for shaders using `local_size_x_id = 0`; give the
+    /// shader's fixed size for the others.
+    pub local_size: u32,
+    /// Further specialization constants, ids 1, 2, ... in order.
+    pub constants: &'a [u32],
+}
 
 pub struct ComputePipeline {
     pub name: String,
@@ -15,49 +82,131 @@ pub struct ComputePipeline {
     /// Invocations per workgroup along x.
     pub local_size: u32,
     pub push_size: u32,
-    bindings: Vec<vk::DescriptorType>,
+    /// Declared bindings with their binding numbers (None: declared but
+    /// removed from the SPIR-V by the optimizer because unused).
+    bindings: Vec<(Binding, Option<u32>)>,
 }
 
-/// Builder-style description of a compute pipeline.
-pub struct PipelineDesc<'a> {
-    pub name: &'a str,
-    pub spirv: &'a [u8],
-    pub bindings: &'a [vk::DescriptorType],
-    pub push_size: u32,
-    /// Workgroup size for shaders using `local_size_x_id = 0`; give the
-    /// shader's fixed size for the others.
-    pub local_size: u32,
-    /// Further specialization constants, ids 1, 2, ... in order.
-    pub constants: &'a [u32],
-}
+/// Pipelines created so far in this process (tests count rebuilds).
+pub static CREATED: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
 
-pub const UNIFORM: vk::DescriptorType = vk::DescriptorType::UNIFORM_BUFFER;
-pub const STORAGE: vk::DescriptorType = vk::DescriptorType::STORAGE_BUFFER;
+/// Checks declared bindings against the reflected ones; returns each
+/// declared binding's number.
+pub fn check_bindings(
+    desc_name: &str,
+    shader: &Shader,
+    declared: &[Binding],
+    push_size: u32,
+    found: &reflect::Reflection,
+) -> Result<Vec<Option<u32>>> {
+    let err = |m: String| Err(Error::Internal(format!("shader {}: {m}", shader.file)));
+    for (i, b) in declared.iter().enumerate() {
+        if declared[..i].iter().any(|d| d.name == b.name) {
+            return err(format!(
+                "pipeline '{desc_name}' declares binding '{}' twice",
+                b.name
+            ));
+        }
+    }
+    for d in &found.descriptors {
+        if d.set != 0 {
+            return err(format!(
+                "binding '{}' is in descriptor set {}, only set 0 is used",
+                d.name, d.set
+            ));
+        }
+        match declared.iter().find(|b| b.name == d.name) {
+            None => {
+                return err(format!(
+                    "binding {} '{}' ({}) is not declared by pipeline '{desc_name}'",
+                    d.binding,
+                    d.name,
+                    d.access.describe()
+                ));
+            }
+            Some(b) if b.access != d.access => {
+                return err(format!(
+                    "binding {} '{}' is a {} in the SPIR-V, pipeline '{desc_name}' declares a {}",
+                    d.binding,
+                    d.name,
+                    d.access.describe(),
+                    b.access.describe()
+                ));
+            }
+            Some(_) => {}
+        }
+    }
+    // An optimizing build may drop unused bindings and push blocks; a
+    // debug build (the tests) keeps everything, so names are checked there.
+    let strict = cfg!(debug_assertions);
+    let mut numbers = Vec::new();
+    for b in declared {
+        let n = found
+            .descriptors
+            .iter()
+            .find(|d| d.name == b.name)
+            .map(|d| d.binding);
+        if n.is_none() && strict {
+            return err(format!(
+                "pipeline '{desc_name}' declares binding '{}' ({}) that the shader does not have",
+                b.name,
+                b.access.describe()
+            ));
+        }
+        numbers.push(n);
+    }
+    if found.push_size != push_size && (strict || found.push_size != 0) {
+        return err(format!(
+            "push constants are {} bytes in the SPIR-V, pipeline '{desc_name}' declares {push_size}",
+            found.push_size
+        ));
+    }
+    Ok(numbers)
+}
 
 impl ComputePipeline {
     pub fn new(ctx: &Context, desc: &PipelineDesc) -> Result<Self> {
         let dev = &ctx.device;
-        let words = ash::util::read_spv(&mut std::io::Cursor::new(desc.spirv))
-            .map_err(|e| Error::Invalid(format!("shader {}: bad SPIR-V: {e}", desc.name)))?;
-        let module = unsafe {
-            dev.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&words), None)
+        let words =
+            ash::util::read_spv(&mut std::io::Cursor::new(desc.shader.spirv)).map_err(|e| {
+                Error::Internal(format!("shader {}: bad SPIR-V: {e}", desc.shader.file))
+            })?;
+        let found = reflect::reflect(&words)
+            .map_err(|e| Error::Internal(format!("shader {}: {e}", desc.shader.file)))?;
+        let numbers = check_bindings(
+            desc.name,
+            &desc.shader,
+            desc.bindings,
+            desc.push_size,
+            &found,
+        )?;
+        if cfg!(debug_assertions) {
+            for id in 1..=desc.constants.len() as u32 {
+                if !found.spec_ids.contains(&id) {
+                    return Err(Error::Internal(format!(
+                        "shader {}: pipeline '{}' sets specialization constant {id}, which the shader does not declare",
+                        desc.shader.file, desc.name
+                    )));
+                }
+            }
         }
-        .vk("vkCreateShaderModule")?;
-        ctx.name(module, desc.name);
 
-        let bindings: Vec<_> = desc
+        let layout_bindings: Vec<_> = desc
             .bindings
             .iter()
-            .enumerate()
-            .map(|(i, &t)| {
+            .zip(&numbers)
+            .filter_map(|(b, n)| n.map(|n| (b, n)))
+            .map(|(b, n)| {
                 vk::DescriptorSetLayoutBinding::default()
-                    .binding(i as u32)
-                    .descriptor_type(t)
+                    .binding(n)
+                    .descriptor_type(descriptor_type(b.access))
                     .descriptor_count(1)
                     .stage_flags(vk::ShaderStageFlags::COMPUTE)
             })
             .collect();
-        let set_info = vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings);
+        let set_info = vk::DescriptorSetLayoutCreateInfo::default().bindings(&layout_bindings);
+        // SAFETY: plain create calls with checked arguments; every object is
+        // destroyed below on failure or by `destroy`.
         let set_layout = unsafe { dev.create_descriptor_set_layout(&set_info, None) }
             .vk("vkCreateDescriptorSetLayout")?;
         ctx.name(set_layout, desc.name);
@@ -72,10 +221,34 @@ impl ComputePipeline {
         if desc.push_size > 0 {
             layout_info = layout_info.push_constant_ranges(&ranges);
         }
-        let layout = unsafe { dev.create_pipeline_layout(&layout_info, None) }
-            .vk("vkCreatePipelineLayout")?;
+        let layout = match unsafe { dev.create_pipeline_layout(&layout_info, None) } {
+            Ok(l) => l,
+            Err(result) => {
+                unsafe { dev.destroy_descriptor_set_layout(set_layout, None) };
+                return Err(Error::Vk {
+                    call: "vkCreatePipelineLayout",
+                    result,
+                });
+            }
+        };
         ctx.name(layout, desc.name);
 
+        let module = match unsafe {
+            dev.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&words), None)
+        } {
+            Ok(m) => m,
+            Err(result) => {
+                unsafe {
+                    dev.destroy_pipeline_layout(layout, None);
+                    dev.destroy_descriptor_set_layout(set_layout, None);
+                }
+                return Err(Error::Vk {
+                    call: "vkCreateShaderModule",
+                    result,
+                });
+            }
+        };
+        ctx.name(module, desc.name);
         let mut values = vec![desc.local_size];
         values.extend_from_slice(desc.constants);
         let entries: Vec<_> = (0..values.len())
@@ -96,14 +269,23 @@ impl ComputePipeline {
         let info = [vk::ComputePipelineCreateInfo::default()
             .stage(stage)
             .layout(layout)];
-        let created =
-            unsafe { dev.create_compute_pipelines(vk::PipelineCache::null(), &info, None) };
+        let created = unsafe { dev.create_compute_pipelines(ctx.pipeline_cache, &info, None) };
         unsafe { dev.destroy_shader_module(module, None) };
-        let pipeline = created.map_err(|(_, result)| Error::Vk {
-            call: "vkCreateComputePipelines",
-            result,
-        })?[0];
+        let pipeline = match created {
+            Ok(p) => p[0],
+            Err((_, result)) => {
+                unsafe {
+                    dev.destroy_pipeline_layout(layout, None);
+                    dev.destroy_descriptor_set_layout(set_layout, None);
+                }
+                return Err(Error::Vk {
+                    call: "vkCreateComputePipelines",
+                    result,
+                });
+            }
+        };
         ctx.name(pipeline, desc.name);
+        CREATED.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         Ok(ComputePipeline {
             name: desc.name.to_string(),
             pipeline,
@@ -111,48 +293,88 @@ impl ComputePipeline {
             set_layout,
             local_size: desc.local_size,
             push_size: desc.push_size,
-            bindings: desc.bindings.to_vec(),
+            bindings: desc.bindings.iter().copied().zip(numbers).collect(),
         })
     }
 
-    /// Binds the pipeline, its buffers (in binding order) and push constants.
-    pub fn bind<P: bytemuck::Pod>(
+    /// The accesses of a dispatch with these named buffers (for barriers);
+    /// every declared binding must be given exactly once.
+    pub fn uses(&self, given: &[(&'static str, &Buffer)]) -> Result<Vec<Use>> {
+        for (i, (name, _)) in given.iter().enumerate() {
+            if !self.bindings.iter().any(|(b, _)| b.name == *name) {
+                return Err(Error::Internal(format!(
+                    "pipeline '{}' has no binding '{name}'",
+                    self.name
+                )));
+            }
+            if given[..i].iter().any(|(n, _)| n == name) {
+                return Err(Error::Internal(format!(
+                    "pipeline '{}': binding '{name}' given twice",
+                    self.name
+                )));
+            }
+        }
+        self.bindings
+            .iter()
+            .map(|(b, _)| {
+                let buf = given
+                    .iter()
+                    .find(|(n, _)| *n == b.name)
+                    .map(|(_, buf)| *buf)
+                    .ok_or_else(|| {
+                        Error::Internal(format!(
+                            "pipeline '{}': no buffer given for binding '{}'",
+                            self.name, b.name
+                        ))
+                    })?;
+                Ok(Use {
+                    buffer: buf.raw,
+                    stage: Stage::Compute,
+                    read: b.access.reads(),
+                    write: b.access.writes(),
+                })
+            })
+            .collect()
+    }
+
+    /// Binds the pipeline, its buffers (by binding name) and push constants.
+    pub fn bind(
         &self,
         ctx: &Context,
         cmd: vk::CommandBuffer,
-        buffers: &[&Buffer],
-        push: &P,
+        arena: &mut DescriptorArena,
+        given: &[(&'static str, &Buffer)],
+        push: &[u8],
     ) -> Result<()> {
-        if std::mem::size_of::<P>() as u32 != self.push_size {
-            return Err(Error::Invalid(format!(
+        if push.len() as u32 != self.push_size {
+            return Err(Error::Internal(format!(
                 "{}: push constants are {} bytes, the pipeline declares {}",
                 self.name,
-                std::mem::size_of::<P>(),
+                push.len(),
                 self.push_size
             )));
         }
-        if buffers.len() != self.bindings.len() {
-            return Err(Error::Invalid(format!(
-                "{}: {} buffers given for {} bindings",
-                self.name,
-                buffers.len(),
-                self.bindings.len()
-            )));
-        }
-        let infos: Vec<[vk::DescriptorBufferInfo; 1]> =
-            buffers.iter().map(|b| [b.descriptor()]).collect();
+        self.uses(given)?;
+        let infos: Vec<(u32, [vk::DescriptorBufferInfo; 1], Access)> = self
+            .bindings
+            .iter()
+            .filter_map(|(b, n)| {
+                let buf = given.iter().find(|(g, _)| *g == b.name)?.1;
+                n.map(|n| (n, [buf.descriptor()], b.access))
+            })
+            .collect();
+        let set = arena.allocate(ctx, self.set_layout)?;
         let writes: Vec<_> = infos
             .iter()
-            .enumerate()
-            .map(|(i, info)| {
+            .map(|(n, info, access)| {
                 vk::WriteDescriptorSet::default()
-                    .dst_binding(i as u32)
-                    .descriptor_type(self.bindings[i])
+                    .dst_set(set)
+                    .dst_binding(*n)
+                    .descriptor_type(descriptor_type(*access))
                     .buffer_info(info)
             })
             .collect();
-        let set = ctx.allocate_descriptor_set(self.set_layout)?;
-        let writes: Vec<_> = writes.into_iter().map(|w| w.dst_set(set)).collect();
+        // SAFETY: the set, layout, pipeline and buffers are live; cmd records.
         unsafe {
             ctx.device.update_descriptor_sets(&writes, &[]);
             ctx.device
@@ -171,50 +393,39 @@ impl ComputePipeline {
                     self.layout,
                     vk::ShaderStageFlags::COMPUTE,
                     0,
-                    bytemuck::bytes_of(push),
+                    push,
                 );
             }
         }
         Ok(())
     }
 
-    /// Dispatches enough workgroups for `invocations` along x, folding into y
-    /// beyond 65535 groups (shaders index with `x + y * numGroups.x * size`).
-    pub fn dispatch<P: bytemuck::Pod>(
-        &self,
-        ctx: &Context,
-        cmd: vk::CommandBuffer,
-        buffers: &[&Buffer],
-        push: &P,
-        invocations: u64,
-    ) -> Result<()> {
-        self.bind(ctx, cmd, buffers, push)?;
-        let groups = invocations.div_ceil(self.local_size as u64);
-        if groups == 0 {
-            return Ok(());
-        }
-        let x = groups.min(65535);
-        let y = groups.div_ceil(x);
-        if y > 65535 {
-            return Err(Error::Invalid(format!(
-                "{}: {invocations} invocations is too many",
-                self.name
-            )));
-        }
-        unsafe { ctx.device.cmd_dispatch(cmd, x as u32, y as u32, 1) };
-        Ok(())
-    }
-
-    /// Dispatches exactly the given workgroup counts.
-    pub fn dispatch_groups<P: bytemuck::Pod>(
-        &self,
-        ctx: &Context,
-        cmd: vk::CommandBuffer,
-        buffers: &[&Buffer],
-        push: &P,
-        groups: [u32; 3],
-    ) -> Result<()> {
-        self.bind(ctx, cmd, buffers, push)?;
+    /// Records the dispatch of a bound pipeline.
+    pub fn dispatch_grid(&self, ctx: &Context, cmd: vk::CommandBuffer, grid: Grid) -> Result<()> {
+        let groups = match grid {
+            Grid::Invocations(n) => {
+                let groups = n.div_ceil(self.local_size as u64);
+                if groups == 0 {
+                    return Ok(());
+                }
+                let x = groups.min(MAX_GROUPS_X as u64);
+                let y = groups.div_ceil(x);
+                if y > MAX_GROUPS_X as u64 {
+                    return Err(Error::Internal(format!(
+                        "{}: {n} invocations is too many for one dispatch",
+                        self.name
+                    )));
+                }
+                [x as u32, y as u32, 1]
+            }
+            Grid::Groups(g) => g,
+            Grid::Indirect(args, offset) => {
+                // SAFETY: args is a live indirect buffer; the offset is the pass's layout.
+                unsafe { ctx.device.cmd_dispatch_indirect(cmd, args.raw, offset) };
+                return Ok(());
+            }
+        };
+        // SAFETY: a pipeline is bound; group counts are within the limits.
         unsafe {
             ctx.device
                 .cmd_dispatch(cmd, groups[0], groups[1], groups[2])
@@ -222,27 +433,27 @@ impl ComputePipeline {
         Ok(())
     }
 
-    /// Dispatches with workgroup counts read from `args` at `offset`.
-    pub fn dispatch_indirect<P: bytemuck::Pod>(
-        &self,
-        ctx: &Context,
-        cmd: vk::CommandBuffer,
-        buffers: &[&Buffer],
-        push: &P,
-        args: &Buffer,
-        offset: u64,
-    ) -> Result<()> {
-        self.bind(ctx, cmd, buffers, push)?;
-        unsafe { ctx.device.cmd_dispatch_indirect(cmd, args.raw, offset) };
-        Ok(())
-    }
-
-    pub fn destroy(&self, ctx: &Context) {
+    /// Destroys the pipeline's objects; a second call does nothing.
+    pub fn destroy(&mut self, ctx: &Context) {
+        if self.pipeline == vk::Pipeline::null() {
+            return;
+        }
+        // SAFETY: the owner calls this after the last frame using it finished.
         unsafe {
             ctx.device.destroy_pipeline(self.pipeline, None);
             ctx.device.destroy_pipeline_layout(self.layout, None);
             ctx.device
                 .destroy_descriptor_set_layout(self.set_layout, None);
         }
+        self.pipeline = vk::Pipeline::null();
+        self.layout = vk::PipelineLayout::null();
+        self.set_layout = vk::DescriptorSetLayout::null();
+    }
+}
+
+fn descriptor_type(access: Access) -> vk::DescriptorType {
+    match access {
+        Access::Uniform => vk::DescriptorType::UNIFORM_BUFFER,
+        _ => vk::DescriptorType::STORAGE_BUFFER,
     }
 }

@@ -6,6 +6,30 @@ use super::Context;
 use crate::error::{Error, Result, VkContext};
 use ash::vk;
 
+/// Per-pass milliseconds of one frame in recording order, and the frame's
+/// GPU time from its first to its last timestamp (not a sum of scopes:
+/// barriers and gaps between passes count, overlaps do not).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct PassTimes {
+    pub passes: Vec<(&'static str, f64)>,
+    pub total_ms: f64,
+}
+
+impl<'a> IntoIterator for &'a PassTimes {
+    type Item = &'a (&'static str, f64);
+    type IntoIter = std::slice::Iter<'a, (&'static str, f64)>;
+    fn into_iter(self) -> Self::IntoIter {
+        self.passes.iter()
+    }
+}
+
+impl std::ops::Deref for PassTimes {
+    type Target = [(&'static str, f64)];
+    fn deref(&self) -> &Self::Target {
+        &self.passes
+    }
+}
+
 pub struct Profiler {
     pool: vk::QueryPool,
     capacity: u32,
@@ -59,17 +83,17 @@ impl Profiler {
         name: &'static str,
     ) -> Result<()> {
         if self.open.is_some() {
-            return Err(Error::Invalid(format!(
+            return Err(Error::Internal(format!(
                 "pass scope '{name}' opened inside another"
             )));
         }
         if self.names.contains(&name) {
-            return Err(Error::Invalid(format!(
+            return Err(Error::Internal(format!(
                 "pass name '{name}' used twice in one frame"
             )));
         }
         if self.names.len() as u32 >= self.capacity {
-            return Err(Error::Invalid("too many pass scopes in one frame".into()));
+            return Err(Error::Internal("too many pass scopes in one frame".into()));
         }
         let slot = self.names.len();
         self.names.push(name);
@@ -90,7 +114,7 @@ impl Profiler {
         let slot = self
             .open
             .take()
-            .ok_or_else(|| Error::Invalid("pass scope closed twice".into()))?;
+            .ok_or_else(|| Error::Internal("pass scope closed twice".into()))?;
         unsafe {
             ctx.device.cmd_write_timestamp2(
                 cmd,
@@ -104,10 +128,10 @@ impl Profiler {
     }
 
     /// Milliseconds per pass of the last submitted frame (after its fence).
-    pub fn results(&self, ctx: &Context) -> Result<Vec<(&'static str, f64)>> {
+    pub fn results(&self, ctx: &Context) -> Result<PassTimes> {
         let n = self.names.len();
         if n == 0 {
-            return Ok(Vec::new());
+            return Ok(PassTimes::default());
         }
         let mut data = vec![0u64; 2 * n];
         unsafe {
@@ -119,19 +143,26 @@ impl Profiler {
             )
         }
         .vk("vkGetQueryPoolResults")?;
-        Ok(self
-            .names
-            .iter()
-            .enumerate()
-            .map(|(i, &name)| {
-                let t0 = data[2 * i] & self.valid_mask;
-                let t1 = data[2 * i + 1] & self.valid_mask;
-                (name, t1.wrapping_sub(t0) as f64 * self.period_ns * 1e-6)
-            })
-            .collect())
+        let ms = |t0: u64, t1: u64| {
+            (t1 & self.valid_mask).wrapping_sub(t0 & self.valid_mask) as f64 * self.period_ns * 1e-6
+        };
+        Ok(PassTimes {
+            passes: self
+                .names
+                .iter()
+                .enumerate()
+                .map(|(i, &name)| (name, ms(data[2 * i], data[2 * i + 1])))
+                .collect(),
+            total_ms: ms(data[0], data[2 * n - 1]),
+        })
     }
 
-    pub fn destroy(&self, ctx: &Context) {
-        unsafe { ctx.device.destroy_query_pool(self.pool, None) };
+    /// Destroys the query pool; a second call does nothing.
+    pub fn destroy(&mut self, ctx: &Context) {
+        if self.pool != vk::QueryPool::null() {
+            // SAFETY: called after the last frame using the pool finished.
+            unsafe { ctx.device.destroy_query_pool(self.pool, None) };
+            self.pool = vk::QueryPool::null();
+        }
     }
 }

@@ -37,17 +37,14 @@ pub fn assert_no_validation_messages(ctx: &Context) {
     );
 }
 
+/// A file of tests/data (the shared structures, copied with provenance).
 pub fn data_file(name: &str) -> PathBuf {
-    let p = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data/")).join(name);
-    assert!(
-        p.exists(),
-        "{} is missing: the tests need ../shared/data beside the checkout",
-        p.display()
-    );
+    let p = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/")).join(name);
+    assert!(p.exists(), "{} is missing from the checkout", p.display());
     p
 }
 
-/// Loads a file of ../shared/data with the default options.
+/// Loads a file of tests/data with the default options.
 pub fn load_data(name: &str) -> Scene {
     sphereshade::scene::load(&data_file(name), &Default::default(), &mut |_, _| {})
         .unwrap_or_else(|e| panic!("{name}: {e}"))

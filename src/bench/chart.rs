@@ -2,7 +2,7 @@
 //! drawn with the image crate and a tiny built-in 3x5 bitmap font (no font
 //! files needed): one stacked bar per run, one colour per pass.
 
-use crate::bench::BenchReport;
+use crate::output::RunStats;
 use image::{Rgb, RgbImage};
 
 /// 3x5 glyphs, five rows of three bits (MSB = left column).
@@ -121,9 +121,9 @@ const LABEL_CHARS: u32 = 50;
 const ROW: u32 = 22;
 
 /// One stacked bar per run (total median ms split into pass medians).
-pub fn bar_chart(report: &BenchReport) -> RgbImage {
+pub fn bar_chart(runs: &[RunStats]) -> RgbImage {
     let mut names: Vec<&str> = Vec::new();
-    for r in &report.runs {
+    for r in runs {
         for p in &r.passes {
             if !names.contains(&p.name.as_str()) {
                 names.push(&p.name);
@@ -133,7 +133,7 @@ pub fn bar_chart(report: &BenchReport) -> RgbImage {
     let width = 1200u32;
     let legend_rows = names.len().div_ceil(6) as u32;
     let top = 10 + legend_rows * 16 + 10;
-    let height = top + report.runs.len() as u32 * ROW + 30;
+    let height = top + runs.len() as u32 * ROW + 30;
     let mut img = RgbImage::from_pixel(width, height, Rgb([250, 250, 250]));
     let ink = Rgb([30, 30, 30]);
     for (i, n) in names.iter().enumerate() {
@@ -141,14 +141,10 @@ pub fn bar_chart(report: &BenchReport) -> RgbImage {
         fill(&mut img, x, y, 12, CHAR_H, pass_color(i));
         draw_text(&mut img, x + 18, y, n, ink);
     }
-    let max = report
-        .runs
-        .iter()
-        .map(|r| r.total_ms.median)
-        .fold(1e-9, f64::max);
+    let max = runs.iter().map(|r| r.total_ms.median).fold(1e-9, f64::max);
     let x0 = 10 + LABEL_CHARS * CHAR_W + 10;
     let bar_w = width - x0 - 90;
-    for (k, r) in report.runs.iter().enumerate() {
+    for (k, r) in runs.iter().enumerate() {
         let y = top + k as u32 * ROW;
         let input = r.input.rsplit('/').next().unwrap_or(&r.input);
         let label = format!(
@@ -186,7 +182,7 @@ pub fn bar_chart(report: &BenchReport) -> RgbImage {
     let note = format!(
         "median ms per frame, {} on {}",
         "timestamp queries",
-        report.runs.first().map_or("", |r| r.device.as_str())
+        runs.first().map_or("", |r| r.device.as_str())
     );
     draw_text(&mut img, 10, foot, &note, Rgb([90, 90, 90]));
     img

@@ -4,11 +4,13 @@
 //! `--compare` against an earlier JSON. `cargo bench` (benches/frame.rs)
 //! calls the same code.
 
-use crate::cli::{self, SceneArgs, ViewArgs};
+pub mod chart;
+
 use crate::error::{Error, Result};
 use crate::output::{self, RunStats};
+use crate::run::{self, SceneArgs};
 use crate::scene::Scene;
-use crate::settings::{Aov, RasterMode, ShadowMode, SsdoMode};
+use crate::settings::{Aov, Axes, Options, RasterMode, ShadowMode, SsdoMode};
 use crate::vk::Context;
 use clap::ValueEnum;
 use serde::{Deserialize, Serialize};
@@ -38,8 +40,13 @@ pub struct BenchArgs {
     #[arg(long)]
     pub opacity: Option<String>,
     /// Comma list of image sizes, e.g. 1920x1080,3840x2160.
-    #[arg(long)]
+    #[arg(long, conflicts_with_all = ["width", "height"])]
     pub size: Option<String>,
+    /// One image size instead of --size (both --width and --height).
+    #[arg(long, requires = "height")]
+    pub width: Option<u32>,
+    #[arg(long, requires = "width")]
+    pub height: Option<u32>,
     #[arg(long, default_value_t = 5)]
     pub frames: u32,
     #[arg(long, default_value_t = 1)]
@@ -52,17 +59,15 @@ pub struct BenchArgs {
     /// Earlier bench JSON: print per-pass ratios new/old for matching runs.
     #[arg(long)]
     pub compare: Option<PathBuf>,
-    #[arg(long, value_parser = cli::parse_replicate)]
+    /// Tile every input in a lattice, e.g. 6x6x5.
+    #[arg(long, value_parser = run::parse_replicate)]
     pub replicate: Option<[u32; 3]>,
-    #[arg(long, default_value_t = 1.0)]
+    /// Multiply all radii.
+    #[arg(long, default_value_t = SceneArgs::default().radius_scale, allow_negative_numbers = true)]
     pub radius_scale: f32,
-    /// Key-light direction.
-    #[arg(long, value_parser = cli::parse_vec3, default_value = "-1,-1,-1", allow_hyphen_values = true)]
-    pub light: glam::DVec3,
-    #[arg(long)]
-    pub validate: bool,
-    #[arg(long)]
-    pub device: Option<usize>,
+    /// Camera, light, technique and device options, as for `render`.
+    #[command(flatten)]
+    pub options: Options,
     /// Also write a bar chart PNG of per-pass median ms.
     #[arg(long)]
     pub chart: Option<PathBuf>,
@@ -110,7 +115,7 @@ fn list<T: ValueEnum + Clone>(s: &Option<String>, default: &[T], flag: &str) -> 
             .split(',')
             .map(|p| {
                 T::from_str(p.trim(), true)
-                    .map_err(|_| Error::Invalid(format!("{flag} {s}: '{p}' is not valid")))
+                    .map_err(|_| Error::Input(format!("{flag} {s}: '{p}' is not valid")))
             })
             .collect(),
     }
@@ -128,7 +133,7 @@ fn parse_list<T: std::str::FromStr + Clone>(
             .map(|p| {
                 p.trim()
                     .parse::<T>()
-                    .map_err(|_| Error::Invalid(format!("{flag} {s}: '{p}' is not valid")))
+                    .map_err(|_| Error::Input(format!("{flag} {s}: '{p}' is not valid")))
             })
             .collect(),
     }
@@ -137,7 +142,7 @@ fn parse_list<T: std::str::FromStr + Clone>(
 fn parse_size(s: &str) -> Result<(u32, u32)> {
     let (w, h) = s
         .split_once(['x', 'X'])
-        .ok_or_else(|| Error::Invalid(format!("--size {s}: expected WxH")))?;
+        .ok_or_else(|| Error::Input(format!("--size {s}: expected WxH")))?;
     let p = |v: &str| {
         v.trim()
             .parse::<u32>()
@@ -146,7 +151,7 @@ fn parse_size(s: &str) -> Result<(u32, u32)> {
     };
     match (p(w), p(h)) {
         (Some(w), Some(h)) => Ok((w, h)),
-        _ => Err(Error::Invalid(format!(
+        _ => Err(Error::Input(format!(
             "--size {s}: expected WxH with 1..16384"
         ))),
     }
@@ -162,14 +167,9 @@ struct DataSet {
 fn data_sets(a: &BenchArgs, atoms: &[usize]) -> Result<Vec<DataSet>> {
     let mut sets = Vec::new();
     let base = SceneArgs {
-        input: None,
-        scene: None,
-        atoms: None,
-        model: None,
-        assembly: None,
         replicate: a.replicate,
         radius_scale: a.radius_scale,
-        color: "element".into(),
+        ..SceneArgs::default()
     };
     if a.inputs.is_empty() {
         let names = a.scene.clone().unwrap_or_else(|| {
@@ -187,7 +187,7 @@ fn data_sets(a: &BenchArgs, atoms: &[usize]) -> Result<Vec<DataSet>> {
                     ..base.clone()
                 };
                 eprintln!("bench: building scene {name} with {n} spheres");
-                let (scene, load_ms) = cli::load_scene(&args)?;
+                let (scene, load_ms) = run::load_scene(&args)?;
                 sets.push(DataSet {
                     name: format!("scene:{}", name.trim()),
                     scene,
@@ -197,7 +197,7 @@ fn data_sets(a: &BenchArgs, atoms: &[usize]) -> Result<Vec<DataSet>> {
         }
     } else {
         if a.atoms.is_some() || a.scene.is_some() {
-            return Err(Error::Invalid(
+            return Err(Error::Input(
                 "--atoms/--scene apply when no input file is given".into(),
             ));
         }
@@ -207,7 +207,7 @@ fn data_sets(a: &BenchArgs, atoms: &[usize]) -> Result<Vec<DataSet>> {
                 ..base.clone()
             };
             eprintln!("bench: loading {}", p.display());
-            let (scene, load_ms) = cli::load_scene(&args)?;
+            let (scene, load_ms) = run::load_scene(&args)?;
             sets.push(DataSet {
                 name: p.display().to_string(),
                 scene,
@@ -253,9 +253,14 @@ fn default_techniques() -> Vec<Technique> {
     ]
 }
 
-/// Real structure files shipped beside the checkout, when present.
+/// The real structure files the repository carries (tests/data, copied
+/// from ../shared/data with their provenance).
+pub fn data_dir() -> PathBuf {
+    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data"))
+}
+
 fn shared_data_files() -> Vec<PathBuf> {
-    let dir = PathBuf::from("../shared/data");
+    let dir = data_dir();
     let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
         .map(|rd| {
             rd.filter_map(|e| e.ok().map(|e| e.path()))
@@ -303,7 +308,7 @@ pub fn run(a: &BenchArgs) -> Result<BenchReport> {
         let raster = list(&a.raster, &[RasterMode::Compute], "--raster")?;
         let opacity: Vec<f32> = parse_list(&a.opacity, &[1.0], "--opacity")?;
         if opacity.iter().any(|o| !(0.0..=1.0).contains(o)) {
-            return Err(Error::Invalid(
+            return Err(Error::Input(
                 "--opacity values must be between 0 and 1".into(),
             ));
         }
@@ -332,17 +337,21 @@ pub fn run(a: &BenchArgs) -> Result<BenchReport> {
         vec![100_000, 1_000_000, 4_000_000]
     };
     let atoms: Vec<usize> = parse_list(&a.atoms, &def_atoms, "--atoms")?;
-    let sizes = match &a.size {
-        None if a.quick => vec![(960, 540)],
-        None => vec![(1920, 1080), (3840, 2160)],
-        Some(s) => s.split(',').map(parse_size).collect::<Result<_>>()?,
+    let sizes = match (&a.size, a.width.zip(a.height)) {
+        (_, Some((w, h))) => vec![parse_size(&format!("{w}x{h}"))?],
+        (None, _) if a.quick => vec![(960, 540)],
+        (None, _) => vec![(1920, 1080), (3840, 2160)],
+        (Some(s), _) => s.split(',').map(parse_size).collect::<Result<_>>()?,
     };
     let mut sets = data_sets(a, &atoms)?;
     if a.inputs.is_empty() && a.scene.is_none() && a.atoms.is_none() && !a.quick {
         // The default matrix also covers the real files and a 1M lattice of 1TII.
         let files = shared_data_files();
         if files.is_empty() {
-            eprintln!("bench: ../shared/data not found; running the procedural data sets only");
+            eprintln!(
+                "bench: {} not found; running the procedural data sets only",
+                data_dir().display()
+            );
         }
         let extra = BenchArgs {
             inputs: files,
@@ -365,8 +374,8 @@ pub fn run(a: &BenchArgs) -> Result<BenchReport> {
         }
     }
     let options = crate::vk::ContextOptions {
-        validate: a.validate,
-        device_index: a.device,
+        validate: a.options.validate,
+        device_index: a.options.device,
         ..Default::default()
     };
     let ctx = Context::new(&options)?;
@@ -460,23 +469,19 @@ fn bench_one(
     w: u32,
     h: u32,
 ) -> Result<RunStats> {
-    let view = ViewArgs {
+    let axes = Axes {
         width: w,
         height: h,
         shadows: t.shadows,
         ssdo: t.ssdo,
         raster: t.raster,
         opacity: t.opacity,
-        light: a.light,
-        validate: a.validate,
-        device: a.device,
-        ..bench_view_defaults()
     };
-    let settings = cli::settings_for(&set.scene, &view)?;
+    let settings = a.options.resolve(&axes, &set.scene)?;
     let base = settings.camera;
     let frames = a.frames;
     let orbit = !a.no_orbit && frames > 1;
-    let out = cli::render_run_with(
+    let out = run::render_run_with(
         ctx,
         &set.scene,
         &set.name,
@@ -494,17 +499,6 @@ fn bench_one(
         },
     )?;
     Ok(out.stats)
-}
-
-/// Default view options (the CLI defaults) for bench runs.
-fn bench_view_defaults() -> ViewArgs {
-    use clap::Parser;
-    #[derive(Parser)]
-    struct Defaults {
-        #[command(flatten)]
-        view: ViewArgs,
-    }
-    Defaults::parse_from(["bench"]).view
 }
 
 fn key(r: &RunStats) -> (String, u64, u32, u32, String, String, String, u64) {
@@ -791,12 +785,12 @@ pub fn read_report(path: &std::path::Path) -> Result<BenchReport> {
         source: e,
     })?;
     serde_json::from_str(&text)
-        .map_err(|e| Error::Invalid(format!("{}: not a bench JSON: {e}", path.display())))
+        .map_err(|e| Error::Input(format!("{}: not a bench JSON: {e}", path.display())))
 }
 
 fn write_chart(report: &BenchReport, path: &std::path::Path) -> Result<()> {
     output::AovImage::Rgba8(
-        image::DynamicImage::ImageRgb8(crate::chart::bar_chart(report)).to_rgba8(),
+        image::DynamicImage::ImageRgb8(chart::bar_chart(&report.runs)).to_rgba8(),
     )
     .save_png(path)
 }
@@ -827,7 +821,7 @@ pub fn main(a: &BenchArgs) -> Result<u32> {
         }
     }
     if !report.failed.is_empty() {
-        return Err(Error::Invalid(format!(
+        return Err(Error::Input(format!(
             "{} of {} runs failed (listed above and under \"failed\" in {})",
             report.failed.len(),
             report.failed.len() + report.runs.len(),

@@ -44,24 +44,28 @@
 //! every list and counter buffer carries [`GUARD_WORDS`] guard words after
 //! its payload, filled once with [`GUARD_PATTERN`]; see [`DeepShadows::damaged_guards`].
 
-use super::bands::{BandArgs, BandCounters};
-use super::{LOCAL_SIZE, ShadowInputs, spirv};
+use super::{FrameCheck, ShadowSetup, ShadowTechnique};
 use crate::camera::Camera;
 use crate::error::{Error, Result};
-use crate::output::DeepStats;
-use crate::vk::pipeline::{PipelineDesc, STORAGE, UNIFORM};
-use crate::vk::{Buffer, ComputePipeline, Context, Profiler, barrier};
+use crate::gpu::consts;
+use crate::passes::bands::{BandArgs, BandCounters, BandPipelines};
+use crate::passes::{LOCAL_SIZE, ShadowInputs, spirv};
+use crate::settings::ShadowMode;
+use crate::vk::pipeline::{PipelineDesc, ro, rw, uniform, wo};
+use crate::vk::{Buffer, ComputePipeline, Context, Grid, Recorder};
 use ash::vk;
 use bytemuck::{Pod, Zeroable};
 use gpu_allocator::MemoryLocation;
+use serde::{Deserialize, Serialize};
+use std::any::Any;
 use std::sync::atomic::{AtomicU32, Ordering};
 
 /// Tile side in texels (a tile is one 64-invocation workgroup).
-pub const TILE: u32 = 8;
+pub const TILE: u32 = consts::DEEP_TILE;
 /// Entries per chunk.
-pub const CHUNK: u32 = 64;
+pub const CHUNK: u32 = consts::DEEP_CHUNK;
 /// List terminator / "no chunk".
-pub const NONE: u32 = u32::MAX;
+pub const NONE: u32 = consts::DEEP_NONE;
 /// u32 guard words after every list and counter buffer.
 pub const GUARD_WORDS: u64 = 64;
 pub const GUARD_PATTERN: u32 = 0xDEE9_5AFE;
@@ -83,20 +87,32 @@ pub const NODES_PER_ENTRY: u64 = 2;
 /// Counter words (stats 0..15, band jobs 16..23) before the guard.
 pub const COUNTER_WORDS: u64 = 32;
 
-/// Indices into the counters buffer (mirrors glsl/deep.glsl).
+/// Indices into the counters buffer (the C_* words of src/gpu_consts.rs).
 pub mod counter {
-    pub const CHUNKS: usize = 0;
-    pub const OVERFLOW: usize = 1;
-    pub const ENTRIES: usize = 2;
-    pub const MAX_COUNT: usize = 3;
-    pub const NODES: usize = 4;
-    pub const FILL_ERRORS: usize = 5;
-    pub const MAX_NODES: usize = 6;
-    pub const NONEMPTY: usize = 7;
-    pub const DROPPED: usize = 8;
-    pub const BANDS_REQ: usize = 16;
-    pub const BANDS_RUN: usize = 17;
-    pub const ARGS: usize = 20;
+    use crate::gpu::consts as c;
+    pub const CHUNKS: usize = c::C_CHUNKS as usize;
+    pub const OVERFLOW: usize = c::C_OVERFLOW as usize;
+    pub const ENTRIES: usize = c::C_ENTRIES as usize;
+    pub const MAX_COUNT: usize = c::C_MAX_COUNT as usize;
+    pub const NODES: usize = c::C_NODES as usize;
+    pub const FILL_ERRORS: usize = c::C_FILL_ERRORS as usize;
+    pub const MAX_NODES: usize = c::C_MAX_NODES as usize;
+    pub const NONEMPTY: usize = c::C_NONEMPTY as usize;
+    pub const DROPPED: usize = c::C_DROPPED as usize;
+    pub const BANDS_REQ: usize = c::C_BANDS_REQ as usize;
+    pub const BANDS_RUN: usize = c::C_BANDS_RUN as usize;
+    pub const ARGS: usize = c::C_ARGS as usize;
+}
+
+/// Deep-list statistics of a frame (the JSON's `deep` object).
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct DeepStats {
+    pub entries: u64,
+    pub chunks_used: u64,
+    pub chunk_capacity: u64,
+    pub bytes: u64,
+    pub fixed_layer_bytes: u64,
+    pub overflowed: bool,
 }
 
 /// Per-texel record (`DeepTexel` in glsl/deep.glsl).
@@ -119,7 +135,7 @@ pub struct DeepTile {
     pub flags: u32,
 }
 
-pub const TILE_OVERFLOWED: u32 = 1;
+pub const TILE_OVERFLOWED: u32 = consts::DEEP_TILE_OVERFLOWED;
 
 const _: () = assert!(std::mem::size_of::<DeepTexel>() == 16);
 const _: () = assert!(std::mem::size_of::<DeepTile>() == 16);
@@ -127,14 +143,12 @@ const _: () = assert!(std::mem::size_of::<DeepTile>() == 16);
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable)]
 struct SplatPush {
-    mode: u32,
-    bands: u32,
     sphere_count: u32,
     big_area: u32,
     job_capacity: u32,
     entry_capacity: u32,
     opacity: f32,
-    pad: u32,
+    pad: [u32; 3],
 }
 
 #[repr(C)]
@@ -322,11 +336,18 @@ pub struct DeepShadows {
     jobs: Buffer,
     inline_bits: Buffer,
     lists: Lists,
-    splat: ComputePipeline,
+    /// The splat shader in count mode and in fill mode (specialization
+    /// constant 2), each per sphere and per band.
+    count: BandPipelines,
+    fill: BandPipelines,
     args: BandArgs,
     alloc: ComputePipeline,
     sort: ComputePipeline,
     shadow: ComputePipeline,
+    /// Statistics of the last frame (after any pool growth).
+    pub stats: Option<DeepStats>,
+    /// The last frame overflowed (and was rendered again).
+    retried: bool,
 }
 
 /// Initial pool size without `--deep-pool-chunks`: the sum over spheres of
@@ -358,32 +379,29 @@ fn tile_count(light: &Camera) -> u64 {
 }
 
 impl DeepShadows {
-    pub fn new(
-        ctx: &Context,
-        light: Camera,
-        radii: &[f32],
-        pool_chunks: Option<u32>,
-    ) -> Result<Self> {
+    pub fn new(setup: &ShadowSetup) -> Result<Self> {
+        let ctx = setup.ctx;
+        let light = setup.fit(setup.settings.issm.size)?;
+        let radii: Vec<f32> = setup.radii().collect();
+        let pool_chunks = setup.settings.deep_pool_chunks;
         let sphere_count = radii.len() as u32;
         if light.fov_deg.is_some() {
-            return Err(Error::Invalid(
+            return Err(Error::Internal(
                 "deep shadow lists need an orthographic light view".into(),
             ));
         }
         let capacity = match pool_chunks {
             Some(0) => {
-                return Err(Error::Invalid(
-                    "--deep-pool-chunks must be at least 1".into(),
-                ));
+                return Err(Error::Input("--deep-pool-chunks must be at least 1".into()));
             }
             Some(c) => c,
-            None => estimate_pool_chunks(&light, radii),
+            None => estimate_pool_chunks(&light, &radii),
         };
         let capacity = Self::check_capacity(ctx, capacity as u64, pool_chunks.is_none())?;
         let texel_count = light.width as u64 * light.height as u64;
         let range = ctx.props.limits.max_storage_buffer_range as u64;
         if (texel_count * 4 + GUARD_WORDS) * 4 > range {
-            return Err(Error::Invalid(format!(
+            return Err(Error::DeviceLimit(format!(
                 "--shadows deep: a {}x{} light map needs a {} MiB texel table, more than the device's \
                  maxStorageBufferRange ({} MiB); lower --issm-size",
                 light.width,
@@ -393,23 +411,21 @@ impl DeepShadows {
             )));
         }
         let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
-        let pipe =
-            |name: &str, spirv: &[u8], bindings: &[vk::DescriptorType], push: usize, local: u32| {
-                ComputePipeline::new(
-                    ctx,
-                    &PipelineDesc {
-                        name,
-                        spirv,
-                        bindings,
-                        push_size: push as u32,
-                        local_size: local,
-                        constants: &[],
-                    },
-                )
-            };
+        let pipe = |name: &str, shader, bindings: &[_], push: usize, local: u32| {
+            ComputePipeline::new(
+                ctx,
+                &PipelineDesc {
+                    name,
+                    shader,
+                    bindings,
+                    push_size: push as u32,
+                    local_size: local,
+                    constants: &[],
+                },
+            )
+        };
         // Build everything, releasing what was made if a later step fails.
         let mut bufs = ctx.guard(Vec::new());
-        let mut pipes = ctx.guard(Vec::new());
         let args = ctx.guard(BandArgs::new(ctx, "deep band args")?);
         bufs.push(guarded(ctx, "deep texels", texel_count * 4, storage)?);
         bufs.push(guarded(ctx, "deep tiles", tile_count(&light) * 4, storage)?);
@@ -431,42 +447,86 @@ impl DeepShadows {
             (sphere_count as u64).div_ceil(32).max(1),
             storage,
         )?);
-        let s = STORAGE;
-        pipes.push(pipe(
-            "deep splat",
-            spirv::DEEP_SPLAT_COMP,
-            &[UNIFORM, s, s, s, s, s, s, s, s, s],
-            std::mem::size_of::<SplatPush>(),
-            LOCAL_SIZE,
-        )?);
-        pipes.push(pipe(
+        let splat = |mode: u32, name: &str| {
+            BandPipelines::new(
+                ctx,
+                &PipelineDesc {
+                    name,
+                    shader: spirv::DEEP_SPLAT_COMP,
+                    bindings: &[
+                        uniform("GlobalsBlock"),
+                        ro("Spheres"),
+                        rw("Texels"),
+                        ro("Tiles"),
+                        wo("Depth"),
+                        wo("Alpha"),
+                        wo("Ids"),
+                        rw("Counters"),
+                        rw("Jobs"),
+                        rw("Inline"),
+                    ],
+                    push_size: std::mem::size_of::<SplatPush>() as u32,
+                    local_size: LOCAL_SIZE,
+                    constants: &[],
+                },
+                &[mode],
+            )
+        };
+        let count = ctx.guard(splat(MODE_COUNT, "deep count")?);
+        let fill = ctx.guard(splat(MODE_FILL, "deep fill")?);
+        let alloc = ctx.guard(pipe(
             "deep alloc",
             spirv::DEEP_ALLOC_COMP,
-            &[UNIFORM, s, s, s],
+            &[
+                uniform("GlobalsBlock"),
+                rw("Texels"),
+                wo("Tiles"),
+                rw("Counters"),
+            ],
             std::mem::size_of::<AllocPush>(),
             64,
         )?);
-        pipes.push(pipe(
+        let sort = ctx.guard(pipe(
             "deep sort",
             spirv::DEEP_SORT_COMP,
-            &[UNIFORM, s, s, s, s, s, s, s, s, s],
+            &[
+                uniform("GlobalsBlock"),
+                rw("Texels"),
+                rw("Depth"),
+                rw("Alpha"),
+                rw("Ids"),
+                wo("Next"),
+                wo("Trans"),
+                rw("Counters"),
+                wo("NodeDepth"),
+                wo("NodeVis"),
+            ],
             std::mem::size_of::<SortPush>(),
             64,
         )?);
-        pipes.push(pipe(
+        let shadow = ctx.guard(pipe(
             "deep shadow",
             spirv::DEEP_SHADOW_COMP,
-            &[UNIFORM, s, s, s, s, s, s, s, s, s, s],
+            &[
+                uniform("GlobalsBlock"),
+                ro("Spheres"),
+                ro("Vis"),
+                ro("GPos"),
+                ro("Texels"),
+                ro("Tiles"),
+                ro("Depth"),
+                ro("Alpha"),
+                ro("Ids"),
+                ro("Next"),
+                wo("Shadow"),
+            ],
             std::mem::size_of::<ShadowPush>(),
             LOCAL_SIZE,
         )?);
         let lists = Lists::new(ctx, capacity)?;
         let mut b = bufs.keep().into_iter();
-        let mut p = pipes.keep().into_iter();
         let mut nb = || b.next().expect("buffers");
         let (texels, tiles, counters, jobs, inline_bits) = (nb(), nb(), nb(), nb(), nb());
-        let mut np = || p.next().expect("pipelines");
-        let (splat, alloc, sort, shadow) = (np(), np(), np(), np());
         Ok(DeepShadows {
             light,
             sphere_count,
@@ -478,11 +538,14 @@ impl DeepShadows {
             jobs,
             inline_bits,
             lists,
-            splat,
+            count: count.keep(),
+            fill: fill.keep(),
             args: args.keep(),
-            alloc,
-            sort,
-            shadow,
+            alloc: alloc.keep(),
+            sort: sort.keep(),
+            shadow: shadow.keep(),
+            stats: None,
+            retried: false,
         })
     }
 
@@ -500,7 +563,7 @@ impl DeepShadows {
         } else if clamp {
             Ok(max as u32)
         } else {
-            Err(Error::Invalid(format!(
+            Err(Error::DeviceLimit(format!(
                 "deep shadow lists: a pool of {chunks} chunks ({} entries) exceeds what the device can address \
                  ({max} chunks: maxStorageBufferRange {range} bytes per node array); lower --issm-size",
                 chunks * CHUNK as u64
@@ -537,37 +600,29 @@ impl DeepShadows {
         self.light.width as u64 * self.light.height as u64
     }
 
-    pub fn record(
-        &self,
-        ctx: &Context,
-        cmd: vk::CommandBuffer,
-        prof: &mut Profiler,
-        f: &ShadowInputs,
-    ) -> Result<()> {
-        let dev = &ctx.device;
+    /// `deep_count`, `deep_alloc`, `deep_fill`, `deep_sort`.
+    fn record_lists<'b>(&'b self, rec: &mut Recorder, f: &ShadowInputs<'b>) -> Result<()> {
         let l = &self.lists;
         let splat_bufs = [
-            f.globals,
-            f.spheres,
-            &self.texels,
-            &self.tiles,
-            &l.depth,
-            &l.alpha,
-            &l.ids,
-            &self.counters,
-            &self.jobs,
-            &self.inline_bits,
+            ("GlobalsBlock", f.globals),
+            ("Spheres", f.spheres),
+            ("Texels", &self.texels),
+            ("Tiles", &self.tiles),
+            ("Depth", &l.depth),
+            ("Alpha", &l.alpha),
+            ("Ids", &l.ids),
+            ("Counters", &self.counters),
+            ("Jobs", &self.jobs),
+            ("Inline", &self.inline_bits),
         ];
         let job_capacity = self.job_limit.load(Ordering::Relaxed);
-        let splat = |mode: u32, bands: u32| SplatPush {
-            mode,
-            bands,
+        let splat = SplatPush {
             sphere_count: self.sphere_count,
             big_area: BIG_AREA,
             job_capacity,
             entry_capacity: self.entry_capacity(),
             opacity: f.opacity.clamp(0.0, 1.0),
-            pad: 0,
+            pad: [0; 3],
         };
         let band_counters = BandCounters {
             job_capacity,
@@ -577,101 +632,104 @@ impl DeepShadows {
         };
         let (tx, ty) = self.tiles_xy();
 
-        prof.begin(ctx, cmd, "deep_count")?;
-        unsafe {
-            dev.cmd_fill_buffer(cmd, self.texels.raw, 0, self.texel_count() * 16, 0);
-            dev.cmd_fill_buffer(cmd, self.counters.raw, 0, COUNTER_WORDS * 4, 0);
+        rec.pass("deep_count", |p| {
+            p.fill(&self.texels, self.texel_count() * 16, 0);
+            p.fill(&self.counters, COUNTER_WORDS * 4, 0);
             let inline_words = (self.sphere_count as u64).div_ceil(32).max(1);
-            dev.cmd_fill_buffer(cmd, self.inline_bits.raw, 0, inline_words * 4, 0);
-        }
-        barrier(dev, cmd);
-        self.args.record(
-            ctx,
-            cmd,
-            (&self.splat, &splat(MODE_COUNT, 0)),
-            (&self.splat, &splat(MODE_COUNT, 1)),
-            &splat_bufs,
-            self.sphere_count,
-            &self.counters,
-            &band_counters,
-        )?;
-        prof.end(ctx, cmd)?;
-        barrier(dev, cmd);
+            p.fill(&self.inline_bits, inline_words * 4, 0);
+            self.args.steps(
+                p,
+                &self.count,
+                &splat,
+                &splat_bufs,
+                self.sphere_count,
+                &self.counters,
+                &band_counters,
+            );
+            Ok(())
+        })?;
+        rec.pass("deep_alloc", |p| {
+            p.dispatch(
+                &self.alloc,
+                &AllocPush {
+                    chunk_capacity: self.capacity,
+                },
+                Grid::Groups([tx, ty, 1]),
+                &[
+                    ("GlobalsBlock", f.globals),
+                    ("Texels", &self.texels),
+                    ("Tiles", &self.tiles),
+                    ("Counters", &self.counters),
+                ],
+            );
+            Ok(())
+        })?;
+        rec.pass("deep_fill", |p| {
+            // The count pass left the band arguments; recomputing them is one
+            // invocation and keeps one recorded sequence for both modes.
+            self.args.steps(
+                p,
+                &self.fill,
+                &splat,
+                &splat_bufs,
+                self.sphere_count,
+                &self.counters,
+                &band_counters,
+            );
+            Ok(())
+        })?;
+        rec.pass("deep_sort", |p| {
+            p.dispatch(
+                &self.sort,
+                &SortPush {
+                    eps: EPSILON,
+                    entry_capacity: self.entry_capacity(),
+                },
+                Grid::Groups([tx, ty, 1]),
+                &[
+                    ("GlobalsBlock", f.globals),
+                    ("Texels", &self.texels),
+                    ("Depth", &l.depth),
+                    ("Alpha", &l.alpha),
+                    ("Ids", &l.ids),
+                    ("Next", &l.next),
+                    ("Trans", &l.trans),
+                    ("Counters", &self.counters),
+                    ("NodeDepth", &l.node_depth),
+                    ("NodeVis", &l.node_vis),
+                ],
+            );
+            Ok(())
+        })
+    }
 
-        prof.begin(ctx, cmd, "deep_alloc")?;
-        let push = AllocPush {
-            chunk_capacity: self.capacity,
-        };
-        self.alloc.dispatch_groups(
-            ctx,
-            cmd,
-            &[f.globals, &self.texels, &self.tiles, &self.counters],
-            &push,
-            [tx, ty, 1],
-        )?;
-        prof.end(ctx, cmd)?;
-        barrier(dev, cmd);
-
-        prof.begin(ctx, cmd, "deep_fill")?;
-        // The count pass left the band arguments; recomputing them is one
-        // invocation and keeps one recorded sequence for both modes.
-        self.args.record(
-            ctx,
-            cmd,
-            (&self.splat, &splat(MODE_FILL, 0)),
-            (&self.splat, &splat(MODE_FILL, 1)),
-            &splat_bufs,
-            self.sphere_count,
-            &self.counters,
-            &band_counters,
-        )?;
-        prof.end(ctx, cmd)?;
-        barrier(dev, cmd);
-
-        prof.begin(ctx, cmd, "deep_sort")?;
-        let push = SortPush {
-            eps: EPSILON,
-            entry_capacity: self.entry_capacity(),
-        };
-        let bufs = [
-            f.globals,
-            &self.texels,
-            &l.depth,
-            &l.alpha,
-            &l.ids,
-            &l.next,
-            &l.trans,
-            &self.counters,
-            &l.node_depth,
-            &l.node_vis,
-        ];
-        self.sort
-            .dispatch_groups(ctx, cmd, &bufs, &push, [tx, ty, 1])?;
-        prof.end(ctx, cmd)?;
-        barrier(dev, cmd);
-
-        prof.begin(ctx, cmd, "deep_shadow")?;
-        let push = ShadowPush {
-            entry_capacity: self.entry_capacity(),
-            sphere_count: self.sphere_count,
-        };
-        let bufs = [
-            f.globals,
-            f.spheres,
-            f.vis,
-            f.gpos,
-            &self.texels,
-            &self.tiles,
-            &l.depth,
-            &l.alpha,
-            &l.ids,
-            &l.next,
-            f.shadow,
-        ];
-        self.shadow.dispatch(ctx, cmd, &bufs, &push, f.pixels)?;
-        prof.end(ctx, cmd)?;
-        barrier(dev, cmd);
-        Ok(())
+    /// `deep_shadow`: walk each visible pixel's light texel list.
+    fn record_shadow<'b>(&'b self, rec: &mut Recorder, f: &ShadowInputs<'b>) -> Result<()> {
+        let l = &self.lists;
+        rec.pass("deep_shadow", |p| {
+            p.dispatch(
+                &self.shadow,
+                &ShadowPush {
+                    entry_capacity: self.entry_capacity(),
+                    sphere_count: self.sphere_count,
+                },
+                Grid::Invocations(f.pixels),
+                &[
+                    ("GlobalsBlock", f.globals),
+                    ("Spheres", f.spheres),
+                    ("Vis", f.vis),
+                    ("GPos", f.gpos),
+                    ("Texels", &self.texels),
+                    ("Tiles", &self.tiles),
+                    ("Depth", &l.depth),
+                    ("Alpha", &l.alpha),
+                    ("Ids", &l.ids),
+                    ("Next", &l.next),
+                    ("Shadow", f.shadow),
+                ],
+            );
+            Ok(())
+        })
     }
 
     /// The counters of the last frame.
@@ -805,7 +863,7 @@ impl DeepShadows {
         let want = needed_chunks + needed_chunks / 8 + 1;
         let max = Self::check_capacity(ctx, u64::MAX, true)? as u64;
         if needed_chunks > max {
-            return Err(Error::Invalid(format!(
+            return Err(Error::DeviceLimit(format!(
                 "deep shadow lists need {needed_chunks} chunks of {CHUNK} entries, more than the device can \
                  address ({max} chunks: maxStorageBufferRange per node array); lower --issm-size"
             )));
@@ -852,8 +910,12 @@ impl DeepShadows {
         (pool, self.memory_bytes() - pool)
     }
 
-    pub fn destroy(&mut self, ctx: &Context) {
-        super::destroy_all(ctx, &[&self.splat, &self.alloc, &self.sort, &self.shadow]);
+    fn destroy_all(&mut self, ctx: &Context) {
+        self.count.destroy(ctx);
+        self.fill.destroy(ctx);
+        self.alloc.destroy(ctx);
+        self.sort.destroy(ctx);
+        self.shadow.destroy(ctx);
         self.args.destroy(ctx);
         for b in [
             &mut self.texels,
@@ -865,5 +927,72 @@ impl DeepShadows {
             b.destroy(ctx);
         }
         self.lists.destroy(ctx);
+    }
+}
+
+impl ShadowTechnique for DeepShadows {
+    fn mode(&self) -> ShadowMode {
+        ShadowMode::Deep
+    }
+
+    fn light(&self) -> &Camera {
+        &self.light
+    }
+
+    fn record_light<'b>(&'b self, rec: &mut Recorder, f: &ShadowInputs<'b>) -> Result<()> {
+        self.record_lists(rec, f)
+    }
+
+    fn record_lookup<'b>(&'b self, rec: &mut Recorder, f: &ShadowInputs<'b>) -> Result<()> {
+        self.record_shadow(rec, f)
+    }
+
+    /// The same map size and pool; the lists are rebuilt every frame, and
+    /// the pool grows when the new view needs more.
+    fn refit(&mut self, setup: &ShadowSetup) -> Result<()> {
+        self.light = setup.fit(self.light.width)?;
+        if setup.spheres.len() as u32 != self.sphere_count {
+            return Err(Error::Internal(
+                "deep lists: the sphere count changed; make a new technique".into(),
+            ));
+        }
+        Ok(())
+    }
+
+    fn memory(&self) -> Vec<(&'static str, u64)> {
+        let (pool, tables) = self.memory_split();
+        vec![("deep_pool", pool), ("deep_tables", tables)]
+    }
+
+    /// Reads the frame's counters; on overflow grows the pool so the frame
+    /// can be rendered again (the renderer gives up after a few tries).
+    fn after_frame(&mut self, ctx: &Context) -> Result<FrameCheck> {
+        let mut stats = self.read_stats(ctx)?;
+        if !stats.overflowed {
+            // Report that this frame needed a retry even though the final one fit.
+            stats.overflowed = std::mem::take(&mut self.retried);
+            self.stats = Some(stats);
+            return Ok(FrameCheck::Done);
+        }
+        self.retried = true;
+        self.grow(ctx, stats.chunks_used)?;
+        self.stats = Some(stats);
+        Ok(FrameCheck::Retry)
+    }
+
+    fn checks_frames(&self) -> bool {
+        true
+    }
+
+    fn as_any(&self) -> &dyn Any {
+        self
+    }
+
+    fn as_any_mut(&mut self) -> &mut dyn Any {
+        self
+    }
+
+    fn destroy(&mut self, ctx: &Context) {
+        self.destroy_all(ctx);
     }
 }

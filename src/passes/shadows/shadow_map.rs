@@ -25,16 +25,16 @@
 //! sphere (the id the rasterizer stores beside the depth) counts as
 //! unoccluded; everything else is the plain biased depth test.
 
-use super::{LOCAL_SIZE, ShadowInputs, spirv};
+use super::{ShadowSetup, ShadowTechnique};
 use crate::camera::Camera;
 use crate::error::Result;
-use crate::settings::ShadowMapParams;
-use crate::vk::pipeline::{PipelineDesc, STORAGE, UNIFORM};
-use crate::vk::{Buffer, ComputePipeline, Context, Profiler, barrier};
-use ash::vk;
+use crate::passes::raster::{self, ViewIndex};
+use crate::passes::{LOCAL_SIZE, ShadowInputs, spirv};
+use crate::settings::{ShadowMapParams, ShadowMode};
+use crate::vk::pipeline::{PipelineDesc, ro, uniform, wo};
+use crate::vk::{Buffer, ComputePipeline, Context, Grid, Recorder};
 use bytemuck::{Pod, Zeroable};
-
-use super::raster::{self, RasterPass, ViewIndex};
+use std::any::Any;
 
 /// Clamp of tan(theta) in the slope term (theta about 84 degrees): closer to
 /// the terminator no finite bias avoids acne, so those grazing receivers
@@ -65,38 +65,50 @@ impl ShadowMap {
     pub const RASTER_NAME: &'static str = "sm_raster";
     pub const NAME: &'static str = "sm_shadow";
 
-    /// `light` must be the orthographic light view the renderer puts in
-    /// `Globals.light` (size `params.sm_size`).
-    pub fn new(ctx: &Context, light: Camera, params: &ShadowMapParams) -> Result<Self> {
+    pub fn new(setup: &ShadowSetup) -> Result<Self> {
+        let ctx = setup.ctx;
+        let params = &setup.settings.shadow_maps;
+        let light = setup.fit(params.sm_size)?;
         let texels = light.width as u64 * light.height as u64;
         let range = ctx.props.limits.max_storage_buffer_range as u64;
         if (texels + raster::VIS_GUARD_WORDS) * 8 > range {
-            return Err(crate::Error::Invalid(format!(
+            return Err(crate::Error::DeviceLimit(format!(
                 "--sm-size {}: the depth map needs {} MiB, more than the device's maxStorageBufferRange ({} MiB)",
                 light.width,
                 (texels * 8) >> 20,
                 range >> 20
             )));
         }
-        let pipeline = ComputePipeline::new(
+        let pipeline = ctx.guard(ComputePipeline::new(
             ctx,
             &PipelineDesc {
                 name: Self::NAME,
-                spirv: spirv::SM_SHADOW_COMP,
-                bindings: &[UNIFORM, STORAGE, STORAGE, STORAGE, STORAGE, STORAGE],
+                shader: spirv::SM_SHADOW_COMP,
+                bindings: &[
+                    uniform("GlobalsBlock"),
+                    ro("Vis"),
+                    ro("GPos"),
+                    ro("GNorm"),
+                    ro("Map"),
+                    wo("Shadow"),
+                ],
                 push_size: std::mem::size_of::<SmPush>() as u32,
                 local_size: LOCAL_SIZE,
                 constants: &[],
             },
-        )?;
-        let map = match raster::vis_buffer(ctx, "shadow map", texels) {
-            Ok(m) => m,
-            Err(e) => {
-                pipeline.destroy(ctx);
-                return Err(e);
-            }
-        };
+        )?);
+        let map = raster::vis_buffer(ctx, "shadow map", texels)?;
         let push = Self::push(&light, params);
+        Self::log(&light, &push);
+        Ok(ShadowMap {
+            light,
+            map,
+            pipeline: pipeline.keep(),
+            push,
+        })
+    }
+
+    fn log(light: &Camera, push: &SmPush) {
         log::info!(
             "sm-pcf: map {}², texel {:.4}, bias {:.4} + {:.4} tan, {} taps radius {}",
             light.width,
@@ -106,12 +118,6 @@ impl ShadowMap {
             push.samples,
             push.radius
         );
-        Ok(ShadowMap {
-            light,
-            map,
-            pipeline,
-            push,
-        })
     }
 
     /// World-unit biases and PCF settings for a light view.
@@ -133,55 +139,9 @@ impl ShadowMap {
         self.light.width as u64 * self.light.height as u64
     }
 
+    /// Bytes of the depth map.
     pub fn memory_bytes(&self) -> u64 {
         self.map.size
-    }
-
-    /// `sm_raster`: the light view's depth|id map (own timestamp scope).
-    #[allow(clippy::too_many_arguments)]
-    pub fn record_raster(
-        &self,
-        ctx: &Context,
-        cmd: vk::CommandBuffer,
-        prof: &mut Profiler,
-        raster: &RasterPass,
-        globals: &Buffer,
-        spheres: &Buffer,
-        sphere_count: u32,
-    ) -> Result<()> {
-        raster.record_scoped(
-            ctx,
-            cmd,
-            prof,
-            Self::RASTER_NAME,
-            globals,
-            spheres,
-            sphere_count,
-            &self.map,
-            self.texels(),
-            ViewIndex::Light,
-        )
-    }
-
-    /// `sm_shadow`: key-light visibility per visible pixel into `shadow`.
-    pub fn record_shadow(
-        &self,
-        ctx: &Context,
-        cmd: vk::CommandBuffer,
-        prof: &mut Profiler,
-        f: &ShadowInputs,
-    ) -> Result<()> {
-        prof.begin(ctx, cmd, Self::NAME)?;
-        self.pipeline.dispatch(
-            ctx,
-            cmd,
-            &[f.globals, f.vis, f.gpos, f.gnorm, &self.map, f.shadow],
-            &self.push,
-            f.pixels,
-        )?;
-        prof.end(ctx, cmd)?;
-        barrier(&ctx.device, cmd);
-        Ok(())
     }
 
     /// The depth|id map (without guard words).
@@ -196,8 +156,73 @@ impl ShadowMap {
             .download_pod(ctx, self.texels(), raster::VIS_GUARD_WORDS)?;
         Ok(g.iter().all(|&w| w == raster::GUARD_PATTERN))
     }
+}
 
-    pub fn destroy(&mut self, ctx: &Context) {
+impl ShadowTechnique for ShadowMap {
+    fn mode(&self) -> ShadowMode {
+        ShadowMode::SmPcf
+    }
+
+    fn light(&self) -> &Camera {
+        &self.light
+    }
+
+    /// `sm_raster`: the light view's depth|id map.
+    fn record_light<'b>(&'b self, rec: &mut Recorder, f: &ShadowInputs<'b>) -> Result<()> {
+        rec.pass(Self::RASTER_NAME, |p| {
+            f.raster.steps(
+                p,
+                f.globals,
+                f.spheres,
+                f.sphere_count,
+                &self.map,
+                self.texels(),
+                ViewIndex::Light,
+            );
+            Ok(())
+        })
+    }
+
+    /// `sm_shadow`: key-light visibility per visible pixel into `shadow`.
+    fn record_lookup<'b>(&'b self, rec: &mut Recorder, f: &ShadowInputs<'b>) -> Result<()> {
+        rec.pass(Self::NAME, |p| {
+            p.dispatch(
+                &self.pipeline,
+                &self.push,
+                Grid::Invocations(f.pixels),
+                &[
+                    ("GlobalsBlock", f.globals),
+                    ("Vis", f.vis),
+                    ("GPos", f.gpos),
+                    ("GNorm", f.gnorm),
+                    ("Map", &self.map),
+                    ("Shadow", f.shadow),
+                ],
+            );
+            Ok(())
+        })
+    }
+
+    fn refit(&mut self, setup: &ShadowSetup) -> Result<()> {
+        self.light = setup.fit(self.light.width)?;
+        self.push = Self::push(&self.light, &setup.settings.shadow_maps);
+        Self::log(&self.light, &self.push);
+        Ok(())
+    }
+
+    fn memory(&self) -> Vec<(&'static str, u64)> {
+        vec![("shadow_map", self.map.size)]
+    }
+
+    fn as_any(&self) -> &dyn Any {
+        self
+    }
+
+    fn as_any_mut(&mut self) -> &mut dyn Any {
+        self
+    }
+
+    fn destroy(&mut self, ctx: &Context) {
         self.pipeline.destroy(ctx);
         self.map.destroy(ctx);
     }

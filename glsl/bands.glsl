@@ -1,0 +1,84 @@
+// The per-sphere / per-band skeleton shared by the camera and light
+// rasterizers, the deep lists' count and fill passes and the opacity maps.
+// One invocation per sphere visits small footprints itself; footprints
+// larger than pc.big_area texels are cut into BAND_ROWS-row bands appended
+// to a job list, and a second pipeline of the same shader (specialization
+// constant BAND_PASS = 1, dispatched indirectly after band_args.comp) runs
+// one workgroup per band, so one big sphere never serialises thousands of
+// texels on one invocation. When the job list is full the sphere's own
+// invocation visits its whole footprint instead (band_inline() lets the
+// includer remember that, e.g. for the deep lists' fill pass).
+//
+// Before including, define:
+//   struct Footprint { ...; ivec4 rect; }   inclusive texel rectangle
+//   Footprint band_footprint(uint id);
+//   void visit(uint id, Footprint f, ivec2 t);
+//   bool band_queue();          false: do not queue (a previous pass did),
+//                               only replay the spheres band_replay() names
+//   void band_inline(uint id);  the job list was full for this sphere
+//   bool band_replay(uint id);
+//   #define BAND_REQ, BAND_RUN  word indices of counters[]
+// with buffers jobs[] (uvec2: sphere id, first row) and counters[] (uint),
+// and push constants pc.sphere_count, pc.big_area, pc.job_capacity.
+#ifndef BANDS_GLSL
+#define BANDS_GLSL
+#include "shared.glsl"
+
+layout(constant_id = 1) const uint BAND_PASS = 0;
+
+void visit_rect(uint id, Footprint f, ivec4 rc) {
+    for (int y = rc.y; y <= rc.w; ++y) {
+        for (int x = rc.x; x <= rc.z; ++x) visit(id, f, ivec2(x, y));
+    }
+}
+
+void band_sphere() {
+    uint id = FLAT_ID;
+    if (id >= pc.sphere_count) return;
+    Footprint f = band_footprint(id);
+    ivec4 rc = f.rect;
+    if (rc.x > rc.z || rc.y > rc.w) return;
+    uint area = uint(rc.z - rc.x + 1) * uint(rc.w - rc.y + 1);
+    if (area <= pc.big_area) {
+        visit_rect(id, f, rc);
+        return;
+    }
+    if (!band_queue()) {
+        if (band_replay(id)) visit_rect(id, f, rc);
+        return;
+    }
+    uint nb = uint(rc.w - rc.y) / BAND_ROWS + 1u;
+    uint base = atomicAdd(counters[BAND_REQ], nb);
+    if (base < pc.job_capacity && nb <= pc.job_capacity - base) {
+        for (uint b = 0u; b < nb; ++b) jobs[base + b] = uvec2(id, uint(rc.y) + b * BAND_ROWS);
+        return;
+    }
+    // The job list is full: void the slots this sphere got, visit here.
+    for (uint j = base; j < min(base + nb, pc.job_capacity); ++j) jobs[j] = uvec2(NO_SPHERE, 0u);
+    band_inline(id);
+    visit_rect(id, f, rc);
+}
+
+void band_job() {
+    uint job = gl_WorkGroupID.x + gl_WorkGroupID.y * MAX_GROUPS_X;
+    if (job >= counters[BAND_RUN]) return;
+    uvec2 jb = jobs[job];
+    if (jb.x == NO_SPHERE) return;
+    Footprint f = band_footprint(jb.x);
+    ivec4 rc = f.rect;
+    int y0 = int(jb.y);
+    int rows = min(int(BAND_ROWS), rc.w - y0 + 1);
+    int width = rc.z - rc.x + 1;
+    for (int i = int(gl_LocalInvocationID.x); i < width * rows; i += int(gl_WorkGroupSize.x)) {
+        visit(jb.x, f, ivec2(rc.x + i % width, y0 + i / width));
+    }
+}
+
+void main() {
+    if (BAND_PASS != 0u) {
+        band_job();
+    } else {
+        band_sphere();
+    }
+}
+#endif

@@ -1,0 +1,52 @@
+// The constants Rust and GLSL share, in one list. `src/gpu.rs` turns it into
+// `pub const`s; build.rs turns the same file into `constants.glsl` (included
+// by glsl/shared.glsl), so a value is written once. Only `u32`, `i32` and
+// `f32` constants; a doc comment travels to both sides.
+gpu_constants! {
+    /// Rows of one band job: large footprints are cut into bands this high.
+    BAND_ROWS: u32 = 8;
+    /// Most workgroups along x of one dispatch; larger grids fold into y.
+    MAX_GROUPS_X: u32 = 65535;
+    /// Deep lists: tile side in texels (one 64-invocation workgroup).
+    DEEP_TILE: u32 = 8;
+    /// Deep lists: entries per chunk.
+    DEEP_CHUNK: u32 = 64;
+    /// Deep lists: list terminator / "no chunk".
+    DEEP_NONE: u32 = 0xFFFF_FFFF;
+    /// Deep lists: tile flag, the tile did not fit in the pool.
+    DEEP_TILE_OVERFLOWED: u32 = 1;
+    /// Deep counters: chunks requested from the pool (may exceed capacity).
+    C_CHUNKS: u32 = 0;
+    /// Deep counters: 1 if a tile did not fit.
+    C_OVERFLOW: u32 = 1;
+    /// Deep counters: entries counted.
+    C_ENTRIES: u32 = 2;
+    /// Deep counters: largest entry count of a texel (depth complexity).
+    C_MAX_COUNT: u32 = 3;
+    /// Deep counters: compressed visibility nodes, all texels.
+    C_NODES: u32 = 4;
+    /// Deep counters: fill slots outside their texel's run (must stay 0).
+    C_FILL_ERRORS: u32 = 5;
+    /// Deep counters: most compressed nodes of a texel.
+    C_MAX_NODES: u32 = 6;
+    /// Deep counters: texels with at least one entry.
+    C_NONEMPTY: u32 = 7;
+    /// Deep counters: entries of overflowed tiles (not stored).
+    C_DROPPED: u32 = 8;
+    /// Deep counters: band jobs requested.
+    C_BANDS_REQ: u32 = 16;
+    /// Deep counters: band jobs dispatched.
+    C_BANDS_RUN: u32 = 17;
+    /// Deep counters: first of the three indirect dispatch words.
+    C_ARGS: u32 = 20;
+    /// Raster counters: band jobs requested.
+    R_BANDS_REQ: u32 = 0;
+    /// Raster counters: band jobs dispatched.
+    R_BANDS_RUN: u32 = 1;
+    /// Raster counters: first of the three indirect dispatch words.
+    R_ARGS: u32 = 4;
+    /// Deep lists: light-space disk enlargement in texels (conservative
+    /// footprints: a missed texel would leak light, an extra entry costs one
+    /// exact ray test).
+    DEEP_DISK_SLACK: f32 = 0.01;
+}

@@ -1,0 +1,211 @@
+//! Implicit Sphere Shadow Maps (seed 000): the key light's view is
+//! rasterized by the compute sphere rasterizer into an id map
+//! (`issm_raster`), then `issm_shadow` tests each visible point's light ray
+//! against the spheres of a (2t+1)^2 texel patch.
+
+use super::{ShadowSetup, ShadowTechnique};
+use crate::camera::Camera;
+use crate::error::Result;
+use crate::passes::raster::{self, ViewIndex};
+use crate::passes::{LOCAL_SIZE, ShadowInputs, spirv};
+use crate::settings::{IssmParams, ShadowMode};
+use crate::vk::pipeline::{PipelineDesc, ro, uniform, wo};
+use crate::vk::{Buffer, ComputePipeline, Context, Grid, Recorder};
+use bytemuck::{Pod, Zeroable};
+use std::any::Any;
+
+/// Largest automatic patch half-size in texels.
+pub const MAX_AUTO_T: u32 = 64;
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct IssmPush {
+    pub t: i32,
+    /// Texel step outside the dense 3x3 core.
+    pub stride: i32,
+    pub soft_s: f32,
+    pub soft_x: f32,
+    pub soft_b: f32,
+}
+
+/// Automatic t: an occluder of P's light ray has its centre within r_max
+/// (plus the soft enlargement s) of P across the light, so its own texel is
+/// within ceil((r_max + s) / texel + 0.5) texels of P's; the sphere covering
+/// its centre texel is stored there unless something nearer the light covers
+/// it, which then shadows P as well (up to silhouettes).
+pub fn auto_t(max_radius: f32, soft_s: f32, texel: f64) -> u32 {
+    let reach = (max_radius + soft_s) as f64 / texel.max(1e-9) + 0.5;
+    (reach.ceil() as u32).clamp(1, MAX_AUTO_T)
+}
+
+/// Patch sampling step for automatic t: the smallest sphere radius in texels
+/// (at least 1), so a sphere's light-space disk always holds a sample.
+pub fn auto_stride(min_radius: f32, texel: f64) -> u32 {
+    ((min_radius as f64 / texel.max(1e-9)).floor() as u32).max(1)
+}
+
+/// The key light's sphere id map and the lookup that reads it.
+pub struct Issm {
+    soft: bool,
+    pub light: Camera,
+    map: Buffer,
+    pipeline: ComputePipeline,
+    pub push: IssmPush,
+}
+
+impl Issm {
+    pub const RASTER_NAME: &'static str = "issm_raster";
+    pub const NAME: &'static str = "issm_shadow";
+
+    pub fn new(setup: &ShadowSetup, soft: bool) -> Result<Self> {
+        let ctx = setup.ctx;
+        let p = &setup.settings.issm;
+        let light = setup.fit(p.size)?;
+        let map = ctx.guard(raster::vis_buffer(
+            ctx,
+            "issm",
+            p.size as u64 * p.size as u64,
+        )?);
+        let pipeline = ComputePipeline::new(
+            ctx,
+            &PipelineDesc {
+                name: Self::NAME,
+                shader: spirv::ISSM_SHADOW_COMP,
+                bindings: &[
+                    uniform("GlobalsBlock"),
+                    ro("Spheres"),
+                    ro("Vis"),
+                    ro("GPos"),
+                    ro("Issm"),
+                    wo("Shadow"),
+                ],
+                push_size: std::mem::size_of::<IssmPush>() as u32,
+                local_size: LOCAL_SIZE,
+                constants: &[],
+            },
+        )?;
+        let mut issm = Issm {
+            soft,
+            light,
+            map: map.keep(),
+            pipeline,
+            push: IssmPush::zeroed(),
+        };
+        issm.fit_push(setup, light);
+        Ok(issm)
+    }
+
+    /// Patch size and stride for a light view (auto t follows the texel).
+    fn fit_push(&mut self, setup: &ShadowSetup, light: Camera) {
+        let p = &setup.settings.issm;
+        let texel = light.view_height / p.size as f64;
+        let (t, stride) = match p.t {
+            Some(t) => (t, 1),
+            None => {
+                let (min_r, max_r) = setup
+                    .radii()
+                    .fold((f32::MAX, 0.0f32), |(lo, hi), r| (lo.min(r), hi.max(r)));
+                let t = auto_t(max_r, if self.soft { p.soft_s } else { 0.0 }, texel);
+                (t, auto_stride(min_r, texel))
+            }
+        };
+        log::info!(
+            "issm: map {}², texel {texel:.3}, t {t}, stride {stride}",
+            p.size
+        );
+        self.light = light;
+        self.push = Self::push(p, self.soft, t, stride);
+    }
+
+    /// `stride` 1 walks every texel of the patch (the paper's method; used
+    /// when the user sets t); automatic t uses `auto_stride`.
+    pub fn push(params: &IssmParams, soft: bool, t: u32, stride: u32) -> IssmPush {
+        IssmPush {
+            t: t as i32,
+            stride: stride.max(1) as i32,
+            soft_s: if soft { params.soft_s } else { 0.0 },
+            soft_x: params.soft_x,
+            soft_b: params.soft_b,
+        }
+    }
+
+    fn texels(&self) -> u64 {
+        self.light.width as u64 * self.light.height as u64
+    }
+
+    /// The light-space id map (depth|id per texel, without guard words).
+    pub fn read_map(&self, ctx: &Context) -> Result<Vec<u64>> {
+        self.map.download_pod(ctx, 0, self.texels())
+    }
+}
+
+impl ShadowTechnique for Issm {
+    fn mode(&self) -> ShadowMode {
+        if self.soft {
+            ShadowMode::IssmSoft
+        } else {
+            ShadowMode::Issm
+        }
+    }
+
+    fn light(&self) -> &Camera {
+        &self.light
+    }
+
+    fn record_light<'b>(&'b self, rec: &mut Recorder, f: &ShadowInputs<'b>) -> Result<()> {
+        rec.pass(Self::RASTER_NAME, |p| {
+            f.raster.steps(
+                p,
+                f.globals,
+                f.spheres,
+                f.sphere_count,
+                &self.map,
+                self.texels(),
+                ViewIndex::Light,
+            );
+            Ok(())
+        })
+    }
+
+    fn record_lookup<'b>(&'b self, rec: &mut Recorder, f: &ShadowInputs<'b>) -> Result<()> {
+        rec.pass(Self::NAME, |p| {
+            p.dispatch(
+                &self.pipeline,
+                &self.push,
+                Grid::Invocations(f.pixels),
+                &[
+                    ("GlobalsBlock", f.globals),
+                    ("Spheres", f.spheres),
+                    ("Vis", f.vis),
+                    ("GPos", f.gpos),
+                    ("Issm", &self.map),
+                    ("Shadow", f.shadow),
+                ],
+            );
+            Ok(())
+        })
+    }
+
+    fn refit(&mut self, setup: &ShadowSetup) -> Result<()> {
+        let light = setup.fit(setup.settings.issm.size)?;
+        self.fit_push(setup, light);
+        Ok(())
+    }
+
+    fn memory(&self) -> Vec<(&'static str, u64)> {
+        vec![("issm_map", self.map.size)]
+    }
+
+    fn as_any(&self) -> &dyn Any {
+        self
+    }
+
+    fn as_any_mut(&mut self) -> &mut dyn Any {
+        self
+    }
+
+    fn destroy(&mut self, ctx: &Context) {
+        self.pipeline.destroy(ctx);
+        self.map.destroy(ctx);
+    }
+}

@@ -1,0 +1,99 @@
+//! Key-light shadow techniques, one shape for all: a technique builds its
+//! light-space structure in `record_light` (before the camera's resolve)
+//! and fills the per-pixel key-light visibility in `record_lookup`. Adding
+//! a technique = its file here, its shader(s), a `ShadowMode` value and one
+//! arm in [`create`].
+
+pub mod deep;
+pub mod issm;
+pub mod osm;
+pub mod shadow_map;
+
+use super::ShadowInputs;
+use crate::camera::Camera;
+use crate::error::Result;
+use crate::gpu::GpuSphere;
+use crate::settings::{RenderSettings, ShadowMode};
+use crate::vk::{Context, Recorder};
+use glam::DVec3;
+use std::any::Any;
+
+/// What a technique needs to (re)fit itself: the spheres (CPU copy), the
+/// key-light direction and the settings.
+pub struct ShadowSetup<'a> {
+    pub ctx: &'a Context,
+    pub spheres: &'a [GpuSphere],
+    pub light_dir: DVec3,
+    pub settings: &'a RenderSettings,
+}
+
+impl ShadowSetup<'_> {
+    /// The orthographic light view fitted to the spheres at `size`² texels.
+    pub fn fit(&self, size: u32) -> Result<Camera> {
+        crate::camera::light_view(
+            self.spheres.iter().map(|s| ([s[0], s[1], s[2]], s[3])),
+            self.light_dir,
+            size,
+        )
+    }
+
+    pub fn radii(&self) -> impl Iterator<Item = f32> + '_ {
+        self.spheres.iter().map(|s| s[3])
+    }
+}
+
+/// After a frame: is it good, or must it be rendered again?
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FrameCheck {
+    Done,
+    /// The technique grew a structure that overflowed: render again.
+    Retry,
+}
+
+pub trait ShadowTechnique {
+    fn mode(&self) -> ShadowMode;
+    /// The light view the technique's map uses (in `Globals.light`).
+    fn light(&self) -> &Camera;
+    /// Light-space passes: maps or lists of the key light's view.
+    fn record_light<'b>(&'b self, rec: &mut Recorder, f: &ShadowInputs<'b>) -> Result<()>;
+    /// Per-pixel passes writing key-light visibility into `f.shadow`.
+    fn record_lookup<'b>(&'b self, rec: &mut Recorder, f: &ShadowInputs<'b>) -> Result<()>;
+    /// The light direction, the spheres or the settings changed: refit the
+    /// light view and everything derived from it (maps keep their size).
+    fn refit(&mut self, setup: &ShadowSetup) -> Result<()>;
+    /// Device memory by class (bytes), for `gpu_memory`.
+    fn memory(&self) -> Vec<(&'static str, u64)>;
+    /// Called after each frame finished; `Retry` renders it again.
+    fn after_frame(&mut self, _ctx: &Context) -> Result<FrameCheck> {
+        Ok(FrameCheck::Done)
+    }
+    /// Whether the frame must be checked before the next one is recorded
+    /// (so a pipelined viewer waits for it).
+    fn checks_frames(&self) -> bool {
+        false
+    }
+    fn as_any(&self) -> &dyn Any;
+    fn as_any_mut(&mut self) -> &mut dyn Any;
+    fn destroy(&mut self, ctx: &Context);
+}
+
+/// The technique of `mode` (None for `--shadows none`).
+pub fn create(mode: ShadowMode, setup: &ShadowSetup) -> Result<Option<Box<dyn ShadowTechnique>>> {
+    Ok(match mode {
+        ShadowMode::None => None,
+        ShadowMode::Issm | ShadowMode::IssmSoft => Some(Box::new(issm::Issm::new(
+            setup,
+            mode == ShadowMode::IssmSoft,
+        )?)),
+        ShadowMode::Deep => Some(Box::new(deep::DeepShadows::new(setup)?)),
+        ShadowMode::SmPcf => Some(Box::new(shadow_map::ShadowMap::new(setup)?)),
+        ShadowMode::Osm => Some(Box::new(osm::OpacityShadows::new(setup)?)),
+    })
+}
+
+/// Boxed techniques are destroyed through the trait.
+impl crate::vk::guard::Destroy for Box<dyn ShadowTechnique> {
+    fn destroy_with(&mut self, ctx: &Context) {
+        self.destroy(ctx);
+    }
+}

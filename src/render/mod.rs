@@ -1,0 +1,801 @@
+//! The renderer: scene buffers, screen targets, the passes, and frames in
+//! flight. A frame is recorded by [`graph`] (the one pass list). Settings
+//! change through setters that update uniforms and push constants; a
+//! shadow technique or SSDO is created the first time it is chosen and
+//! kept, so the viewer never rebuilds the renderer.
+
+pub mod frame;
+pub mod graph;
+pub mod targets;
+
+use crate::camera::Camera;
+use crate::error::{Error, Result};
+use crate::gpu::{Globals, GpuSphere, SphereAttr};
+use crate::passes::blur::{BlurPass, BlurPush};
+use crate::passes::composite::CompositePass;
+use crate::passes::raster::RasterPass;
+use crate::passes::raster_graphics::GraphicsRasterPass;
+use crate::passes::resolve::ResolvePass;
+use crate::passes::shadows::deep::{DeepShadows, DeepStats};
+use crate::passes::shadows::issm::Issm;
+use crate::passes::shadows::osm::OpacityShadows;
+use crate::passes::shadows::shadow_map::ShadowMap;
+use crate::passes::shadows::{self, FrameCheck, ShadowSetup, ShadowTechnique};
+use crate::passes::ssdo::{KeyShadowPush, SsdoPass, SsdoPush};
+use crate::scene::Scene;
+use crate::semantic::{self, LevelChoice};
+use crate::settings::{RasterMode, RenderSettings, ShadowMode, SsdoMode};
+use crate::vk::guard::Destroy;
+use crate::vk::{Buffer, Context, PassTimes, Recorder};
+use ash::vk;
+use frame::FrameSlot;
+use glam::DVec3;
+use std::collections::BTreeMap;
+use std::sync::atomic::{AtomicU64, Ordering};
+use targets::Targets;
+
+pub use graph::SHADOW_DIFFUSE;
+
+/// Renderers constructed in this process (tests check the viewer makes one).
+pub static RENDERERS_CREATED: AtomicU64 = AtomicU64::new(0);
+
+/// Frames the deep lists may ask to render again (pool growth) before the
+/// frame fails.
+const MAX_RETRIES: usize = 4;
+
+pub struct Renderer<'c> {
+    ctx: &'c Context,
+    settings: RenderSettings,
+    /// Per-frame resources, so a frame can be recorded while the previous
+    /// one still runs (the viewer); `render_frame` uses them one at a time.
+    slots: Vec<FrameSlot>,
+    next_slot: usize,
+    res: Resources,
+}
+
+/// A shadow technique made once and kept; `stale` after the light or the
+/// spheres changed while another technique was active.
+struct Kept {
+    technique: Box<dyn ShadowTechnique>,
+    stale: bool,
+}
+
+impl Destroy for Kept {
+    fn destroy_with(&mut self, ctx: &Context) {
+        self.technique.destroy(ctx);
+    }
+}
+
+/// The SSDO, screen-space shadow and blur pipelines.
+struct SsdoState {
+    pass: SsdoPass,
+    blur: BlurPass,
+}
+
+impl Destroy for SsdoState {
+    fn destroy_with(&mut self, ctx: &Context) {
+        self.pass.destroy(ctx);
+        self.blur.destroy(ctx);
+    }
+}
+
+/// Push constants of the screen-space passes for one frame.
+pub(crate) struct SsdoParams {
+    pub ssdo: SsdoPush,
+    pub key_shadow: KeyShadowPush,
+    pub blur: BlurPush,
+}
+
+/// Everything on the GPU except the frame slots.
+pub(crate) struct Resources {
+    sphere_count: u32,
+    /// CPU copy of the geometry: light views are fitted to it.
+    geom: Vec<GpuSphere>,
+    /// Bounding sphere of the sphere centres (camera depth offsets, zoom).
+    bounds: (DVec3, f64),
+    /// Typical sphere radius (screen-space effect radii), useful hierarchy
+    /// levels and zoom thresholds of the semantic level choice.
+    typical_radius: f64,
+    levels: Vec<u32>,
+    thresholds: Vec<f64>,
+    globals: Globals,
+    /// Write the colour buffer as BGRA (for BGRA swapchains).
+    bgra: bool,
+    spheres: Buffer,
+    attrs: Buffer,
+    targets: Targets,
+    raster: RasterPass,
+    /// The vertex/fragment baseline, when `--raster graphics`.
+    raster_graphics: Option<GraphicsRasterPass>,
+    resolve: ResolvePass,
+    composite: CompositePass,
+    techniques: Vec<Kept>,
+    /// Index into `techniques` of the active one (None = `--shadows none`).
+    active: Option<usize>,
+    ssdo: Option<SsdoState>,
+}
+
+/// Typical sphere radius (median of a sample) to scale screen-space effects.
+fn typical_radius(scene: &Scene) -> f32 {
+    let step = (scene.spheres.len() / 4096).max(1);
+    let mut r: Vec<f32> = scene
+        .spheres
+        .iter()
+        .step_by(step)
+        .map(|s| s.radius)
+        .collect();
+    r.sort_by(|a, b| a.total_cmp(b));
+    r.get(r.len() / 2).copied().unwrap_or(1.0)
+}
+
+pub use crate::camera::default_camera;
+
+fn normalized(v: DVec3) -> [f32; 4] {
+    let l = v.normalize();
+    [l.x as f32, l.y as f32, l.z as f32, 0.0]
+}
+
+impl Resources {
+    fn active_shadow(&self) -> Option<&dyn ShadowTechnique> {
+        self.active.map(|i| self.techniques[i].technique.as_ref())
+    }
+
+    fn setup<'a>(&'a self, ctx: &'a Context, settings: &'a RenderSettings) -> ShadowSetup<'a> {
+        ShadowSetup {
+            ctx,
+            spheres: &self.geom,
+            light_dir: settings.light,
+            settings,
+        }
+    }
+
+    /// Depth offset that keeps a view's orthographic depth keys positive.
+    fn depth_offset(&self, view: &Camera) -> f64 {
+        let (c, r) = self.bounds;
+        (c - view.center).length() + r + 1.0
+    }
+
+    /// Puts the active technique's light view (or the camera) in the globals.
+    fn update_light_view(&mut self, settings: &RenderSettings) {
+        let light = self.active_shadow().map(|t| *t.light());
+        self.globals.light = match light {
+            Some(l) => l.to_gpu(self.depth_offset(&l)),
+            None => settings.camera.to_gpu(self.depth_offset(&settings.camera)),
+        };
+        self.globals.light_dir = normalized(settings.light);
+    }
+
+    fn level_choice(&self, cam: &Camera) -> LevelChoice {
+        semantic::choose(
+            semantic::zoom_distance(cam, self.bounds.0),
+            &self.thresholds,
+            &self.levels,
+        )
+    }
+
+    /// Screen-space radii in world units (at least a few pixels so far
+    /// views still sample) and the semantic level for this camera.
+    pub(crate) fn ssdo_params(&self, settings: &RenderSettings) -> SsdoParams {
+        let cam = &settings.camera;
+        let r = self.typical_radius;
+        let px = 1.0 / cam.pixels_per_unit();
+        let choice = self.level_choice(cam);
+        let semantic = (settings.ssdo == SsdoMode::Semantic) as u32;
+        SsdoParams {
+            ssdo: SsdoPush {
+                r_near: (2.0 * r).max(2.0 * px) as f32,
+                r_far: (8.0 * r).max(8.0 * px) as f32,
+                dirs: 12,
+                steps: 4,
+                semantic,
+                level_a: choice.level_a,
+                level_b: choice.level_b,
+                blend: choice.blend,
+                bounce: 1.0,
+                pad: [0.0; 3],
+            },
+            key_shadow: KeyShadowPush {
+                march: (6.0 * r).max(6.0 * px) as f32,
+                thickness: (2.0 * r).max(px) as f32,
+                steps: 12,
+                pad: 0.0,
+            },
+            blur: BlurPush {
+                radius: 4,
+                sigma_z: (0.5 * r).max(px) as f32,
+                semantic,
+                level: if choice.blend >= 0.5 {
+                    choice.level_b
+                } else {
+                    choice.level_a
+                },
+                // Light-space shadows are smooth already: only the noisy
+                // screen-space ones are blurred.
+                blur_shadow: self.active.is_none() as u32,
+                pad: [0.0; 3],
+            },
+        }
+    }
+}
+
+impl<'c> Renderer<'c> {
+    pub fn new(ctx: &'c Context, scene: &Scene, settings: RenderSettings) -> Result<Self> {
+        if scene.spheres.is_empty() {
+            return Err(Error::Input(format!(
+                "{}: no spheres to render",
+                scene.source
+            )));
+        }
+        if scene.spheres.len() >= (1 << 24) {
+            return Err(Error::Input(format!(
+                "{} spheres: at most 16,777,215 are supported (sphere ids are 24-bit in the id AOV)",
+                scene.spheres.len()
+            )));
+        }
+        let cam = settings.camera;
+        let geom: Vec<GpuSphere> = scene
+            .spheres
+            .iter()
+            .map(|s| [s.center[0], s.center[1], s.center[2], s.radius])
+            .collect();
+        let attrs: Vec<SphereAttr> = scene
+            .spheres
+            .iter()
+            .map(|s| SphereAttr {
+                region: s.region,
+                color: u32::from_le_bytes(s.color),
+                ..Default::default()
+            })
+            .collect();
+
+        // Each object is guarded until the renderer owns it: an error part
+        // way (a buffer over the device limit) destroys what was made.
+        let spheres = ctx.guard(Buffer::storage(ctx, "spheres", (geom.len() * 16) as u64)?);
+        spheres.upload(ctx, 0, bytemuck::cast_slice(&geom))?;
+        let attr_buf = ctx.guard(Buffer::storage(
+            ctx,
+            "sphere attributes",
+            (attrs.len() * 32) as u64,
+        )?);
+        attr_buf.upload(ctx, 0, bytemuck::cast_slice(&attrs))?;
+        let targets = ctx.guard(Targets::new(ctx, cam.width, cam.height)?);
+        let raster_graphics = ctx.guard(match settings.raster {
+            RasterMode::Graphics => Some(GraphicsRasterPass::new(ctx)?),
+            RasterMode::Compute => None,
+        });
+        let mut slots = ctx.guard(Vec::new());
+        for i in 0..crate::vk::FRAME_SLOTS {
+            slots.push(FrameSlot::new(ctx, i)?);
+        }
+        let raster = ctx.guard(RasterPass::new(ctx)?);
+        let resolve = ctx.guard(ResolvePass::new(ctx)?);
+        let composite = ctx.guard(CompositePass::new(ctx)?);
+
+        let (bs_center, bs_radius) = scene.bounding_sphere();
+        let levels = semantic::useful_levels(scene);
+        let thresholds = settings.semantic_levels.clone().unwrap_or_else(|| {
+            semantic::default_thresholds(levels.len(), 2.0 * bs_radius as f64 * 1.05)
+        });
+        let mut res = Resources {
+            sphere_count: geom.len() as u32,
+            geom,
+            bounds: (bs_center.as_dvec3(), bs_radius as f64),
+            typical_radius: typical_radius(scene) as f64,
+            levels,
+            thresholds,
+            globals: Globals {
+                background: [0.13, 0.14, 0.17, 1.0],
+                ..Default::default()
+            },
+            bgra: false,
+            spheres: spheres.keep(),
+            attrs: attr_buf.keep(),
+            targets: targets.keep(),
+            raster: raster.keep(),
+            raster_graphics: raster_graphics.keep(),
+            resolve: resolve.keep(),
+            composite: composite.keep(),
+            techniques: Vec::new(),
+            active: None,
+            ssdo: None,
+        };
+        res.globals.counts = [res.sphere_count, 0, 0, 0];
+        res.globals.cam = cam.to_gpu(res.depth_offset(&cam));
+        let mut r = Renderer {
+            ctx,
+            settings,
+            slots: slots.keep(),
+            next_slot: 0,
+            res,
+        };
+        // From here on `r` owns everything (Drop destroys it on error).
+        r.set_shadows(r.settings.shadows)?;
+        r.set_ssdo(r.settings.ssdo)?;
+        if r.settings.ssdo != SsdoMode::Off {
+            log::info!(
+                "semantic levels {:?}, choice {:?}",
+                r.res.levels,
+                r.res.level_choice(&cam)
+            );
+        }
+        RENDERERS_CREATED.fetch_add(1, Ordering::Relaxed);
+        Ok(r)
+    }
+
+    pub fn settings(&self) -> &RenderSettings {
+        &self.settings
+    }
+
+    pub fn sphere_count(&self) -> u32 {
+        self.res.sphere_count
+    }
+
+    /// The composited colour buffer (RGBA8 or BGRA8 texels, row-major).
+    pub fn color_buffer(&self) -> &Buffer {
+        &self.res.targets.color
+    }
+
+    pub fn is_bgra(&self) -> bool {
+        self.res.bgra
+    }
+
+    /// Writes the colour buffer as BGRA from the next frame on.
+    pub fn set_bgra(&mut self, bgra: bool) {
+        self.res.bgra = bgra;
+    }
+
+    /// Moves the camera (same image size): light-space maps are camera
+    /// independent; screen-space radii and the semantic level follow it.
+    pub fn set_camera(&mut self, cam: Camera) -> Result<()> {
+        let old = &self.settings.camera;
+        if (cam.width, cam.height) != (old.width, old.height) {
+            return Err(Error::Internal(
+                "set_camera: the image size changed; call resize".into(),
+            ));
+        }
+        self.res.globals.cam = cam.to_gpu(self.res.depth_offset(&cam));
+        self.settings.camera = cam;
+        if self.res.active.is_none() {
+            self.res.update_light_view(&self.settings);
+        }
+        Ok(())
+    }
+
+    /// A new image size: reallocates the screen targets only.
+    pub fn resize(&mut self, cam: Camera) -> Result<()> {
+        self.wait_idle()?;
+        let targets = Targets::new(self.ctx, cam.width, cam.height)?;
+        let mut old = std::mem::replace(&mut self.res.targets, targets);
+        old.destroy(self.ctx);
+        self.settings.camera = cam;
+        self.res.globals.cam = cam.to_gpu(self.res.depth_offset(&cam));
+        self.res.update_light_view(&self.settings);
+        Ok(())
+    }
+
+    /// A new key-light direction: the active technique refits its light
+    /// view now, the others when they are chosen again.
+    pub fn set_light(&mut self, dir: DVec3) -> Result<()> {
+        if !(dir.length() > 0.0) || !dir.is_finite() {
+            return Err(Error::Input("--light must be a non-zero direction".into()));
+        }
+        self.settings.light = dir;
+        for k in &mut self.res.techniques {
+            k.stale = true;
+        }
+        if let Some(i) = self.res.active {
+            self.refit(i)?;
+        }
+        self.res.update_light_view(&self.settings);
+        Ok(())
+    }
+
+    fn refit(&mut self, i: usize) -> Result<()> {
+        // Frames in flight read the light view from their own uniform copy
+        // (written at submit), so nothing waits here.
+        let Resources {
+            geom, techniques, ..
+        } = &mut self.res;
+        let setup = ShadowSetup {
+            ctx: self.ctx,
+            spheres: geom,
+            light_dir: self.settings.light,
+            settings: &self.settings,
+        };
+        techniques[i].technique.refit(&setup)?;
+        techniques[i].stale = false;
+        Ok(())
+    }
+
+    /// Chooses the shadow technique; it is created the first time and kept.
+    pub fn set_shadows(&mut self, mode: ShadowMode) -> Result<()> {
+        let found = self
+            .res
+            .techniques
+            .iter()
+            .position(|k| k.technique.mode() == mode);
+        let index = match (mode, found) {
+            (ShadowMode::None, _) => None,
+            (_, Some(i)) => {
+                if self.res.techniques[i].stale {
+                    self.refit(i)?;
+                }
+                Some(i)
+            }
+            (_, None) => {
+                let setup = self.res.setup(self.ctx, &self.settings);
+                match shadows::create(mode, &setup)? {
+                    Some(t) => {
+                        self.res.techniques.push(Kept {
+                            technique: t,
+                            stale: false,
+                        });
+                        Some(self.res.techniques.len() - 1)
+                    }
+                    None => None,
+                }
+            }
+        };
+        if index.is_none() && self.res.active.is_some() {
+            // No technique writes key-light visibility any more.
+            self.wait_idle()?;
+            self.res.targets.clear_shadow(self.ctx)?;
+        }
+        self.res.active = index;
+        self.settings.shadows = mode;
+        self.res.update_light_view(&self.settings);
+        Ok(())
+    }
+
+    /// Chooses the SSDO mode; its pipelines are created the first time.
+    pub fn set_ssdo(&mut self, mode: SsdoMode) -> Result<()> {
+        if mode != SsdoMode::Off && self.res.ssdo.is_none() {
+            let pass = self.ctx.guard(SsdoPass::new(self.ctx)?);
+            let blur = BlurPass::new(self.ctx)?;
+            self.res.ssdo = Some(SsdoState {
+                pass: pass.keep(),
+                blur,
+            });
+        }
+        self.settings.ssdo = mode;
+        Ok(())
+    }
+
+    pub fn set_blur(&mut self, on: bool) {
+        self.settings.blur = on;
+    }
+
+    /// Opacity of every sphere (translucent shadows with deep lists / osm).
+    pub fn set_opacity(&mut self, opacity: f32) -> Result<()> {
+        if !(0.0..=1.0).contains(&opacity) {
+            return Err(Error::Input("--opacity must be between 0 and 1".into()));
+        }
+        self.settings.opacity = opacity;
+        Ok(())
+    }
+
+    pub fn pixels(&self) -> u64 {
+        self.res.targets.pixels
+    }
+
+    /// Device memory of this renderer's buffers by class (bytes requested,
+    /// before allocator alignment): what a user sizing a data set needs to
+    /// know is which part grows with spheres, pixels or the light map.
+    pub fn memory_by_class(&self) -> BTreeMap<String, u64> {
+        let mut m = BTreeMap::new();
+        let mut add = |class: &str, bytes: u64| {
+            if bytes > 0 {
+                *m.entry(class.to_string()).or_insert(0) += bytes;
+            }
+        };
+        add("scene", self.res.spheres.size + self.res.attrs.size);
+        add(
+            "uniforms",
+            self.slots.iter().map(|f| f.globals.size).sum::<u64>(),
+        );
+        let (vis, gbuffer) = self.res.targets.memory();
+        add("visibility", vis + self.res.raster.memory_bytes());
+        add("gbuffer", gbuffer);
+        if let Some(t) = self.res.active_shadow() {
+            for (class, bytes) in t.memory() {
+                add(class, bytes);
+            }
+        }
+        m
+    }
+
+    /// Renders one frame and waits for it; when the active technique asks
+    /// (the deep lists grew their pool), renders it again.
+    pub fn render_frame(&mut self) -> Result<PassTimes> {
+        for _ in 0..=MAX_RETRIES {
+            let slot = self.submit()?;
+            let times = self
+                .finish_slot(slot)?
+                .ok_or_else(|| Error::Internal("frame results missing".into()))?;
+            if self.after_frame()? == FrameCheck::Done {
+                return Ok(times);
+            }
+        }
+        Err(Error::DeviceLimit(
+            "deep shadow list pool still overflows after growing it".into(),
+        ))
+    }
+
+    fn after_frame(&mut self) -> Result<FrameCheck> {
+        match self.res.active {
+            Some(i) => self.res.techniques[i].technique.after_frame(self.ctx),
+            None => Ok(FrameCheck::Done),
+        }
+    }
+
+    /// Records and submits the next frame without waiting for it; returns
+    /// the per-pass times of the frame that used this slot before (already
+    /// finished, or waited for: at most one other frame stays in flight).
+    /// A technique that checks each frame (deep lists) makes this wait like
+    /// `render_frame`.
+    pub fn render_frame_pipelined(&mut self) -> Result<Option<PassTimes>> {
+        if self.res.active_shadow().is_some_and(|t| t.checks_frames()) {
+            return self.render_frame().map(Some);
+        }
+        let slot = self.next_slot;
+        let previous = self.finish_slot(slot)?;
+        self.submit()?;
+        Ok(previous)
+    }
+
+    /// Waits for every frame in flight.
+    pub fn wait_idle(&mut self) -> Result<()> {
+        for i in 0..self.slots.len() {
+            self.slots[i].wait(self.ctx)?;
+        }
+        Ok(())
+    }
+
+    /// Waits for the frame last submitted with `slot` and reads its timings.
+    fn finish_slot(&mut self, slot: usize) -> Result<Option<PassTimes>> {
+        let fs = &mut self.slots[slot];
+        fs.wait(self.ctx)?;
+        if !fs.pending {
+            return Ok(None);
+        }
+        fs.pending = false;
+        fs.profiler.results(self.ctx).map(Some)
+    }
+
+    /// Records and submits one frame in the next slot (whose previous frame
+    /// must have finished); returns the slot.
+    fn submit(&mut self) -> Result<usize> {
+        let ctx = self.ctx;
+        let dev = &ctx.device;
+        let slot = self.next_slot;
+        self.next_slot = (slot + 1) % self.slots.len();
+        let Renderer {
+            settings,
+            slots,
+            res,
+            ..
+        } = self;
+        let fs = &mut slots[slot];
+        fs.wait(ctx)?;
+        match fs.globals.mapped_mut() {
+            Some(m) => m.copy_from_slice(bytemuck::bytes_of(&res.globals)),
+            None => fs
+                .globals
+                .upload(ctx, 0, bytemuck::bytes_of(&res.globals))?,
+        }
+        // This slot's previous frame finished: its descriptor sets are free.
+        fs.arena.reset(ctx)?;
+        let cmd = fs.cmd;
+        // SAFETY: the slot's previous submission finished (its fence).
+        unsafe {
+            dev.reset_command_buffer(cmd, vk::CommandBufferResetFlags::empty())
+                .map_err(|result| Error::Vk {
+                    call: "vkResetCommandBuffer",
+                    result,
+                })?;
+            let begin = vk::CommandBufferBeginInfo::default()
+                .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
+            dev.begin_command_buffer(cmd, &begin)
+                .map_err(|result| Error::Vk {
+                    call: "vkBeginCommandBuffer",
+                    result,
+                })?;
+        }
+        fs.profiler.begin_frame(ctx, cmd);
+        let recorded = {
+            let mut rec = Recorder::new(ctx, cmd, &mut fs.arena, Some(&mut fs.profiler));
+            rec.restrict_to(graph::pass_names());
+            res.record_frame(settings, &fs.globals, &mut rec)
+        };
+        // SAFETY: cmd is in the recording state.
+        unsafe { dev.end_command_buffer(cmd) }.map_err(|result| Error::Vk {
+            call: "vkEndCommandBuffer",
+            result,
+        })?;
+        recorded?;
+        let cmds = [cmd];
+        let submit = [vk::SubmitInfo::default().command_buffers(&cmds)];
+        // SAFETY: the fence is unsignalled only by this submission.
+        unsafe {
+            dev.reset_fences(&[fs.fence]).map_err(|result| Error::Vk {
+                call: "vkResetFences",
+                result,
+            })?;
+            dev.queue_submit(ctx.queue, &submit, fs.fence)
+                .map_err(|result| Error::Vk {
+                    call: "vkQueueSubmit",
+                    result,
+                })?;
+        }
+        fs.pending = true;
+        Ok(slot)
+    }
+
+    /// Records the frame into a throwaway command buffer that is never
+    /// submitted and returns the recorder's log of steps and barriers
+    /// (tests check it with [`crate::vk::barrier::check_hazards`]).
+    pub fn frame_log(&mut self) -> Result<Vec<crate::vk::barrier::Event>> {
+        let ctx = self.ctx;
+        let cmd = ctx.command_buffer("frame log")?;
+        let mut arena = crate::vk::descriptors::DescriptorArena::default();
+        let begin = vk::CommandBufferBeginInfo::default();
+        // SAFETY: a fresh command buffer, freed below, never submitted.
+        let result = unsafe { ctx.device.begin_command_buffer(cmd, &begin) }
+            .map_err(|result| Error::Vk {
+                call: "vkBeginCommandBuffer",
+                result,
+            })
+            .and_then(|_| {
+                let mut rec = Recorder::new(ctx, cmd, &mut arena, None);
+                rec.restrict_to(graph::pass_names());
+                rec.keep_log();
+                self.res
+                    .record_frame(&self.settings, &self.slots[0].globals, &mut rec)?;
+                Ok(rec.take_log())
+            });
+        unsafe {
+            let _ = ctx.device.end_command_buffer(cmd);
+            ctx.device.free_command_buffers(ctx.command_pool, &[cmd]);
+        }
+        arena.destroy(ctx);
+        result
+    }
+
+    /// Visibility buffer (depth|id per pixel), without the guard words.
+    pub fn read_vis(&self) -> Result<Vec<u64>> {
+        self.res
+            .targets
+            .vis
+            .download_pod(self.ctx, 0, self.pixels())
+    }
+
+    /// The guard words after the visibility buffer (must stay GUARD_PATTERN).
+    pub fn read_vis_guard(&self) -> Result<Vec<u64>> {
+        self.res.targets.vis.download_pod(
+            self.ctx,
+            self.pixels(),
+            crate::passes::raster::VIS_GUARD_WORDS,
+        )
+    }
+
+    pub fn read_color(&self) -> Result<Vec<u32>> {
+        self.res
+            .targets
+            .color
+            .download_pod(self.ctx, 0, self.pixels())
+    }
+
+    /// G-buffer positions: xyz world, w depth key (-1 = background).
+    pub fn read_gpos(&self) -> Result<Vec<[f32; 4]>> {
+        self.res
+            .targets
+            .gpos
+            .download_pod(self.ctx, 0, self.pixels())
+    }
+
+    pub fn read_shadow(&self) -> Result<Vec<f32>> {
+        self.res
+            .targets
+            .shadow
+            .download_pod(self.ctx, 0, self.pixels())
+    }
+
+    /// Ambient visibility (x) and bounce (yzw) before the blur.
+    pub fn read_ambient_raw(&self) -> Result<Vec<[f32; 4]>> {
+        self.res
+            .targets
+            .ambient
+            .download_pod(self.ctx, 0, self.pixels())
+    }
+
+    /// Ambient visibility (x) and bounce (yzw) as the composite uses it
+    /// (after the blur when it is on).
+    pub fn read_ambient(&self) -> Result<Vec<[f32; 4]>> {
+        let t = &self.res.targets;
+        let b = if self.settings.ssdo_on() && self.settings.blur {
+            &t.blurred[2]
+        } else {
+            &t.ambient
+        };
+        b.download_pod(self.ctx, 0, self.pixels())
+    }
+
+    fn technique<T: 'static>(&self) -> Option<&T> {
+        self.res
+            .active_shadow()
+            .and_then(|t| t.as_any().downcast_ref::<T>())
+    }
+
+    /// The ISSM light view and patch half-size t, when ISSM is active.
+    pub fn issm_info(&self) -> Option<(Camera, u32)> {
+        self.technique::<Issm>().map(|s| (s.light, s.push.t as u32))
+    }
+
+    pub fn read_issm(&self) -> Result<Option<Vec<u64>>> {
+        self.technique::<Issm>()
+            .map(|s| s.read_map(self.ctx))
+            .transpose()
+    }
+
+    /// The baseline depth shadow map, when `--shadows sm-pcf` is active.
+    pub fn shadow_map(&self) -> Option<&ShadowMap> {
+        self.technique::<ShadowMap>()
+    }
+
+    /// The baseline opacity shadow maps, when `--shadows osm` is active.
+    pub fn opacity_shadows(&self) -> Option<&OpacityShadows> {
+        self.technique::<OpacityShadows>()
+    }
+
+    /// The deep shadow lists, when `--shadows deep` is active.
+    pub fn deep(&self) -> Option<&DeepShadows> {
+        self.technique::<DeepShadows>()
+    }
+
+    /// Stats of the last frame's deep lists (after any pool growth).
+    pub fn deep_stats(&self) -> Option<DeepStats> {
+        self.deep().and_then(|d| d.stats.clone())
+    }
+
+    /// The semantic level choice of this frame, when SSDO runs.
+    pub fn level_choice(&self) -> Option<LevelChoice> {
+        self.settings
+            .ssdo_on()
+            .then(|| self.res.level_choice(&self.settings.camera))
+    }
+}
+
+/// Useful hierarchy levels and the choice for this camera (thresholds from
+/// `--semantic-levels` or the defaults relative to the scene size).
+pub fn level_choice(
+    scene: &Scene,
+    cam: &Camera,
+    thresholds: &Option<Vec<f64>>,
+) -> (Vec<u32>, LevelChoice) {
+    let levels = semantic::useful_levels(scene);
+    let (c, r) = scene.bounding_sphere();
+    let full = 2.0 * r as f64 * 1.05;
+    let t = thresholds
+        .clone()
+        .unwrap_or_else(|| semantic::default_thresholds(levels.len(), full));
+    let choice = semantic::choose(semantic::zoom_distance(cam, c.as_dvec3()), &t, &levels);
+    (levels, choice)
+}
+
+impl Drop for Renderer<'_> {
+    fn drop(&mut self) {
+        let ctx = self.ctx;
+        ctx.wait_idle();
+        self.slots.destroy_with(ctx);
+        let r = &mut self.res;
+        r.raster.destroy(ctx);
+        r.raster_graphics.destroy_with(ctx);
+        r.resolve.destroy(ctx);
+        r.composite.destroy(ctx);
+        r.techniques.destroy_with(ctx);
+        r.ssdo.destroy_with(ctx);
+        r.targets.destroy(ctx);
+        r.spheres.destroy(ctx);
+        r.attrs.destroy(ctx);
+    }
+}

@@ -1,0 +1,324 @@
+//! The run loop shared by the CLI, the benchmark, the viewer and (later)
+//! Python: load a scene, render frames, read AOV images back, and make the
+//! stats record. Nothing here parses a command line beyond the clap
+//! derives the CLI flattens.
+
+use crate::error::{Error, Result};
+use crate::output::{self, RunStats};
+use crate::render::Renderer;
+use crate::scene::{self, ColorBy, LoadOptions, ModelSelect, Scene};
+use crate::settings::{Aov, Options, RenderSettings, SsdoMode};
+use crate::vk::{Context, ContextOptions, PassTimes};
+use clap::Args;
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// Where spheres come from (shared by render/bench/view).
+#[derive(Args, Debug, Clone)]
+pub struct SceneArgs {
+    /// Structure file: .pdb .cif/.mmcif .gro .xyz .xyzr, optionally .gz.
+    pub input: Option<PathBuf>,
+    /// Procedural scene: capsid (default), lattice, random.
+    #[arg(long)]
+    pub scene: Option<String>,
+    /// Sphere count of the procedural scene.
+    #[arg(long)]
+    pub atoms: Option<usize>,
+    /// Model to load: a MODEL number or `all` (default: the first).
+    #[arg(long)]
+    pub model: Option<String>,
+    /// Biological assembly (REMARK 350 BIOMOLECULE number) to build.
+    #[arg(long)]
+    pub assembly: Option<u32>,
+    /// Tile the input in a lattice, e.g. 6x6x5.
+    #[arg(long, value_parser = parse_replicate)]
+    pub replicate: Option<[u32; 3]>,
+    /// Multiply all radii.
+    #[arg(long, default_value_t = SceneArgs::default().radius_scale, allow_negative_numbers = true)]
+    pub radius_scale: f32,
+    /// Colour by element or chain.
+    #[arg(long, default_value_t = SceneArgs::default().color, value_parser = ["element", "chain"])]
+    pub color: String,
+}
+
+impl Default for SceneArgs {
+    fn default() -> Self {
+        SceneArgs {
+            input: None,
+            scene: None,
+            atoms: None,
+            model: None,
+            assembly: None,
+            replicate: None,
+            radius_scale: 1.0,
+            color: "element".into(),
+        }
+    }
+}
+
+pub fn parse_replicate(s: &str) -> std::result::Result<[u32; 3], String> {
+    let parts: Vec<&str> = s.split(['x', 'X']).collect();
+    if parts.len() != 3 {
+        return Err(format!("'{s}': expected AxBxC, e.g. 6x6x5"));
+    }
+    let mut v = [0u32; 3];
+    for (o, p) in v.iter_mut().zip(&parts) {
+        *o = p
+            .trim()
+            .parse()
+            .map_err(|_| format!("'{s}': '{p}' is not a positive integer"))?;
+        if *o == 0 {
+            return Err(format!("'{s}': counts must be at least 1"));
+        }
+    }
+    Ok(v)
+}
+
+/// Loads the scene the arguments describe, with progress on stderr for
+/// files above a few megabytes. Returns the scene and the load time in ms.
+pub fn load_scene(args: &SceneArgs) -> Result<(Scene, f64)> {
+    load_scene_with_progress(args, &mut |_, _| {})
+}
+
+/// `load_scene` that also reports (bytes done, bytes total) to `report`.
+pub fn load_scene_with_progress(
+    args: &SceneArgs,
+    report: &mut dyn FnMut(u64, u64),
+) -> Result<(Scene, f64)> {
+    let t0 = Instant::now();
+    let mut scene = match (&args.input, &args.scene) {
+        (Some(_), Some(_)) => {
+            return Err(Error::Input(
+                "give an input file or --scene, not both".into(),
+            ));
+        }
+        (Some(path), None) => {
+            let model = match args.model.as_deref() {
+                None => ModelSelect::First,
+                Some("all") => ModelSelect::All,
+                Some(n) => ModelSelect::Index(n.parse().map_err(|_| {
+                    Error::Input(format!("--model {n}: expected a number or `all`"))
+                })?),
+            };
+            let opts = LoadOptions {
+                model,
+                assembly: args.assembly,
+                color_by: if args.color == "chain" {
+                    ColorBy::Chain
+                } else {
+                    ColorBy::Element
+                },
+            };
+            let size = std::fs::metadata(path).map(|m| m.len()).unwrap_or(0);
+            let show = size > 8 << 20;
+            let mut last = 0u64;
+            let mut progress = |done: u64, total: u64| {
+                report(done, total);
+                let pct = (done * 100).checked_div(total).unwrap_or(0);
+                if show && pct >= last + 5 {
+                    last = pct;
+                    eprint!("\rloading {}: {pct:3}%", path.display());
+                }
+            };
+            let s = scene::load(path, &opts, &mut progress)?;
+            if show {
+                eprintln!(
+                    "\rloading {}: done, {} spheres",
+                    path.display(),
+                    s.spheres.len()
+                );
+            }
+            s
+        }
+        (None, name) => {
+            if args.model.is_some() || args.assembly.is_some() {
+                return Err(Error::Input(
+                    "--model/--assembly apply to input files only".into(),
+                ));
+            }
+            let name = name.as_deref().unwrap_or(scene::DEFAULT_SCENE);
+            let atoms = args.atoms.unwrap_or(scene::DEFAULT_ATOMS);
+            if atoms == 0 {
+                return Err(Error::Input("--atoms must be at least 1".into()));
+            }
+            scene::procedural(name, atoms, 1)?
+        }
+    };
+    if args.atoms.is_some() && args.input.is_some() {
+        return Err(Error::Input(
+            "--atoms applies to procedural scenes (--scene) only".into(),
+        ));
+    }
+    if let Some(n) = args.replicate {
+        // Refuse before allocating: sphere ids are 24-bit in the id AOV.
+        let total = scene.spheres.len() as u64 * n.iter().map(|&k| k as u64).product::<u64>();
+        if total >= 1 << 24 {
+            return Err(Error::Input(format!(
+                "--replicate {}x{}x{}: {total} spheres; at most 16,777,215 are supported",
+                n[0], n[1], n[2]
+            )));
+        }
+        scene = scene.replicate(n);
+    }
+    if !(args.radius_scale > 0.0 && args.radius_scale.is_finite()) {
+        return Err(Error::Input("--radius-scale must be positive".into()));
+    }
+    if args.radius_scale != 1.0 {
+        scene.scale_radii(args.radius_scale);
+    }
+    Ok((scene, t0.elapsed().as_secs_f64() * 1e3))
+}
+
+/// The Vulkan context the options ask for (validation, device index).
+pub fn context_for(o: &Options) -> Result<Context> {
+    Context::new(&ContextOptions {
+        validate: o.validate,
+        device_index: o.device,
+        ..Default::default()
+    })
+}
+
+/// Renders `frames` measured frames after `warmup` ones.
+pub fn run_frames(r: &mut Renderer, warmup: u32, frames: u32) -> Result<Vec<PassTimes>> {
+    run_frames_with(r, warmup, frames, &mut |_, _| Ok(()))
+}
+
+/// `run_frames` calling `before(renderer, k)` ahead of measured frame k
+/// (the benchmark moves the camera along its orbit there).
+pub fn run_frames_with(
+    r: &mut Renderer,
+    warmup: u32,
+    frames: u32,
+    before: &mut dyn FnMut(&mut Renderer, u32) -> Result<()>,
+) -> Result<Vec<PassTimes>> {
+    for _ in 0..warmup {
+        r.render_frame()?;
+    }
+    (0..frames.max(1))
+        .map(|k| {
+            before(r, k)?;
+            r.render_frame()
+        })
+        .collect()
+}
+
+/// Reads the requested AOV back from the renderer and encodes it.
+pub fn aov_image(r: &Renderer, aov: Aov) -> Result<output::AovImage> {
+    let cam = &r.settings().camera;
+    let (w, h) = (cam.width, cam.height);
+    Ok(match aov {
+        Aov::Color => output::color_image(w, h, &r.read_color()?),
+        Aov::Id => output::id_image(w, h, &r.read_vis()?),
+        Aov::Depth => {
+            let d: Vec<f32> = r.read_gpos()?.iter().map(|p| p[3]).collect();
+            output::depth_image(w, h, &d)
+        }
+        Aov::Shadow | Aov::Ao => {
+            let covered: Vec<bool> = r
+                .read_vis()?
+                .iter()
+                .map(|&k| k != crate::gpu::VIS_EMPTY)
+                .collect();
+            if aov == Aov::Shadow {
+                output::unit_image(w, h, r.read_shadow()?.into_iter(), &covered)
+            } else {
+                let ao: Vec<f32> = if r.settings().ssdo == SsdoMode::Off {
+                    vec![1.0; covered.len()]
+                } else {
+                    r.read_ambient()?.into_iter().map(|a| a[0]).collect()
+                };
+                // (ambient visibility after the blur, as DESIGN.md specifies)
+                output::unit_image(w, h, ao.into_iter(), &covered)
+            }
+        }
+    })
+}
+
+/// Everything one render run produces.
+pub struct RunOutcome {
+    pub stats: RunStats,
+    pub image: output::AovImage,
+}
+
+/// Loads nothing: renders an already loaded scene with settings, returning
+/// the stats record and the AOV image.
+#[allow(clippy::too_many_arguments)]
+pub fn render_run(
+    ctx: &Context,
+    scene: &Scene,
+    input: &str,
+    settings: RenderSettings,
+    aov: Aov,
+    warmup: u32,
+    frames: u32,
+    load_ms: f64,
+) -> Result<RunOutcome> {
+    render_run_with(
+        ctx,
+        scene,
+        input,
+        settings,
+        aov,
+        warmup,
+        frames,
+        load_ms,
+        &mut |_, _| Ok(()),
+    )
+}
+
+/// `render_run` with a hook before each measured frame (see `run_frames_with`).
+#[allow(clippy::too_many_arguments)]
+pub fn render_run_with(
+    ctx: &Context,
+    scene: &Scene,
+    input: &str,
+    settings: RenderSettings,
+    aov: Aov,
+    warmup: u32,
+    frames: u32,
+    load_ms: f64,
+    before: &mut dyn FnMut(&mut Renderer, u32) -> Result<()>,
+) -> Result<RunOutcome> {
+    let mut r = Renderer::new(ctx, scene, settings)?;
+    let times = run_frames_with(&mut r, warmup, frames, before)?;
+    let image = aov_image(&r, aov)?;
+    let (passes, total_ms) = output::summarize(&times);
+    let gpu_memory = r.memory_by_class();
+    let s = r.settings();
+    let stats = RunStats {
+        device: ctx.info.name.clone(),
+        driver: ctx.info.driver.clone(),
+        input: input.to_string(),
+        spheres: r.sphere_count() as u64,
+        width: s.camera.width,
+        height: s.camera.height,
+        frames: frames.max(1),
+        shadows: s.shadows.name(),
+        ssdo: s.ssdo.name(),
+        raster: s.raster.name(),
+        opacity: s.opacity as f64,
+        passes,
+        total_ms,
+        load_ms,
+        gpu_memory_bytes: gpu_memory.values().sum(),
+        gpu_memory,
+        validation_messages: ctx.validation_messages(),
+        deep: r.deep_stats(),
+        image_sha256: image.sha256(),
+    };
+    Ok(RunOutcome { stats, image })
+}
+
+/// The input's name in the JSON: the file, or `scene:NAME`.
+pub fn input_name(args: &SceneArgs) -> String {
+    match (&args.input, &args.scene) {
+        (Some(p), _) => p.display().to_string(),
+        (None, s) => format!("scene:{}", s.as_deref().unwrap_or(scene::DEFAULT_SCENE)),
+    }
+}
+
+/// Exit status the binary should use.
+pub enum Exit {
+    Ok,
+    ValidationMessages(u32),
+}
