@@ -162,3 +162,90 @@ fn a_leaked_buffer_is_reported_at_teardown() {
         "unexpected messages: {all}"
     );
 }
+
+/// Declared bindings are checked against the shader's SPIR-V at pipeline
+/// creation: a wrong access qualifier, a missing, an extra or a misnamed
+/// binding and a wrong push-constant size are each an error that names the
+/// shader, the binding and both types. Dispatches bind by name.
+#[test]
+fn binding_mismatches_are_rejected_with_the_shader_and_binding_named() {
+    let ctx = validated_context();
+    let good = [
+        uniform("GlobalsBlock"),
+        ro("Spheres"),
+        ro("Vis"),
+        wo("GPos"),
+        wo("GNorm"),
+        ro("Attrs"),
+        wo("GRegion"),
+    ];
+    let make = |bindings: &[sphereshade::vk::pipeline::Binding], push: u32| {
+        ComputePipeline::new(
+            &ctx,
+            &PipelineDesc {
+                name: "mismatch probe",
+                shader: spirv::RESOLVE_COMP,
+                bindings,
+                push_size: push,
+                local_size: 64,
+                constants: &[],
+            },
+        )
+    };
+    let mut ok = make(&good, 0).expect("the correct declaration is accepted");
+    // A dispatch naming a binding the pipeline lacks, or missing one, fails.
+    let buf = Buffer::storage(&ctx, "probe", 64).expect("buffer");
+    let err = ok
+        .uses(&[("Spheres", &buf), ("Nope", &buf)])
+        .expect_err("unknown binding name");
+    assert!(err.to_string().contains("'Nope'"), "{err}");
+    let err = ok.uses(&[("Spheres", &buf)]).expect_err("missing bindings");
+    assert!(err.to_string().contains("no buffer given"), "{err}");
+    ok.destroy(&ctx);
+    ok.destroy(&ctx); // idempotent
+
+    let mut swapped = good;
+    swapped[2] = rw("Vis");
+    let mut missing = good.to_vec();
+    missing.remove(5);
+    let mut renamed = good;
+    renamed[1] = ro("Sphere");
+    let mut extra = good.to_vec();
+    extra.push(ro("Shadow"));
+    for (bindings, push, needles) in [
+        (
+            swapped.to_vec(),
+            0,
+            vec![
+                "resolve.comp",
+                "'Vis'",
+                "readonly storage buffer",
+                "read-write",
+            ],
+        ),
+        (missing, 0, vec!["resolve.comp", "'Attrs'", "not declared"]),
+        (
+            renamed.to_vec(),
+            0,
+            vec!["resolve.comp", "'Spheres'", "not declared"],
+        ),
+        (extra, 0, vec!["resolve.comp", "'Shadow'", "does not have"]),
+        (
+            good.to_vec(),
+            16,
+            vec!["resolve.comp", "push constants", "16"],
+        ),
+    ] {
+        let err = make(&bindings, push)
+            .err()
+            .unwrap_or_else(|| panic!("{bindings:?} push {push} was accepted"));
+        let msg = err.to_string();
+        for n in needles {
+            assert!(msg.contains(n), "'{n}' missing from: {msg}");
+        }
+        eprintln!("rejected: {msg}");
+    }
+    let mut buf = buf;
+    buf.destroy(&ctx);
+    assert_no_validation_messages(&ctx);
+}

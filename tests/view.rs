@@ -90,3 +90,86 @@ fn view_smoke_with_resize_matches_render() {
         100.0 - pct
     );
 }
+
+/// Every mode key through all its states and eight light-drag steps, under
+/// validation: one renderer for the whole session (techniques are created
+/// lazily and kept), zero validation messages, and the last frame equals a
+/// fresh `render` with the light where the drags left it.
+#[test]
+fn view_toggles_every_mode_and_drags_the_light_without_rebuilding() {
+    let dir = std::env::temp_dir().join(format!("sphereshade-toggle-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let shot = dir.join("toggle.png");
+    let input = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/1tii.pdb");
+    let o = Command::new("xvfb-run")
+        .args(["-a", "-s", "-screen 0 1024x768x24"])
+        .arg(env!("CARGO_BIN_EXE_sphereshade"))
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+        .args([
+            "view",
+            input,
+            "--width",
+            "160",
+            "--height",
+            "120",
+            "--frames",
+            "36",
+            "--script",
+            "toggle-all",
+            "--validate",
+        ])
+        .arg("--screenshot")
+        .arg(&shot)
+        .output()
+        .expect("run xvfb-run");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(0), "view failed: {err}");
+    let summary = err
+        .lines()
+        .find(|l| l.contains("mode toggles"))
+        .unwrap_or_else(|| panic!("no toggle summary: {err}"));
+    eprintln!("{summary}");
+    assert!(
+        summary.contains("19 mode toggles") && summary.contains("8 light-drag steps"),
+        "{summary}"
+    );
+    assert!(summary.contains("renderers created 1,"), "{summary}");
+    let state = err
+        .lines()
+        .find(|l| l.contains("final state"))
+        .unwrap_or_else(|| panic!("no final state: {err}"));
+    assert!(
+        state.contains("shadows issm-soft ssdo semantic blur on opacity 1"),
+        "{state}"
+    );
+    let light = state.rsplit("light ").next().unwrap().trim();
+
+    let reference = dir.join("render.png");
+    let o = bin()
+        .args([
+            "render", input, "--width", "160", "--height", "120", "--light", light, "--out",
+        ])
+        .arg(&reference)
+        .output()
+        .expect("render");
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let view = image::open(&shot).expect("screenshot").to_rgba8();
+    let render = image::open(&reference).expect("render png").to_rgba8();
+    let close = view
+        .pixels()
+        .zip(render.pixels())
+        .filter(|(a, b)| a.0.iter().zip(b.0.iter()).all(|(x, y)| x.abs_diff(*y) <= 2))
+        .count();
+    let pct = 100.0 * close as f64 / (160.0 * 120.0);
+    eprintln!("after the toggles the screenshot matches render on {pct:.3}% of pixels");
+    assert!(
+        pct >= 99.5,
+        "view and render differ on {:.3}% of pixels",
+        100.0 - pct
+    );
+}

@@ -592,6 +592,17 @@ pub fn run(cmd: ViewCmd) -> Result<Exit> {
             crate::render::RENDERERS_CREATED.load(Ordering::Relaxed),
             crate::vk::pipeline::CREATED.load(Ordering::Relaxed),
         );
+        if let Some(r) = &app.renderer {
+            let s = r.settings();
+            eprintln!(
+                "view: final state shadows {} ssdo {} blur {} opacity {} light {}",
+                s.shadows,
+                s.ssdo,
+                if s.blur { "on" } else { "off" },
+                s.opacity,
+                crate::settings::V3(s.light)
+            );
+        }
     }
     // Destroy in order: renderer, swapchain (and surface), then the context.
     app.renderer = None;

@@ -19,6 +19,18 @@ pub struct Swapchain {
     /// Per swapchain image: signalled when its copy is done (present waits).
     render_done: Vec<vk::Semaphore>,
     frame: usize,
+    /// Semaphores and swapchains replaced by a recreation, with the number of
+    /// presents still to make before they are destroyed: a present of the
+    /// old swapchain may still wait on its semaphore (no fence covers a
+    /// present), and presents on one queue complete in order, so once every
+    /// image of the new swapchain was acquired again the old ones are done.
+    retired: Vec<Retired>,
+}
+
+struct Retired {
+    presents_left: usize,
+    semaphores: Vec<vk::Semaphore>,
+    swapchain: vk::SwapchainKHR,
 }
 
 struct FrameSync {
@@ -87,6 +99,7 @@ impl Swapchain {
             frames,
             render_done: Vec::new(),
             frame: 0,
+            retired: Vec::new(),
         };
         sc.recreate(ctx, width, height)?;
         Ok(sc)
@@ -152,18 +165,20 @@ impl Swapchain {
             .present_mode(vk::PresentModeKHR::FIFO)
             .clipped(true)
             .old_swapchain(old);
+        // SAFETY: the surface is live; `old` is retired by this call.
         let swapchain =
             unsafe { self.loader.create_swapchain(&info, None) }.vk("vkCreateSwapchainKHR")?;
         ctx.name(swapchain, "swapchain");
-        if old != vk::SwapchainKHR::null() {
-            unsafe { self.loader.destroy_swapchain(old, None) };
-        }
-        for &s in &self.render_done {
-            unsafe { ctx.device.destroy_semaphore(s, None) };
-        }
+        // SAFETY: the swapchain was just created.
         self.images =
             unsafe { self.loader.get_swapchain_images(swapchain) }.vk("vkGetSwapchainImagesKHR")?;
-        self.render_done.clear();
+        // Pending presents of the old swapchain may wait on its semaphores:
+        // destroy them only after the new one cycled through its images.
+        self.retired.push(Retired {
+            presents_left: self.images.len() + FRAMES_IN_FLIGHT,
+            semaphores: std::mem::take(&mut self.render_done),
+            swapchain: old,
+        });
         for i in 0..self.images.len() {
             ctx.name(self.images[i], &format!("swapchain image {i}"));
             let s = unsafe {
@@ -296,6 +311,7 @@ impl Swapchain {
                 .vk("vkQueueSubmit2")?;
         }
         self.frame = (self.frame + 1) % FRAMES_IN_FLIGHT;
+        self.release_retired(ctx, false);
         let waits = [self.render_done[index as usize]];
         let swapchains = [self.swapchain];
         let indices = [index];
@@ -314,9 +330,35 @@ impl Swapchain {
         }
     }
 
+    /// Counts a present against the retired objects and destroys those
+    /// whose presents are done (all of them when `all`: device idle).
+    fn release_retired(&mut self, ctx: &Context, all: bool) {
+        for r in &mut self.retired {
+            r.presents_left = r.presents_left.saturating_sub(1);
+        }
+        let (done, keep): (Vec<_>, Vec<_>) = std::mem::take(&mut self.retired)
+            .into_iter()
+            .partition(|r| all || r.presents_left == 0);
+        self.retired = keep;
+        for r in done {
+            // SAFETY: every present that could wait on these has completed
+            // (see `retired`), or the device is idle.
+            unsafe {
+                for s in r.semaphores {
+                    ctx.device.destroy_semaphore(s, None);
+                }
+                if r.swapchain != vk::SwapchainKHR::null() {
+                    self.loader.destroy_swapchain(r.swapchain, None);
+                }
+            }
+        }
+    }
+
     pub fn destroy(&mut self, ctx: &Context) {
         let _ = self.wait_frames(ctx);
         ctx.wait_idle();
+        self.release_retired(ctx, true);
+        // SAFETY: the device is idle; nothing uses these objects any more.
         unsafe {
             for f in &self.frames {
                 ctx.device.destroy_fence(f.fence, None);

@@ -22,7 +22,7 @@ pub const SHADOW_DIFFUSE: f32 = 0.12;
 pub const PASSES: &[(&str, &str)] = &[
     (
         "raster",
-        "one invocation per sphere: exact ray-sphere test per covered pixel, 64-bit `atomicMin(depth<<32 | id)`; footprints above 1024 px (CPU) / 256 px (GPU) are split into 8-row bands that whole workgroups process (indirect dispatch); `--raster graphics`: the vertex/fragment impostor baseline, same output",
+        "one invocation per sphere: exact ray-sphere test per covered pixel, 64-bit `atomicMin(depth<<32 \\| id)`; footprints above 1024 px (CPU) / 256 px (GPU) are split into 8-row bands that whole workgroups process (indirect dispatch); `--raster graphics`: the vertex/fragment impostor baseline, same output",
     ),
     (
         "issm_raster",

@@ -126,10 +126,26 @@ impl Barrier {
 struct State {
     /// Stage of the last write, if any in this recording.
     write: Option<Stage>,
-    /// Stages the last write has been made visible to.
-    visible: Vec<Stage>,
-    /// Stages that read since the last write.
-    reads: Vec<Stage>,
+    /// Stages whose reads / writes the last write is ordered before and
+    /// visible to (by some barrier recorded since).
+    visible_read: Vec<Stage>,
+    visible_write: Vec<Stage>,
+    /// Reads since the last write: their stage and the stages a barrier has
+    /// ordered after them.
+    reads: Vec<(Stage, Vec<Stage>)>,
+}
+
+const STAGES: [Stage; 4] = [
+    Stage::Transfer,
+    Stage::Compute,
+    Stage::Indirect,
+    Stage::Graphics,
+];
+
+fn push_unique(v: &mut Vec<Stage>, s: Stage) {
+    if !v.contains(&s) {
+        v.push(s);
+    }
 }
 
 /// Per-buffer access history of one recording.
@@ -140,55 +156,87 @@ pub struct Tracker {
 
 impl Tracker {
     /// The barrier needed before a step with these uses (empty when none),
-    /// and the state updated as if it was recorded and the step ran.
+    /// and the state updated as if it was recorded and the step ran. A
+    /// barrier is a global memory barrier, so it is applied to every
+    /// buffer's history, not only to the buffers that asked for it: no
+    /// barrier is recorded that an earlier one already provides.
     pub fn step(&mut self, uses: &[Use]) -> Barrier {
         let mut b = Barrier::default();
         for u in uses {
             let st = self.states.entry(u.buffer).or_default();
-            if let Some(w) = st.write
-                && ((u.read && !st.visible.contains(&u.stage)) || u.write)
-            {
-                // read-after-write / write-after-write
-                let mut dst = vk::AccessFlags2::NONE;
-                if u.read {
-                    dst |= u.stage.read_access();
+            if let Some(w) = st.write {
+                let read_missing = u.read && !st.visible_read.contains(&u.stage);
+                let write_missing = u.write && !st.visible_write.contains(&u.stage);
+                if read_missing || write_missing {
+                    // read-after-write / write-after-write
+                    let mut dst = vk::AccessFlags2::NONE;
+                    if u.read {
+                        dst |= u.stage.read_access();
+                    }
+                    if u.write {
+                        dst |= u.stage.write_access();
+                    }
+                    b.add(w, w.write_access(), u.stage, dst);
                 }
-                if u.write {
-                    dst |= u.stage.write_access();
-                }
-                b.add(w, w.write_access(), u.stage, dst);
             }
             if u.write {
                 // write-after-read: an execution dependency suffices.
-                for &r in &st.reads {
-                    b.add(r, vk::AccessFlags2::NONE, u.stage, vk::AccessFlags2::NONE);
+                for (r, ordered) in &st.reads {
+                    if !ordered.contains(&u.stage) {
+                        b.add(*r, vk::AccessFlags2::NONE, u.stage, vk::AccessFlags2::NONE);
+                    }
                 }
             }
         }
-        // Apply: a barrier makes the covered writes visible to its dst stages.
-        for u in uses {
-            let st = self.states.entry(u.buffer).or_default();
-            if st.write.is_some() && !b.is_empty() && !st.visible.contains(&u.stage) {
-                st.visible.push(u.stage);
-            }
+        if !b.is_empty() {
+            self.apply(&b);
         }
         for u in uses {
             let st = self.states.entry(u.buffer).or_default();
             if u.write {
                 *st = State {
                     write: Some(u.stage),
-                    visible: vec![],
-                    reads: vec![],
+                    ..State::default()
                 };
             }
         }
         for u in uses {
             let st = self.states.entry(u.buffer).or_default();
-            if u.read && !u.write && !st.reads.contains(&u.stage) {
-                st.reads.push(u.stage);
+            if u.read && !u.write && !st.reads.iter().any(|(r, _)| *r == u.stage) {
+                st.reads.push((u.stage, Vec::new()));
             }
         }
         b
+    }
+
+    /// What a recorded barrier provides, for every buffer.
+    fn apply(&mut self, b: &Barrier) {
+        for st in self.states.values_mut() {
+            if let Some(w) = st.write
+                && b.src_stage.contains(w.flags())
+                && b.src_access.contains(w.write_access())
+            {
+                for x in STAGES {
+                    if b.dst_stage.contains(x.flags()) {
+                        if b.dst_access.contains(x.read_access()) {
+                            push_unique(&mut st.visible_read, x);
+                        }
+                        if b.dst_access.contains(x.write_access()) {
+                            push_unique(&mut st.visible_write, x);
+                        }
+                    }
+                }
+            }
+            for (r, ordered) in &mut st.reads {
+                if b.src_stage.contains(r.flags()) {
+                    for x in STAGES {
+                        if b.dst_stage.contains(x.flags()) {
+                            push_unique(ordered, x);
+                        }
+                    }
+                }
+            }
+        }
     }
 }
 
@@ -244,22 +292,17 @@ pub fn check_hazards(log: &[Event]) -> Vec<String> {
                     .map(|x| (li, p, w, *x))
             });
             if let Some((li, p, w, x)) = last_write {
-                let dst_access = if u.write {
-                    u.stage.write_access()
-                } else {
-                    u.stage.read_access()
-                };
-                if (u.read || u.write)
-                    && !covered(li, lj, x.stage, x.stage.write_access(), u.stage, dst_access)
-                {
-                    problems.push(format!(
-                        "{pass_j}/{what_j} {} buffer {:?} written by {p}/{w} ({:?}) without a barrier {:?} -> {:?}",
-                        if u.write { "writes" } else { "reads" },
-                        u.buffer,
-                        x.stage,
-                        x.stage,
-                        u.stage
-                    ));
+                let need = [
+                    (u.read, u.stage.read_access(), "reads"),
+                    (u.write, u.stage.write_access(), "writes"),
+                ];
+                for (_, access, verb) in need.into_iter().filter(|n| n.0) {
+                    if !covered(li, lj, x.stage, x.stage.write_access(), u.stage, access) {
+                        problems.push(format!(
+                            "{pass_j}/{what_j} {verb} buffer {:?} written by {p}/{w} ({:?}) without a barrier {:?} -> {:?}",
+                            u.buffer, x.stage, x.stage, u.stage
+                        ));
+                    }
                 }
             }
             if u.write {
