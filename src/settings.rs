@@ -23,6 +23,10 @@ pub enum ShadowMode {
     SmPcf,
     /// Baseline (seed 004): opacity shadow maps (depth slices, prefix sum).
     Osm,
+    /// Unit tests only: a trivial technique (constant half shadow) showing
+    /// what adding one takes.
+    #[cfg(test)]
+    TestConstant,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, Serialize)]

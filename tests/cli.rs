@@ -426,3 +426,88 @@ fn graphics_runs_leave_compute_timings_alone() {
         );
     }
 }
+
+/// `bench` takes every render option: with the same camera, light and
+/// technique parameters it makes exactly the image `render` makes.
+#[test]
+fn bench_reproduces_a_render_with_the_same_options() {
+    let opts = [
+        "--view-dir",
+        "1,0.2,-1",
+        "--up",
+        "0,1,0",
+        "--fov",
+        "35",
+        "--light",
+        "1,-1,-0.5",
+        "--issm-t",
+        "1",
+        "--soft-s",
+        "1.5",
+        "--blur",
+        "off",
+    ];
+    let png = tmp("repro.png");
+    let json = tmp("repro.json");
+    let mut a = vec![
+        "render",
+        "--scene",
+        "random",
+        "--atoms",
+        "500",
+        "--width",
+        "80",
+        "--height",
+        "60",
+        "--shadows",
+        "issm-soft",
+        "--ssdo",
+        "plain",
+        "--out",
+    ];
+    a.push(png.to_str().unwrap());
+    a.extend(["--json", json.to_str().unwrap()]);
+    a.extend(opts);
+    let o = run(&a);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let bjson = tmp("repro-bench.json");
+    let mut b = vec![
+        "bench",
+        "--scene",
+        "random",
+        "--atoms",
+        "500",
+        "--width",
+        "80",
+        "--height",
+        "60",
+        "--shadows",
+        "issm-soft",
+        "--ssdo",
+        "plain",
+        "--frames",
+        "1",
+        "--warmup",
+        "0",
+        "--no-orbit",
+        "--json",
+    ];
+    b.push(bjson.to_str().unwrap());
+    b.extend(opts);
+    let o = run(&b);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&bjson).unwrap()).unwrap();
+    assert_eq!(r["runs"][0]["image_sha256"], v["image_sha256"]);
+    // and a different option gives a different image (the options arrive)
+    let mut c = b.clone();
+    let i = c.iter().position(|x| *x == "1.5").unwrap();
+    c[i] = "3";
+    let o = run(&c);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let r2: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&bjson).unwrap()).unwrap();
+    assert_ne!(r2["runs"][0]["image_sha256"], v["image_sha256"]);
+}

@@ -11,7 +11,7 @@ use crate::output;
 use crate::render::Renderer;
 use crate::run::{self, Exit, SceneArgs};
 use crate::scene::Scene;
-use crate::settings::{Axes, Options, ShadowMode, SsdoMode};
+use crate::settings::{Axes, Options};
 use crate::vk::{Context, ContextOptions};
 use glam::DVec3;
 use raw_window_handle::{HasDisplayHandle, HasWindowHandle};
@@ -128,6 +128,14 @@ struct App<'c> {
     /// Seconds spent in mode toggles and light-drag steps (handler only).
     toggle_times: Vec<f64>,
     drag_times: Vec<f64>,
+}
+
+/// The next value of a mode in its declaration order (wrapping): S and O
+/// cycle through every technique without a list of their own.
+fn next<T: clap::ValueEnum + PartialEq + Copy>(v: T) -> T {
+    let all = T::value_variants();
+    let i = all.iter().position(|x| *x == v).unwrap_or(0);
+    all[(i + 1) % all.len()]
 }
 
 fn rotate(v: DVec3, axis: DVec3, angle: f64) -> DVec3 {
@@ -338,19 +346,8 @@ impl<'c> App<'c> {
         let s = r.settings().clone();
         let started = Instant::now();
         match key.as_ref() {
-            Key::Character("s" | "S") => r.set_shadows(match s.shadows {
-                ShadowMode::None => ShadowMode::Issm,
-                ShadowMode::Issm => ShadowMode::IssmSoft,
-                ShadowMode::IssmSoft => ShadowMode::Deep,
-                ShadowMode::Deep => ShadowMode::SmPcf,
-                ShadowMode::SmPcf => ShadowMode::Osm,
-                ShadowMode::Osm => ShadowMode::None,
-            })?,
-            Key::Character("o" | "O") => r.set_ssdo(match s.ssdo {
-                SsdoMode::Off => SsdoMode::Plain,
-                SsdoMode::Plain => SsdoMode::Semantic,
-                SsdoMode::Semantic => SsdoMode::Off,
-            })?,
+            Key::Character("s" | "S") => r.set_shadows(next(s.shadows))?,
+            Key::Character("o" | "O") => r.set_ssdo(next(s.ssdo))?,
             Key::Character("b" | "B") => r.set_blur(!s.blur),
             Key::Character("+" | "=") => r.set_opacity((s.opacity + 0.1).min(1.0))?,
             Key::Character("-" | "_") => r.set_opacity((s.opacity - 0.1).max(0.0))?,
@@ -428,6 +425,7 @@ impl ApplicationHandler for App<'_> {
             let wh = window
                 .window_handle()
                 .map_err(|e| Error::Input(format!("window handle: {e}")))?;
+            // SAFETY: the display and window handles come from the live winit window.
             let surface = unsafe {
                 ash_window::create_surface(
                     &self.ctx.entry,
@@ -533,6 +531,7 @@ pub fn run(cmd: ViewCmd) -> Result<Exit> {
         })?;
     let instance_extensions: Vec<CString> = exts
         .iter()
+        // SAFETY: ash_window returns static NUL-terminated extension names.
         .map(|&p| unsafe { std::ffi::CStr::from_ptr(p) }.to_owned())
         .collect();
     let ctx = Context::new(&ContextOptions {

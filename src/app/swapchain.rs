@@ -197,6 +197,7 @@ impl Swapchain {
 
     fn wait_frames(&self, ctx: &Context) -> Result<()> {
         let fences: Vec<_> = self.frames.iter().map(|f| f.fence).collect();
+        // SAFETY: the fences are live objects of this device.
         unsafe { ctx.device.wait_for_fences(&fences, true, u64::MAX) }.vk("vkWaitForFences")
     }
 
@@ -205,9 +206,11 @@ impl Swapchain {
     pub fn present(&mut self, ctx: &Context, color: &Buffer) -> Result<Present> {
         let dev = &ctx.device;
         let f = &self.frames[self.frame];
+        // SAFETY: the fences are live objects of this device.
         unsafe { dev.wait_for_fences(&[f.fence], true, u64::MAX) }.vk("vkWaitForFences")?;
         // A suboptimal image still holds the signalled semaphore: it must be
         // presented (not dropped), and the swapchain recreated after.
+        // SAFETY: the semaphore is unsignalled: its last acquire was waited on by a finished submission.
         let (index, suboptimal) = match unsafe {
             self.loader
                 .acquire_next_image(self.swapchain, u64::MAX, f.acquired, vk::Fence::null())
@@ -221,6 +224,7 @@ impl Swapchain {
                 });
             }
         };
+        // SAFETY: the fence / command buffer is not in use by pending work (waited for).
         unsafe { dev.reset_fences(&[f.fence]) }.vk("vkResetFences")?;
         let image = self.images[index as usize];
         let range = vk::ImageSubresourceRange {
@@ -230,6 +234,7 @@ impl Swapchain {
             base_array_layer: 0,
             layer_count: 1,
         };
+        // SAFETY: the fence / command buffer is not in use by pending work (waited for).
         unsafe {
             dev.reset_command_buffer(f.cmd, vk::CommandBufferResetFlags::empty())
                 .vk("vkResetCommandBuffer")?;
@@ -319,6 +324,7 @@ impl Swapchain {
             .wait_semaphores(&waits)
             .swapchains(&swapchains)
             .image_indices(&indices);
+        // SAFETY: the command buffers are recorded, the semaphores and fence are unsignalled and not in use.
         match unsafe { self.loader.queue_present(ctx.queue, &info) } {
             Ok(false) if !suboptimal => Ok(Present::Ok),
             Ok(_) => Ok(Present::Recreate),

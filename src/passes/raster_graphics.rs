@@ -114,7 +114,9 @@ impl GraphicsRasterPass {
             .dynamic_state(&dynamic)
             .layout(layout)
             .push_next(&mut rendering)];
+        // SAFETY: the object is not used by any pending GPU work (waited for above / by the owner).
         let created = unsafe { dev.create_graphics_pipelines(ctx.pipeline_cache, &info, None) };
+        // SAFETY: the object is not used by any pending GPU work (waited for above / by the owner).
         unsafe {
             dev.destroy_shader_module(vs, None);
             dev.destroy_shader_module(fs, None);

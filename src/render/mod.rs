@@ -653,6 +653,7 @@ impl<'c> Renderer<'c> {
                     .record_frame(&self.settings, &self.slots[0].globals, &mut rec)?;
                 Ok(rec.take_log())
             });
+        // SAFETY: the object is not used by any pending GPU work (waited for above / by the owner).
         unsafe {
             let _ = ctx.device.end_command_buffer(cmd);
             ctx.device.free_command_buffers(ctx.command_pool, &[cmd]);

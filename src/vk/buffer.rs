@@ -60,10 +60,12 @@ impl Buffer {
         let allocation = match alloc {
             Ok(a) => a,
             Err(e) => {
+                // SAFETY: the object is not used by any pending GPU work (waited for above / by the owner).
                 unsafe { ctx.device.destroy_buffer(raw, None) };
                 return Err(e);
             }
         };
+        // SAFETY: the allocation is fresh, large enough and of a matching type.
         let bound = unsafe {
             ctx.device
                 .bind_buffer_memory(raw, allocation.memory(), allocation.offset())
@@ -141,6 +143,7 @@ impl Buffer {
                     dst_offset: offset,
                     size: data.len() as u64,
                 }];
+                // SAFETY: the command buffer is in the recording state; the handles are live.
                 unsafe {
                     ctx.device
                         .cmd_copy_buffer(cmd, staging.raw, self.raw, &region)
@@ -226,6 +229,7 @@ impl Buffer {
             if let Ok(mut alloc) = ctx.allocator.lock() {
                 let _ = alloc.free(a);
             }
+            // SAFETY: the object is not used by any pending GPU work (waited for above / by the owner).
             unsafe { ctx.device.destroy_buffer(self.raw, None) };
         }
     }

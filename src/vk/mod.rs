@@ -259,6 +259,7 @@ pub fn enumerate_devices() -> Result<(Vec<DeviceInfo>, Vec<String>)> {
             ));
         }
     }
+    // SAFETY: the object is not used by any pending GPU work (waited for above / by the owner).
     unsafe { instance.destroy_instance(None) };
     pds?;
     Ok((out, limits))
@@ -288,6 +289,7 @@ impl Context {
         match Self::with_instance(entry.clone(), instance.clone(), debug_utils, opts) {
             Ok(ctx) => Ok(ctx),
             Err(e) => {
+                // SAFETY: the object is not used by any pending GPU work (waited for above / by the owner).
                 unsafe { instance.destroy_instance(None) };
                 Err(e)
             }
@@ -324,6 +326,7 @@ impl Context {
         };
         let destroy_messenger = |di: &Option<ash::ext::debug_utils::Instance>| {
             if let Some(di) = di {
+                // SAFETY: the object is not used by any pending GPU work (waited for above / by the owner).
                 unsafe { di.destroy_debug_utils_messenger(messenger, None) };
             }
         };
@@ -492,12 +495,14 @@ impl Context {
                 return;
             };
             let label = vk::DebugUtilsLabelEXT::default().label_name(&cname);
+            // SAFETY: the command buffer is in the recording state; the handles are live.
             unsafe { dd.cmd_begin_debug_utils_label(cmd, &label) };
         }
     }
 
     pub fn end_label(&self, cmd: vk::CommandBuffer) {
         if let Some(dd) = &self.debug_device {
+            // SAFETY: the command buffer is in the recording state; the handles are live.
             unsafe { dd.cmd_end_debug_utils_label(cmd) };
         }
     }
@@ -535,16 +540,21 @@ impl Context {
         let result = (|| {
             let begin = vk::CommandBufferBeginInfo::default()
                 .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
+            // SAFETY: the command buffer belongs to this device and is not pending.
             unsafe { self.device.begin_command_buffer(cmd, &begin) }.vk("vkBeginCommandBuffer")?;
             let value = f(cmd)?;
+            // SAFETY: the command buffer belongs to this device and is not pending.
             unsafe { self.device.end_command_buffer(cmd) }.vk("vkEndCommandBuffer")?;
             let cmds = [cmd];
             let submit = [vk::SubmitInfo::default().command_buffers(&cmds)];
+            // SAFETY: the command buffers are recorded, the semaphores and fence are unsignalled and not in use.
             unsafe { self.device.queue_submit(self.queue, &submit, fence) }.vk("vkQueueSubmit")?;
+            // SAFETY: the fences are live objects of this device.
             unsafe { self.device.wait_for_fences(&[fence], true, u64::MAX) }
                 .vk("vkWaitForFences")?;
             Ok(value)
         })();
+        // SAFETY: the object is not used by any pending GPU work (waited for above / by the owner).
         unsafe {
             self.device.destroy_fence(fence, None);
             self.device.free_command_buffers(self.command_pool, &[cmd]);
@@ -562,6 +572,7 @@ impl Context {
 
     pub fn wait_idle(&self) {
         // Nothing useful to do on failure here: the device is lost or gone.
+        // SAFETY: the fences are live objects of this device.
         let _ = unsafe { self.device.device_wait_idle() };
     }
 }
@@ -574,6 +585,7 @@ impl Context {
             return;
         }
         self.device_destroyed = true;
+        // SAFETY: the object is not used by any pending GPU work (waited for above / by the owner).
         unsafe {
             let _ = self.device.device_wait_idle();
             self.device.destroy_command_pool(self.command_pool, None);
@@ -601,6 +613,7 @@ impl Context {
 impl Drop for Context {
     fn drop(&mut self) {
         self.destroy_device();
+        // SAFETY: the object is not used by any pending GPU work (waited for above / by the owner).
         unsafe {
             if let Some(di) = &self.debug_instance {
                 di.destroy_debug_utils_messenger(self.messenger, None);

@@ -224,6 +224,7 @@ impl ComputePipeline {
         let layout = match unsafe { dev.create_pipeline_layout(&layout_info, None) } {
             Ok(l) => l,
             Err(result) => {
+                // SAFETY: the object is not used by any pending GPU work (waited for above / by the owner).
                 unsafe { dev.destroy_descriptor_set_layout(set_layout, None) };
                 return Err(Error::Vk {
                     call: "vkCreatePipelineLayout",
@@ -238,6 +239,7 @@ impl ComputePipeline {
         } {
             Ok(m) => m,
             Err(result) => {
+                // SAFETY: the object is not used by any pending GPU work (waited for above / by the owner).
                 unsafe {
                     dev.destroy_pipeline_layout(layout, None);
                     dev.destroy_descriptor_set_layout(set_layout, None);
@@ -269,11 +271,14 @@ impl ComputePipeline {
         let info = [vk::ComputePipelineCreateInfo::default()
             .stage(stage)
             .layout(layout)];
+        // SAFETY: the object is not used by any pending GPU work (waited for above / by the owner).
         let created = unsafe { dev.create_compute_pipelines(ctx.pipeline_cache, &info, None) };
+        // SAFETY: the object is not used by any pending GPU work (waited for above / by the owner).
         unsafe { dev.destroy_shader_module(module, None) };
         let pipeline = match created {
             Ok(p) => p[0],
             Err((_, result)) => {
+                // SAFETY: the object is not used by any pending GPU work (waited for above / by the owner).
                 unsafe {
                     dev.destroy_pipeline_layout(layout, None);
                     dev.destroy_descriptor_set_layout(set_layout, None);

@@ -281,6 +281,7 @@ impl<'a> Recorder<'a> {
                         buffer.name, offset, buffer.size
                     )));
                 }
+                // SAFETY: the command buffer is in the recording state; the handles are live.
                 unsafe {
                     ctx.device
                         .cmd_fill_buffer(cmd, buffer.raw, offset, size, value)

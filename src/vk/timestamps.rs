@@ -67,6 +67,7 @@ impl Profiler {
 
     /// Starts a frame: resets the queries (recorded into `cmd`).
     pub fn begin_frame(&mut self, ctx: &Context, cmd: vk::CommandBuffer) {
+        // SAFETY: the command buffer is in the recording state; the handles are live.
         unsafe {
             ctx.device
                 .cmd_reset_query_pool(cmd, self.pool, 0, 2 * self.capacity)
@@ -99,6 +100,7 @@ impl Profiler {
         self.names.push(name);
         self.open = Some(slot);
         ctx.begin_label(cmd, name);
+        // SAFETY: the command buffer is in the recording state; the handles are live.
         unsafe {
             ctx.device.cmd_write_timestamp2(
                 cmd,
@@ -115,6 +117,7 @@ impl Profiler {
             .open
             .take()
             .ok_or_else(|| Error::Internal("pass scope closed twice".into()))?;
+        // SAFETY: the command buffer is in the recording state; the handles are live.
         unsafe {
             ctx.device.cmd_write_timestamp2(
                 cmd,
@@ -134,6 +137,7 @@ impl Profiler {
             return Ok(PassTimes::default());
         }
         let mut data = vec![0u64; 2 * n];
+        // SAFETY: the queries were written by the finished frame (its fence), 2n of them.
         unsafe {
             ctx.device.get_query_pool_results(
                 self.pool,

@@ -4,6 +4,8 @@
 //! a technique = its file here, its shader(s), a `ShadowMode` value and one
 //! arm in [`create`].
 
+#[cfg(test)]
+pub mod constant;
 pub mod deep;
 pub mod issm;
 pub mod osm;
@@ -88,6 +90,8 @@ pub fn create(mode: ShadowMode, setup: &ShadowSetup) -> Result<Option<Box<dyn Sh
         ShadowMode::Deep => Some(Box::new(deep::DeepShadows::new(setup)?)),
         ShadowMode::SmPcf => Some(Box::new(shadow_map::ShadowMap::new(setup)?)),
         ShadowMode::Osm => Some(Box::new(osm::OpacityShadows::new(setup)?)),
+        #[cfg(test)]
+        ShadowMode::TestConstant => Some(Box::new(constant::Constant::new(setup)?)),
     })
 }
 

@@ -1,0 +1,108 @@
+//! A trivial shadow technique for unit tests: key-light visibility 0.5 on
+//! every pixel, no light-space structure. It exists to show (and test)
+//! what adding a technique takes: this file, a `ShadowMode` value, one arm
+//! in `shadows::create` (and, for a real one, its row in the pass list).
+
+use super::{ShadowSetup, ShadowTechnique};
+use crate::camera::Camera;
+use crate::error::Result;
+use crate::passes::ShadowInputs;
+use crate::settings::ShadowMode;
+use crate::vk::{Context, Recorder};
+use std::any::Any;
+
+pub const NAME: &str = "test_constant";
+
+pub struct Constant {
+    light: Camera,
+}
+
+impl Constant {
+    pub fn new(setup: &ShadowSetup) -> Result<Self> {
+        Ok(Constant {
+            light: setup.fit(16)?,
+        })
+    }
+}
+
+impl ShadowTechnique for Constant {
+    fn mode(&self) -> ShadowMode {
+        ShadowMode::TestConstant
+    }
+    fn light(&self) -> &Camera {
+        &self.light
+    }
+    fn record_light<'b>(&'b self, _: &mut Recorder, _: &ShadowInputs<'b>) -> Result<()> {
+        Ok(())
+    }
+    fn record_lookup<'b>(&'b self, rec: &mut Recorder, f: &ShadowInputs<'b>) -> Result<()> {
+        rec.pass(NAME, |p| {
+            p.fill(f.shadow, f.pixels * 4, 0.5f32.to_bits());
+            Ok(())
+        })
+    }
+    fn refit(&mut self, setup: &ShadowSetup) -> Result<()> {
+        self.light = setup.fit(16)?;
+        Ok(())
+    }
+    fn memory(&self) -> Vec<(&'static str, u64)> {
+        vec![]
+    }
+    fn as_any(&self) -> &dyn Any {
+        self
+    }
+    fn as_any_mut(&mut self) -> &mut dyn Any {
+        self
+    }
+    fn destroy(&mut self, _: &Context) {}
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::render::Renderer;
+    use crate::scene::{Scene, Sphere};
+    use crate::settings::{Axes, Options, ShadowMode, SsdoMode};
+    use crate::vk::{Context, ContextOptions};
+
+    #[test]
+    fn a_fifth_technique_plugs_in_through_the_enum_arm() {
+        let ctx = Context::new(&ContextOptions {
+            validate: true,
+            ..Default::default()
+        })
+        .expect("context");
+        let scene = Scene {
+            spheres: vec![Sphere {
+                center: [0.0; 3],
+                radius: 1.0,
+                color: [200; 4],
+                region: [0; 4],
+            }],
+            level_names: vec![],
+            source: "one".into(),
+        };
+        let axes = Axes {
+            width: 16,
+            height: 16,
+            shadows: ShadowMode::TestConstant,
+            ssdo: SsdoMode::Off,
+            ..Axes::default()
+        };
+        let settings = Options::default().resolve(&axes, &scene).unwrap();
+        let mut r = Renderer::new(&ctx, &scene, settings).expect("renderer");
+        let times = r.render_frame().expect("frame");
+        assert!(times.iter().any(|(n, _)| *n == super::NAME), "{times:?}");
+        let vis = r.read_vis().unwrap();
+        let shadow = r.read_shadow().unwrap();
+        let covered = vis.iter().filter(|&&k| k != crate::gpu::VIS_EMPTY).count();
+        assert!(covered > 0);
+        assert!(shadow.iter().all(|&s| s == 0.5));
+        drop(r);
+        assert_eq!(
+            ctx.validation_messages(),
+            0,
+            "{:?}",
+            ctx.messages.messages()
+        );
+    }
+}
