@@ -115,6 +115,8 @@ struct App<'c> {
     frames: u32,
     /// When the first frame was presented (fps averages start there).
     second_frame_at: Option<Instant>,
+    /// When `view` started (start-up to first frame is reported).
+    started: Instant,
     resized_once: bool,
     cursor: (f64, f64),
     buttons: [bool; 3],
@@ -296,6 +298,10 @@ impl<'c> App<'c> {
         self.frames += 1;
         if self.frames == 1 {
             self.second_frame_at = Some(Instant::now());
+            eprintln!(
+                "view: first frame presented {:.0} ms after start",
+                self.started.elapsed().as_secs_f64() * 1e3
+            );
         }
         self.title(&times);
         if let Some(n) = self.cmd.frames {
@@ -518,6 +524,7 @@ impl ApplicationHandler for App<'_> {
 
 /// Runs the viewer until the window closes or `--frames` are done.
 pub fn run(cmd: ViewCmd) -> Result<Exit> {
+    let started = Instant::now();
     let event_loop =
         EventLoop::new().map_err(|e| Error::Input(format!("cannot connect to a display: {e}")))?;
     event_loop.set_control_flow(ControlFlow::Poll);
@@ -564,6 +571,7 @@ pub fn run(cmd: ViewCmd) -> Result<Exit> {
         size,
         frames: 0,
         second_frame_at: None,
+        started,
         resized_once: false,
         cursor: (0.0, 0.0),
         buttons: [false; 3],
