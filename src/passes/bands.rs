@@ -30,6 +30,17 @@ impl BandCounters {
     }
 }
 
+/// A pass's counter words: storage (atomics) and indirect dispatch arguments.
+pub fn counters_buffer(ctx: &Context, name: &str, bytes: u64) -> Result<Buffer> {
+    Buffer::new(
+        ctx,
+        name,
+        bytes,
+        ash::vk::BufferUsageFlags::STORAGE_BUFFER | ash::vk::BufferUsageFlags::INDIRECT_BUFFER,
+        gpu_allocator::MemoryLocation::GpuOnly,
+    )
+}
+
 /// The args pipeline (one per owning pass, named after it).
 pub struct BandArgs {
     pipe: ComputePipeline,

@@ -7,9 +7,7 @@ use crate::error::Result;
 use crate::gpu::consts::{R_ARGS, R_BANDS_REQ, R_BANDS_RUN};
 use crate::vk::pipeline::{PipelineDesc, ro, rw, uniform};
 use crate::vk::{Buffer, Context, PassBuilder};
-use ash::vk;
 use bytemuck::{Pod, Zeroable};
-use gpu_allocator::MemoryLocation;
 
 /// Footprints above this many pixels are split into 8-row bands run by whole
 /// workgroups; below, one invocation loops over the pixels itself. Measured
@@ -96,13 +94,7 @@ impl RasterPass {
             "raster band jobs",
             JOB_CAPACITY as u64 * 8,
         )?);
-        let counters = Buffer::new(
-            ctx,
-            "raster counters",
-            32,
-            vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::INDIRECT_BUFFER,
-            MemoryLocation::GpuOnly,
-        )?;
+        let counters = super::bands::counters_buffer(ctx, "raster counters", 32)?;
         Ok(RasterPass {
             pipes: pipes.keep(),
             args: args.keep(),
@@ -152,6 +144,30 @@ impl RasterPass {
             &self.counters,
             &RASTER_COUNTERS,
         );
+    }
+
+    /// The pass `name`: the key light's view rasterized into `map` (the
+    /// ISSM's id map, the baseline's depth map).
+    pub fn record_light_map<'b>(
+        &'b self,
+        rec: &mut crate::vk::Recorder,
+        name: &'static str,
+        f: &super::ShadowInputs<'b>,
+        map: &'b Buffer,
+        texels: u64,
+    ) -> Result<()> {
+        rec.pass(name, |p| {
+            self.steps(
+                p,
+                f.globals,
+                f.spheres,
+                f.sphere_count,
+                map,
+                texels,
+                ViewIndex::Light,
+            );
+            Ok(())
+        })
     }
 
     pub fn destroy(&mut self, ctx: &Context) {

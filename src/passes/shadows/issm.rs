@@ -6,7 +6,7 @@
 use super::{ShadowSetup, ShadowTechnique};
 use crate::camera::Camera;
 use crate::error::Result;
-use crate::passes::raster::{self, ViewIndex};
+use crate::passes::raster;
 use crate::passes::{LOCAL_SIZE, ShadowInputs, spirv};
 use crate::settings::{IssmParams, ShadowMode};
 use crate::vk::pipeline::{PipelineDesc, ro, uniform, wo};
@@ -153,18 +153,8 @@ impl ShadowTechnique for Issm {
     }
 
     fn record_light<'b>(&'b self, rec: &mut Recorder, f: &ShadowInputs<'b>) -> Result<()> {
-        rec.pass(Self::RASTER_NAME, |p| {
-            f.raster.steps(
-                p,
-                f.globals,
-                f.spheres,
-                f.sphere_count,
-                &self.map,
-                self.texels(),
-                ViewIndex::Light,
-            );
-            Ok(())
-        })
+        f.raster
+            .record_light_map(rec, Self::RASTER_NAME, f, &self.map, self.texels())
     }
 
     fn record_lookup<'b>(&'b self, rec: &mut Recorder, f: &ShadowInputs<'b>) -> Result<()> {

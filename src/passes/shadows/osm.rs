@@ -35,9 +35,7 @@ use crate::passes::{LOCAL_SIZE, ShadowInputs, spirv};
 use crate::settings::ShadowMode;
 use crate::vk::pipeline::{PipelineDesc, ro, rw, uniform, wo};
 use crate::vk::{Buffer, ComputePipeline, Context, Grid, Recorder};
-use ash::vk;
 use bytemuck::{Pod, Zeroable};
-use gpu_allocator::MemoryLocation;
 use std::any::Any;
 
 /// Fixed-point steps per unit of optical depth.
@@ -219,13 +217,7 @@ impl OpacityShadows {
             "osm band jobs",
             JOB_CAPACITY as u64 * 8,
         )?);
-        let counters = Buffer::new(
-            ctx,
-            "osm counters",
-            32,
-            vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::INDIRECT_BUFFER,
-            MemoryLocation::GpuOnly,
-        )?;
+        let counters = crate::passes::bands::counters_buffer(ctx, "osm counters", 32)?;
         let o = OpacityShadows {
             light,
             slices,
