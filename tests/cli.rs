@@ -420,8 +420,10 @@ fn graphics_runs_leave_compute_timings_alone() {
         ("issm", "composite"),
     ] {
         let (c, g) = (ms(shadows, "compute", pass), ms(shadows, "graphics", pass));
+        // Other tests' processes share the 2 cores, so single runs vary by
+        // up to ~5x; the bug's ratio was ~0.03.
         assert!(
-            c > 0.25 * g,
+            c > 0.1 * g && g > 0.1 * c,
             "{shadows} {pass}: compute run {c} ms vs graphics run {g} ms"
         );
     }
