@@ -256,3 +256,236 @@ pub fn shadow_image(
         .collect();
     (out, img)
 }
+
+/// A uniform grid of sphere indices (cells of `cell` world units), for
+/// "which spheres can a short ray from here hit".
+struct Grid3 {
+    lo: DVec3,
+    cell: f64,
+    dims: [usize; 3],
+    cells: Vec<Vec<u32>>,
+}
+
+impl Grid3 {
+    fn new(spheres: &[Sphere], cell: f64) -> Self {
+        let (mut lo, mut hi) = (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN));
+        for s in spheres {
+            lo = lo.min(c64(s) - s.radius as f64);
+            hi = hi.max(c64(s) + s.radius as f64);
+        }
+        let dims = {
+            let d = ((hi - lo) / cell).ceil().max(DVec3::ONE);
+            [d.x as usize, d.y as usize, d.z as usize]
+        };
+        let mut cells = vec![Vec::new(); dims[0] * dims[1] * dims[2]];
+        let g = Grid3 {
+            lo,
+            cell,
+            dims,
+            cells: Vec::new(),
+        };
+        for (i, s) in spheres.iter().enumerate() {
+            let r = s.radius as f64;
+            let (a, b) = (g.index(c64(s) - r), g.index(c64(s) + r));
+            for z in a[2]..=b[2] {
+                for y in a[1]..=b[1] {
+                    for x in a[0]..=b[0] {
+                        cells[(z * dims[1] + y) * dims[0] + x].push(i as u32);
+                    }
+                }
+            }
+        }
+        Grid3 { cells, ..g }
+    }
+
+    fn index(&self, p: DVec3) -> [usize; 3] {
+        let q = ((p - self.lo) / self.cell).floor();
+        let c = |v: f64, n: usize| (v.max(0.0) as usize).min(n - 1);
+        [c(q.x, self.dims[0]), c(q.y, self.dims[1]), c(q.z, self.dims[2])]
+    }
+
+    /// Every sphere with a cell within `reach` of `p` (may repeat ids).
+    fn near(&self, p: DVec3, reach: f64, out: &mut Vec<u32>) {
+        out.clear();
+        let (a, b) = (self.index(p - reach), self.index(p + reach));
+        for z in a[2]..=b[2] {
+            for y in a[1]..=b[1] {
+                for x in a[0]..=b[0] {
+                    out.extend_from_slice(&self.cells[(z * self.dims[1] + y) * self.dims[0] + x]);
+                }
+            }
+        }
+        out.sort_unstable();
+        out.dedup();
+    }
+}
+
+/// Ray-traced ambient occlusion, the reference for SSDO: at the visible
+/// point of every `stride`-th pixel (both axes), the fraction of `rays`
+/// cosine-weighted directions (a stratified grid over Malley's mapping,
+/// rotated per pixel) that leave a `radius` ball around the point without
+/// hitting another sphere. None for background, ambiguous and skipped pixels.
+pub fn ambient_occlusion(
+    spheres: &[Sphere],
+    cam: &Camera,
+    radius: f64,
+    rays: u32,
+    stride: u32,
+) -> Vec<Option<f64>> {
+    let (mut lo, mut hi) = (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN));
+    let mut r_max = 0.0f64;
+    for s in spheres {
+        lo = lo.min(c64(s) - s.radius as f64);
+        hi = hi.max(c64(s) + s.radius as f64);
+        r_max = r_max.max(s.radius as f64);
+    }
+    let size = (0.5 * (hi - lo).length()).max(1.0);
+    let img = cast(spheres, cam, 2e-5 * size);
+    let grid = Grid3::new(spheres, (radius + r_max).max(1e-3));
+    let side = (rays as f64).sqrt().ceil() as u32;
+    let n = img.ids.len();
+    let threads = std::thread::available_parallelism().map_or(1, |t| t.get()).min(8);
+    let chunk = n.div_ceil(threads);
+    let mut out = vec![None; n];
+    std::thread::scope(|scope| {
+        for (part, slot) in out.chunks_mut(chunk).enumerate() {
+            let (img, grid) = (&img, &grid);
+            scope.spawn(move || {
+                let mut near = Vec::new();
+                for (k, o) in slot.iter_mut().enumerate() {
+                    let i = part * chunk + k;
+                    let (px, py) = (i as u32 % cam.width, i as u32 / cam.width);
+                    if px % stride != 0 || py % stride != 0 {
+                        continue;
+                    }
+                    if img.ids[i] == u32::MAX || img.ambiguous[i] {
+                        continue;
+                    }
+                    let (orig, dir) = cam.ray(px, py);
+                    let p = orig + img.t[i] * dir;
+                    let own = &spheres[img.ids[i] as usize];
+                    let nrm = (p - c64(own)).normalize();
+                    let p = p + nrm * 1e-6 * size;
+                    grid.near(p, radius, &mut near);
+                    // Only spheres that reach into the ball in front of p.
+                    near.retain(|&j| {
+                        let s = &spheres[j as usize];
+                        let c = c64(s);
+                        let r = s.radius as f64;
+                        j != img.ids[i] && (c - p).length() < radius + r && (c - p).dot(nrm) > -r
+                    });
+                    // Orthonormal frame around the normal.
+                    let t = if nrm.x.abs() < 0.9 { DVec3::X } else { DVec3::Y };
+                    let t = nrm.cross(t).normalize();
+                    let b = nrm.cross(t);
+                    let rot = ((px.wrapping_mul(73_856_093) ^ py.wrapping_mul(19_349_663)) % 1024)
+                        as f64
+                        / 1024.0;
+                    let mut open = 0u32;
+                    let mut total = 0u32;
+                    for a in 0..side {
+                        for c in 0..side {
+                            if total == rays {
+                                break;
+                            }
+                            total += 1;
+                            let u = ((a as f64 + 0.5) / side as f64 + rot).fract();
+                            let v = (c as f64 + 0.5) / side as f64;
+                            // cosine-weighted: uniform disk point lifted to the hemisphere
+                            let (rr, phi) = (u.sqrt(), std::f64::consts::TAU * v);
+                            let (x, y) = (rr * phi.cos(), rr * phi.sin());
+                            let z = (1.0 - x * x - y * y).max(0.0).sqrt();
+                            let d = (x * t + y * b + z * nrm).normalize();
+                            let hit = near.iter().any(|&j| {
+                                let s = &spheres[j as usize];
+                                ray_sphere(p, d, c64(s), s.radius as f64).is_some_and(|(th, disc)| {
+                                    let far = th + 2.0 * disc.max(0.0).sqrt();
+                                    far > 0.0 && th.max(0.0) < radius
+                                })
+                            });
+                            if !hit {
+                                open += 1;
+                            }
+                        }
+                    }
+                    *o = Some(open as f64 / total as f64);
+                }
+            });
+        }
+    });
+    out
+}
+
+/// Spearman rank correlation of paired samples (average ranks for ties).
+pub fn spearman(a: &[f64], b: &[f64]) -> f64 {
+    fn ranks(v: &[f64]) -> Vec<f64> {
+        let mut idx: Vec<usize> = (0..v.len()).collect();
+        idx.sort_by(|&i, &j| v[i].total_cmp(&v[j]));
+        let mut r = vec![0.0; v.len()];
+        let mut k = 0;
+        while k < idx.len() {
+            let mut e = k;
+            while e + 1 < idx.len() && v[idx[e + 1]] == v[idx[k]] {
+                e += 1;
+            }
+            let avg = (k + e) as f64 / 2.0;
+            for &i in &idx[k..=e] {
+                r[i] = avg;
+            }
+            k = e + 1;
+        }
+        r
+    }
+    let (ra, rb) = (ranks(a), ranks(b));
+    let n = a.len() as f64;
+    let (ma, mb) = (ra.iter().sum::<f64>() / n, rb.iter().sum::<f64>() / n);
+    let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
+    for (x, y) in ra.iter().zip(&rb) {
+        sab += (x - ma) * (y - mb);
+        saa += (x - ma) * (x - ma);
+        sbb += (y - mb) * (y - mb);
+    }
+    if saa == 0.0 || sbb == 0.0 {
+        return 0.0;
+    }
+    sab / (saa * sbb).sqrt()
+}
+
+#[cfg(test)]
+mod ao_tests {
+    use super::*;
+
+    #[test]
+    fn spearman_is_one_for_monotone_and_minus_one_for_reversed() {
+        let a = [1.0, 2.0, 3.0, 4.0, 10.0];
+        let b = [0.1, 0.2, 0.25, 0.9, 1.0];
+        assert!((spearman(&a, &b) - 1.0).abs() < 1e-12);
+        let c: Vec<f64> = b.iter().map(|x| -x).collect();
+        assert!((spearman(&a, &c) + 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn ao_of_a_lone_sphere_is_open_and_of_a_pit_is_closed() {
+        let s = |c: [f32; 3], r: f32| Sphere {
+            center: c,
+            radius: r,
+            color: [255; 4],
+            region: [0; 4],
+        };
+        let cam = |h: f64| {
+            Camera::new(DVec3::ZERO, DVec3::new(0.0, 0.0, -1.0), DVec3::Y, h, None, 16, 16)
+                .unwrap()
+        };
+        let lone = ambient_occlusion(&[s([0.0; 3], 1.0)], &cam(3.0), 2.0, 64, 1);
+        assert!(lone.iter().flatten().all(|&v| v == 1.0));
+        // A small sphere at the bottom of a ring of big ones: mostly occluded.
+        let mut ring = vec![s([0.0, 0.0, 0.0], 0.5)];
+        for k in 0..12 {
+            let a = k as f32 * std::f32::consts::TAU / 12.0;
+            ring.push(s([1.6 * a.cos(), 1.6 * a.sin(), 1.0], 1.0));
+        }
+        let ao = ambient_occlusion(&ring, &cam(0.6), 4.0, 256, 1);
+        let centre = ao[8 * 16 + 8].expect("centre pixel sees the small sphere");
+        assert!(centre < 0.7, "pit visibility {centre}");
+    }
+}

@@ -758,6 +758,12 @@ impl<'c> Renderer<'c> {
         self.deep().and_then(|d| d.stats.clone())
     }
 
+    /// SSDO's far search radius for the current camera (world units): the
+    /// reach of its occlusion (the AO reference uses the same).
+    pub fn ssdo_far_radius(&self) -> f64 {
+        self.res.ssdo_params(&self.settings).ssdo.r_far as f64
+    }
+
     /// The semantic level choice of this frame, when SSDO runs.
     pub fn level_choice(&self) -> Option<LevelChoice> {
         self.settings

@@ -41,7 +41,9 @@ impl Stage {
         match self {
             Stage::Transfer => vk::AccessFlags2::TRANSFER_READ,
             Stage::Compute | Stage::Graphics => {
-                vk::AccessFlags2::SHADER_STORAGE_READ | vk::AccessFlags2::UNIFORM_READ
+                vk::AccessFlags2::SHADER_STORAGE_READ
+                    | vk::AccessFlags2::UNIFORM_READ
+                    | vk::AccessFlags2::SHADER_SAMPLED_READ
             }
             Stage::Indirect => vk::AccessFlags2::INDIRECT_COMMAND_READ,
         }

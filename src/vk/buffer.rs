@@ -12,6 +12,9 @@ pub struct Buffer {
     pub size: u64,
     pub name: String,
     allocation: Option<Allocation>,
+    /// Texel-buffer views made so far, one per format (whole buffer).
+    views: std::sync::Mutex<Vec<(vk::Format, vk::BufferView)>>,
+    usage: vk::BufferUsageFlags,
 }
 
 impl Buffer {
@@ -75,6 +78,8 @@ impl Buffer {
             size,
             name: name.to_string(),
             allocation: Some(allocation),
+            views: Default::default(),
+            usage,
         };
         if let Err(result) = bound {
             buffer.destroy(ctx);
@@ -87,15 +92,46 @@ impl Buffer {
         Ok(buffer)
     }
 
-    /// A device-local storage buffer.
+    /// A device-local storage buffer (also readable as a uniform texel
+    /// buffer and writable as a storage texel buffer, through views).
     pub fn storage(ctx: &Context, name: &str, size: u64) -> Result<Self> {
         Self::new(
             ctx,
             name,
             size,
-            vk::BufferUsageFlags::STORAGE_BUFFER,
+            vk::BufferUsageFlags::STORAGE_BUFFER
+                | vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER
+                | vk::BufferUsageFlags::STORAGE_TEXEL_BUFFER,
             MemoryLocation::GpuOnly,
         )
+    }
+
+    /// A texel-buffer view of the whole buffer in `format` (made once,
+    /// destroyed with the buffer).
+    pub fn view(&self, ctx: &Context, format: vk::Format) -> Result<vk::BufferView> {
+        let texel = vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER | vk::BufferUsageFlags::STORAGE_TEXEL_BUFFER;
+        if !self.usage.intersects(texel) {
+            return Err(Error::Internal(format!(
+                "'{}' was not created for texel-buffer views",
+                self.name
+            )));
+        }
+        let mut views = self
+            .views
+            .lock()
+            .map_err(|_| Error::Internal("buffer view lock poisoned".into()))?;
+        if let Some((_, v)) = views.iter().find(|(f, _)| *f == format) {
+            return Ok(*v);
+        }
+        let info = vk::BufferViewCreateInfo::default()
+            .buffer(self.raw)
+            .format(format)
+            .offset(0)
+            .range(vk::WHOLE_SIZE);
+        let view = unsafe { ctx.device.create_buffer_view(&info, None) }.vk("vkCreateBufferView")?;
+        ctx.name(view, &format!("{} {format:?}", self.name));
+        views.push((format, view));
+        Ok(view)
     }
 
     /// Host-visible bytes (mapped), if this buffer lives in host memory.
@@ -225,6 +261,12 @@ impl Buffer {
 
     /// Frees the buffer; idempotent, so owners may call it from `Drop`.
     pub fn destroy(&mut self, ctx: &Context) {
+        if let Ok(mut views) = self.views.lock() {
+            for (_, v) in views.drain(..) {
+                // SAFETY: the owner destroys the buffer after its last use.
+                unsafe { ctx.device.destroy_buffer_view(v, None) };
+            }
+        }
         if let Some(a) = self.allocation.take() {
             if let Ok(mut alloc) = ctx.allocator.lock() {
                 let _ = alloc.free(a);

@@ -52,6 +52,14 @@ impl DescriptorArena {
                     ty: vk::DescriptorType::UNIFORM_BUFFER,
                     descriptor_count: 512,
                 },
+                vk::DescriptorPoolSize {
+                    ty: vk::DescriptorType::UNIFORM_TEXEL_BUFFER,
+                    descriptor_count: 1024,
+                },
+                vk::DescriptorPoolSize {
+                    ty: vk::DescriptorType::STORAGE_TEXEL_BUFFER,
+                    descriptor_count: 1024,
+                },
             ];
             let info = vk::DescriptorPoolCreateInfo::default()
                 .max_sets(512)

@@ -444,7 +444,8 @@ impl Context {
         // Optional features that later passes and the validation layer use when present.
         f12 = f12
             .shader_shared_int64_atomics(sup12.shader_shared_int64_atomics == vk::TRUE)
-            .host_query_reset(sup12.host_query_reset == vk::TRUE);
+            .host_query_reset(sup12.host_query_reset == vk::TRUE)
+            .shader_float16(sup12.shader_float16 == vk::TRUE);
         let base = vk::PhysicalDeviceFeatures::default()
             .shader_int64(true)
             .fragment_stores_and_atomics(sup_base.fragment_stores_and_atomics == vk::TRUE)

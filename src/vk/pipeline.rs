@@ -25,39 +25,49 @@ pub struct Shader {
     pub spirv: &'static [u8],
 }
 
-/// One declared binding: the GLSL block name and how the shader uses it.
+/// One declared binding: the GLSL block name (a texel buffer's variable
+/// name), how the shader uses it, and for texel buffers the view format.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Binding {
     pub name: &'static str,
     pub access: Access,
+    pub format: vk::Format,
+}
+
+const fn binding(name: &'static str, access: Access, format: vk::Format) -> Binding {
+    Binding {
+        name,
+        access,
+        format,
+    }
 }
 
 pub const fn uniform(name: &'static str) -> Binding {
-    Binding {
-        name,
-        access: Access::Uniform,
-    }
+    binding(name, Access::Uniform, vk::Format::UNDEFINED)
 }
 /// A `readonly` storage buffer.
 pub const fn ro(name: &'static str) -> Binding {
-    Binding {
-        name,
-        access: Access::Read,
-    }
+    binding(name, Access::Read, vk::Format::UNDEFINED)
 }
 /// A `writeonly` storage buffer.
 pub const fn wo(name: &'static str) -> Binding {
-    Binding {
-        name,
-        access: Access::Write,
-    }
+    binding(name, Access::Write, vk::Format::UNDEFINED)
 }
 /// A storage buffer without qualifiers (read, written or atomics).
 pub const fn rw(name: &'static str) -> Binding {
-    Binding {
-        name,
-        access: Access::ReadWrite,
-    }
+    binding(name, Access::ReadWrite, vk::Format::UNDEFINED)
+}
+/// A uniform texel buffer read through a view of this format.
+pub const fn texel(name: &'static str, format: vk::Format) -> Binding {
+    binding(name, Access::Texel, format)
+}
+/// A `writeonly` storage texel buffer of this format.
+pub const fn image_wo(name: &'static str, format: vk::Format) -> Binding {
+    binding(name, Access::ImageWrite, format)
+}
+/// A `readonly` storage texel buffer of this format.
+pub const fn image_ro(name: &'static str, format: vk::Format) -> Binding {
+    binding(name, Access::ImageRead, format)
 }
 
 /// What a compute pipeline is made of.
@@ -360,16 +370,20 @@ impl ComputePipeline {
             )));
         }
         self.uses(given)?;
-        let infos: Vec<(u32, [vk::DescriptorBufferInfo; 1], Access)> = self
-            .bindings
-            .iter()
-            .filter_map(|(b, n)| {
-                let buf = given.iter().find(|(g, _)| *g == b.name)?.1;
-                n.map(|n| (n, [buf.descriptor()], b.access))
-            })
-            .collect();
+        let mut infos: Vec<(u32, [vk::DescriptorBufferInfo; 1], Access)> = Vec::new();
+        let mut views: Vec<(u32, [vk::BufferView; 1], Access)> = Vec::new();
+        for (b, n) in &self.bindings {
+            let (Some(n), Some((_, buf))) = (n, given.iter().find(|(g, _)| *g == b.name)) else {
+                continue;
+            };
+            if b.access.is_texel() {
+                views.push((*n, [buf.view(ctx, b.format)?], b.access));
+            } else {
+                infos.push((*n, [buf.descriptor()], b.access));
+            }
+        }
         let set = arena.allocate(ctx, self.set_layout)?;
-        let writes: Vec<_> = infos
+        let mut writes: Vec<_> = infos
             .iter()
             .map(|(n, info, access)| {
                 vk::WriteDescriptorSet::default()
@@ -379,6 +393,13 @@ impl ComputePipeline {
                     .buffer_info(info)
             })
             .collect();
+        writes.extend(views.iter().map(|(n, view, access)| {
+            vk::WriteDescriptorSet::default()
+                .dst_set(set)
+                .dst_binding(*n)
+                .descriptor_type(descriptor_type(*access))
+                .texel_buffer_view(view)
+        }));
         // SAFETY: the set, layout, pipeline and buffers are live; cmd records.
         unsafe {
             ctx.device.update_descriptor_sets(&writes, &[]);
@@ -459,6 +480,10 @@ impl ComputePipeline {
 fn descriptor_type(access: Access) -> vk::DescriptorType {
     match access {
         Access::Uniform => vk::DescriptorType::UNIFORM_BUFFER,
-        _ => vk::DescriptorType::STORAGE_BUFFER,
+        Access::Read | Access::Write | Access::ReadWrite => vk::DescriptorType::STORAGE_BUFFER,
+        Access::Texel => vk::DescriptorType::UNIFORM_TEXEL_BUFFER,
+        Access::ImageRead | Access::ImageWrite | Access::ImageReadWrite => {
+            vk::DescriptorType::STORAGE_TEXEL_BUFFER
+        }
     }
 }

@@ -18,14 +18,33 @@ pub enum Access {
     Write,
     /// A storage buffer without qualifiers (loads, stores or atomics).
     ReadWrite,
+    /// A uniform texel buffer (`samplerBuffer`/`usamplerBuffer`, texelFetch):
+    /// on lavapipe its fetches are vector gathers, unlike storage loads.
+    Texel,
+    /// A storage texel buffer (`imageBuffer`) declared `readonly`.
+    ImageRead,
+    /// A storage texel buffer declared `writeonly`.
+    ImageWrite,
+    /// A storage texel buffer without qualifiers.
+    ImageReadWrite,
 }
 
 impl Access {
     pub fn reads(self) -> bool {
-        !matches!(self, Access::Write)
+        !matches!(self, Access::Write | Access::ImageWrite)
     }
     pub fn writes(self) -> bool {
-        matches!(self, Access::Write | Access::ReadWrite)
+        matches!(
+            self,
+            Access::Write | Access::ReadWrite | Access::ImageWrite | Access::ImageReadWrite
+        )
+    }
+    /// Whether the descriptor is a texel buffer (needs a buffer view).
+    pub fn is_texel(self) -> bool {
+        matches!(
+            self,
+            Access::Texel | Access::ImageRead | Access::ImageWrite | Access::ImageReadWrite
+        )
     }
     pub fn describe(self) -> &'static str {
         match self {
@@ -33,6 +52,10 @@ impl Access {
             Access::Read => "readonly storage buffer",
             Access::Write => "writeonly storage buffer",
             Access::ReadWrite => "read-write storage buffer",
+            Access::Texel => "uniform texel buffer",
+            Access::ImageRead => "readonly storage texel buffer",
+            Access::ImageWrite => "writeonly storage texel buffer",
+            Access::ImageReadWrite => "read-write storage texel buffer",
         }
     }
 }
@@ -65,6 +88,8 @@ mod op {
     pub const TYPE_FLOAT: u16 = 22;
     pub const TYPE_VECTOR: u16 = 23;
     pub const TYPE_MATRIX: u16 = 24;
+    pub const TYPE_IMAGE: u16 = 25;
+    pub const TYPE_SAMPLED_IMAGE: u16 = 27;
     pub const TYPE_ARRAY: u16 = 28;
     pub const TYPE_STRUCT: u16 = 30;
     pub const TYPE_POINTER: u16 = 32;
@@ -86,6 +111,7 @@ mod deco {
 }
 
 mod class {
+    pub const UNIFORM_CONSTANT: u32 = 0;
     pub const UNIFORM: u32 = 2;
     pub const PUSH_CONSTANT: u32 = 9;
     pub const STORAGE_BUFFER: u32 = 12;
@@ -105,6 +131,10 @@ enum Type {
     Matrix(u32, u32),
     Array(u32, u32, Option<u32>),
     Struct(Vec<u32>),
+    /// (dim, sampled: 1 = with a sampler, 2 = storage image)
+    Image(u32, u32),
+    /// the image type
+    SampledImage(u32),
     /// (storage class, pointee)
     Pointer(#[allow(dead_code)] u32, u32),
 }
@@ -146,6 +176,12 @@ pub fn reflect(words: &[u32]) -> Result<Reflection, String> {
             }
             op::TYPE_ARRAY if a.len() >= 3 => {
                 types.insert(a[0], Type::Array(a[1], a[2], None));
+            }
+            op::TYPE_IMAGE if a.len() >= 7 => {
+                types.insert(a[0], Type::Image(a[2], a[6]));
+            }
+            op::TYPE_SAMPLED_IMAGE if a.len() >= 2 => {
+                types.insert(a[0], Type::SampledImage(a[1]));
             }
             op::TYPE_STRUCT if !a.is_empty() => {
                 types.insert(a[0], Type::Struct(a[1..].to_vec()));
@@ -213,6 +249,38 @@ pub fn reflect(words: &[u32]) -> Result<Reflection, String> {
                 &member_decorations,
                 &array_strides,
             ));
+            continue;
+        }
+        if storage == class::UNIFORM_CONSTANT {
+            // Texel buffers: images of dimension Buffer (5), named by the variable.
+            const DIM_BUFFER: u32 = 5;
+            let image = match types.get(&block) {
+                Some(Type::SampledImage(img)) => types.get(img),
+                t => t,
+            };
+            let Some(Type::Image(DIM_BUFFER, sampled)) = image else {
+                continue;
+            };
+            let (Some(set), Some(binding)) =
+                (value(id, deco::DESCRIPTOR_SET), value(id, deco::BINDING))
+            else {
+                continue;
+            };
+            let access = if *sampled == 1 {
+                Access::Texel
+            } else {
+                match (has(id, deco::NON_WRITABLE), has(id, deco::NON_READABLE)) {
+                    (true, false) => Access::ImageRead,
+                    (false, true) => Access::ImageWrite,
+                    _ => Access::ImageReadWrite,
+                }
+            };
+            out.descriptors.push(Descriptor {
+                set,
+                binding,
+                name: names.get(&id).cloned().unwrap_or_default(),
+                access,
+            });
             continue;
         }
         if storage != class::UNIFORM && storage != class::STORAGE_BUFFER {
