@@ -82,59 +82,84 @@ fn main() {
         let file_name = path.file_name().unwrap().to_string_lossy().into_owned();
         let source = fs::read_to_string(&path).expect("read shader");
 
-        let mut options = shaderc::CompileOptions::new().unwrap();
-        options.set_target_env(
-            shaderc::TargetEnv::Vulkan,
-            shaderc::EnvVersion::Vulkan1_2 as u32,
-        );
-        options.set_target_spirv(shaderc::SpirvVersion::V1_5);
-        // Debug info in every profile: the optimizer keeps the block names
-        // (OpName) only with it, and pipelines check their bindings by name.
-        options.set_generate_debug_info();
-        options.set_optimization_level(if debug {
-            shaderc::OptimizationLevel::Zero
+        // `// variants: A B` near the top: one compile per variant with A (B)
+        // defined, as NAME_A (NAME_B); otherwise one compile as NAME.
+        let variants: Vec<String> = source
+            .lines()
+            .take(4)
+            .find_map(|l| l.trim().strip_prefix("// variants:"))
+            .map(|v| v.split_whitespace().map(str::to_string).collect())
+            .unwrap_or_default();
+        let stem = file_name.replace('.', "_").to_uppercase();
+        let builds: Vec<(Option<String>, String)> = if variants.is_empty() {
+            vec![(None, stem.clone())]
         } else {
-            shaderc::OptimizationLevel::Performance
-        });
-        let dir = glsl_dir.clone();
-        let generated = constants.clone();
-        let generated_path = out_dir.join("constants.glsl").display().to_string();
-        options.set_include_callback(move |name, _ty, _from, _depth| {
-            if name == "constants.glsl" {
-                return Ok(shaderc::ResolvedInclude {
-                    resolved_name: generated_path.clone(),
-                    content: generated.clone(),
-                });
+            variants
+                .iter()
+                .map(|v| (Some(v.clone()), format!("{stem}_{v}")))
+                .collect()
+        };
+        for (define, const_name) in builds {
+            let mut options = shaderc::CompileOptions::new().unwrap();
+            options.set_target_env(
+                shaderc::TargetEnv::Vulkan,
+                shaderc::EnvVersion::Vulkan1_2 as u32,
+            );
+            options.set_target_spirv(shaderc::SpirvVersion::V1_5);
+            // Debug info in every profile: the optimizer keeps the block names
+            // (OpName) only with it, and pipelines check their bindings by name.
+            options.set_generate_debug_info();
+            options.set_optimization_level(if debug {
+                shaderc::OptimizationLevel::Zero
+            } else {
+                shaderc::OptimizationLevel::Performance
+            });
+            if let Some(d) = &define {
+                options.add_macro_definition(d, Some("1"));
             }
-            let p = dir.join(name);
-            let content = fs::read_to_string(&p).map_err(|e| format!("{}: {e}", p.display()))?;
-            Ok(shaderc::ResolvedInclude {
-                resolved_name: p.display().to_string(),
-                content,
-            })
-        });
+            let dir = glsl_dir.clone();
+            let generated = constants.clone();
+            let generated_path = out_dir.join("constants.glsl").display().to_string();
+            options.set_include_callback(move |name, _ty, _from, _depth| {
+                if name == "constants.glsl" {
+                    return Ok(shaderc::ResolvedInclude {
+                        resolved_name: generated_path.clone(),
+                        content: generated.clone(),
+                    });
+                }
+                let p = dir.join(name);
+                let content =
+                    fs::read_to_string(&p).map_err(|e| format!("{}: {e}", p.display()))?;
+                Ok(shaderc::ResolvedInclude {
+                    resolved_name: p.display().to_string(),
+                    content,
+                })
+            });
 
-        match compiler.compile_into_spirv(
-            &source,
-            kind,
-            &path.display().to_string(),
-            "main",
-            Some(&options),
-        ) {
-            Ok(artifact) => {
-                let stem = file_name.replace('.', "_").to_uppercase();
-                let spv = out_dir.join(format!("{file_name}.spv"));
-                fs::write(&spv, artifact.as_binary_u8()).expect("write spv");
-                writeln!(
-                    index,
-                    "pub const {stem}: crate::vk::pipeline::Shader = crate::vk::pipeline::Shader {{ \
-                     file: {file_name:?}, spirv: include_bytes!({:?}) }};",
-                    spv.display().to_string()
-                )
-                .unwrap();
+            match compiler.compile_into_spirv(
+                &source,
+                kind,
+                &path.display().to_string(),
+                "main",
+                Some(&options),
+            ) {
+                Ok(artifact) => {
+                    let spv = out_dir.join(format!("{}.spv", const_name.to_lowercase()));
+                    fs::write(&spv, artifact.as_binary_u8()).expect("write spv");
+                    writeln!(
+                        index,
+                        "pub const {const_name}: crate::vk::pipeline::Shader = crate::vk::pipeline::Shader {{ \
+                         file: {file_name:?}, spirv: include_bytes!({:?}) }};",
+                        spv.display().to_string()
+                    )
+                    .unwrap();
+                }
+                // shaderc's message already reads "glsl/x.comp:LINE: error: ...".
+                Err(e) => failures.push(match &define {
+                    Some(d) => format!("[{d}] {e}"),
+                    None => e.to_string(),
+                }),
             }
-            // shaderc's message already reads "glsl/x.comp:LINE: error: ...".
-            Err(e) => failures.push(e.to_string()),
         }
     }
     if !failures.is_empty() {

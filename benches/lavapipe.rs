@@ -3,10 +3,10 @@
 //! invocations each, median of 5 runs after a warm-up, and prints a table.
 
 use sphereshade::passes::spirv;
-use sphereshade::vk::pipeline::{PipelineDesc, texel, uniform, ro, wo};
-use sphereshade::vk::{Buffer, ComputePipeline, Context, ContextOptions, Grid, Profiler};
-use sphereshade::vk::descriptors::DescriptorArena;
 use sphereshade::vk::Recorder;
+use sphereshade::vk::descriptors::DescriptorArena;
+use sphereshade::vk::pipeline::{PipelineDesc, ro, texel, uniform, wo};
+use sphereshade::vk::{Buffer, ComputePipeline, Context, ContextOptions, Grid, Profiler};
 
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
@@ -19,22 +19,70 @@ struct Push {
 
 const CASES: &[(u32, u32, &str)] = &[
     (18, 16, "address arithmetic only, no loads (16 taps)"),
-    (0, 16, "storage buffer vec4 load, per-lane address (16 taps)"),
-    (1, 16, "storage buffer float load, per-lane address (16 taps)"),
-    (2, 16, "storage buffer vec4 load, same address in all lanes (16 taps)"),
-    (3, 16, "uniform texel buffer fetch (rgba32f), per-lane address (16 taps)"),
-    (14, 16, "storage buffer vec4 load, neighbouring addresses (16 taps)"),
-    (16, 16, "storage buffer float load, neighbouring addresses (16 taps)"),
-    (15, 16, "uniform texel buffer fetch (rgba32f), neighbouring addresses (16 taps)"),
+    (
+        0,
+        16,
+        "storage buffer vec4 load, per-lane address (16 taps)",
+    ),
+    (
+        1,
+        16,
+        "storage buffer float load, per-lane address (16 taps)",
+    ),
+    (
+        2,
+        16,
+        "storage buffer vec4 load, same address in all lanes (16 taps)",
+    ),
+    (
+        3,
+        16,
+        "uniform texel buffer fetch (rgba32f), per-lane address (16 taps)",
+    ),
+    (
+        14,
+        16,
+        "storage buffer vec4 load, neighbouring addresses (16 taps)",
+    ),
+    (
+        16,
+        16,
+        "storage buffer float load, neighbouring addresses (16 taps)",
+    ),
+    (
+        15,
+        16,
+        "uniform texel buffer fetch (rgba32f), neighbouring addresses (16 taps)",
+    ),
     (4, 16, "shared memory vec4 load, per-lane address (16 taps)"),
     (5, 16, "uniform buffer vec4 load, per-lane index (16 taps)"),
-    (6, 16, "if/else on a push constant, all lanes one way (16 sin iterations)"),
+    (
+        6,
+        16,
+        "if/else on a push constant, all lanes one way (16 sin iterations)",
+    ),
     (7, 16, "the same if/else on a specialization constant"),
-    (17, 16, "if/else on a per-lane condition (half the lanes each way)"),
+    (
+        17,
+        16,
+        "if/else on a per-lane condition (half the lanes each way)",
+    ),
     (8, 16, "1 lane in 8 loops 128 sin iterations, 7 loop none"),
-    (9, 16, "every lane loops 16 sin iterations (same total work)"),
-    (10, 16, "all work (32 iterations) in the first half of the workgroups"),
-    (11, 16, "the same work in every other workgroup (interleaved)"),
+    (
+        9,
+        16,
+        "every lane loops 16 sin iterations (same total work)",
+    ),
+    (
+        10,
+        16,
+        "all work (32 iterations) in the first half of the workgroups",
+    ),
+    (
+        11,
+        16,
+        "the same work in every other workgroup (interleaved)",
+    ),
     (12, 16, "fp16 multiply-add chain (128 steps)"),
     (13, 16, "fp32 multiply-add chain (128 steps)"),
 ];
@@ -45,7 +93,8 @@ fn main() {
     let elements: u32 = 1 << 21; // the shader masks addresses to 2^21
     let mut src = Buffer::storage(&ctx, "micro src", elements as u64 * 16).expect("src");
     let data: Vec<f32> = (0..elements * 4).map(|k| (k % 97) as f32 * 0.01).collect();
-    src.upload(&ctx, 0, bytemuck::cast_slice(&data)).expect("upload");
+    src.upload(&ctx, 0, bytemuck::cast_slice(&data))
+        .expect("upload");
     let mut dst = Buffer::storage(&ctx, "micro dst", n as u64 * 16).expect("dst");
     let mut table = Buffer::new(
         &ctx,
@@ -55,7 +104,9 @@ fn main() {
         gpu_allocator::MemoryLocation::GpuOnly,
     )
     .expect("table");
-    table.upload(&ctx, 0, bytemuck::cast_slice(&data[..256])).expect("table");
+    table
+        .upload(&ctx, 0, bytemuck::cast_slice(&data[..256]))
+        .expect("table");
     let mut prof = Profiler::new(&ctx, 4).expect("profiler");
     let mut arena = DescriptorArena::default();
     println!("device: {} ({})", ctx.info.name, ctx.info.driver);
@@ -87,9 +138,19 @@ fn main() {
                     rec.pass("micro", |p| {
                         p.dispatch(
                             &pipe,
-                            &Push { n, taps, flag: 1, pad: 0 },
+                            &Push {
+                                n,
+                                taps,
+                                flag: 1,
+                                pad: 0,
+                            },
                             Grid::Invocations(n as u64),
-                            &[("Src", &src), ("Dst", &dst), ("srcTex", &src), ("GlobalsBlock", &table)],
+                            &[
+                                ("Src", &src),
+                                ("Dst", &dst),
+                                ("srcTex", &src),
+                                ("GlobalsBlock", &table),
+                            ],
                         );
                         Ok(())
                     })

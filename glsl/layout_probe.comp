@@ -19,6 +19,9 @@ void main() {
     put4(g.background);
     put4u(g.counts);
     put4(g.params);
+    put4(g.shadow_f0);
+    put4(g.shadow_f1);
+    put4u(g.shadow_u);
     for (int a = 0; a < 2; ++a) {
         put4u(attrs[a].region);
         words[k++] = attrs[a].color;

@@ -1,6 +1,6 @@
 // Opacity shadow maps (seed 004): what osm_raster.comp and osm_shadow.comp
 // must compute identically (the lookup recomputes the receiver's own deposit
-// to remove it). Include after a push block with z_min, inv_dz and slices.
+// to remove it). Define OSM_Z_MIN, OSM_INV_DZ and OSM_SLICES before including.
 #ifndef OSM_COMMON_GLSL
 #define OSM_COMMON_GLSL
 
@@ -12,6 +12,6 @@ int texel_entry_slice(View L, vec3 cv, float r, ivec2 t) {
     float disc = r * r - dot(dxy, dxy);
     if (disc < 0.0) return -1;
     float z = cv.z - sqrt(disc);
-    return clamp(int(floor((z - pc.z_min) * pc.inv_dz)), 0, int(pc.slices) - 1);
+    return clamp(int(floor((z - OSM_Z_MIN) * OSM_INV_DZ)), 0, int(OSM_SLICES) - 1);
 }
 #endif

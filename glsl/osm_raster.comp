@@ -34,6 +34,9 @@ layout(push_constant) uniform Push {
     uint pad;
 } pc;
 
+#define OSM_Z_MIN pc.z_min
+#define OSM_INV_DZ pc.inv_dz
+#define OSM_SLICES pc.slices
 #include "osm_common.glsl"
 
 struct Footprint {

@@ -22,28 +22,28 @@ layout(push_constant) uniform Push {
     uint sphere_count;
 } pc;
 
+// The view is loaded once per sphere (or band) and travels with the
+// footprint: loading it per pixel doubled the pass's cost on lavapipe.
 struct Footprint {
+    View v;
     vec3 cv;
     float r;
     ivec4 rect;
 };
 
-View raster_view() { return pc.view_index == 0u ? g.cam : g.light; }
-
 Footprint band_footprint(uint id) {
-    View v = raster_view();
-    vec4 s = spheres[id];
     Footprint f;
-    f.cv = view_space(v, s.xyz);
+    f.v = pc.view_index == 0u ? g.cam : g.light;
+    vec4 s = spheres[id];
+    f.cv = view_space(f.v, s.xyz);
     f.r = s.w;
-    f.rect = sphere_rect(v, f.cv, s.w);
+    f.rect = sphere_rect(f.v, f.cv, s.w);
     return f;
 }
 
 void visit(uint id, Footprint f, ivec2 t) {
-    View v = raster_view();
-    float d = hit_depth(v, f.cv, f.r, vec2(t));
-    if (d >= 0.0) atomicMin(vis[uint(t.y) * v.dims.x + uint(t.x)], vis_key(d, id));
+    float d = hit_depth(f.v, f.cv, f.r, vec2(t));
+    if (d >= 0.0) atomicMin(vis[uint(t.y) * f.v.dims.x + uint(t.x)], vis_key(d, id));
 }
 
 bool band_queue() { return true; }

@@ -24,8 +24,11 @@ struct Globals {
     View light;
     vec4 light_dir;   // xyz normalised key-light direction (from light toward scene)
     vec4 background;  // rgb background colour, a unused
-    uvec4 counts;     // x sphere count, yzw unused
+    uvec4 counts;     // x sphere count, y/z half-resolution width/height, w 1 = no hierarchy
     vec4 params;      // free parameters (per feature), see src/gpu.rs
+    vec4 shadow_f0;   // shadow technique lookup parameters (lookup_*.glsl)
+    vec4 shadow_f1;
+    uvec4 shadow_u;
 };
 
 struct SphereAttr {
@@ -100,8 +103,63 @@ vec2 light_uv(View L, vec3 p) {
     return vec2(dot(q, L.right.xyz) * ppu + 0.5 * L.right.w, 0.5 * L.up.w - dot(q, L.up.xyz) * ppu);
 }
 
+// Distance along the view direction (larger = farther from the viewer).
+float view_z(View v, vec3 p) {
+    vec3 o = v.dir.w == 0.0 ? v.center.xyz : v.center.xyz - v.dir.w * v.dir.xyz;
+    return dot(p - o, v.dir.xyz);
+}
+
+// Pixel coordinates (continuous, pixel centres at integers) of a world point.
+vec2 project_px(View v, vec3 p) {
+    float ppu = v.center.w, w = v.right.w, h = v.up.w;
+    vec2 xy;
+    if (v.dir.w == 0.0) {
+        vec3 q = p - v.center.xyz;
+        xy = vec2(dot(q, v.right.xyz), dot(q, v.up.xyz));
+    } else {
+        vec3 q = p - (v.center.xyz - v.dir.w * v.dir.xyz);
+        float z = max(dot(q, v.dir.xyz), 1e-6);
+        xy = vec2(dot(q, v.right.xyz), dot(q, v.up.xyz)) * (v.dir.w / z);
+    }
+    return vec2(xy.x * ppu + 0.5 * w - 0.5, 0.5 * h - xy.y * ppu - 0.5);
+}
+
+// World point on pixel px's ray at view distance z (inverse of view_z).
+vec3 point_at(View v, vec2 px, float z) {
+    vec3 o, d;
+    view_ray(v, px, o, d);
+    vec3 base = v.dir.w == 0.0 ? v.center.xyz : v.center.xyz - v.dir.w * v.dir.xyz;
+    float t = (z - dot(o - base, v.dir.xyz)) / max(dot(d, v.dir.xyz), 1e-6);
+    return o + t * d;
+}
+
+// View distance (as view_z) of the surface at pixel q from its depth key
+// alone (orthographic: distance from the centre plane + offset;
+// perspective: distance along the ray from the eye).
+float key_view_z(View v, uint q, float key) {
+    if (v.dir.w == 0.0) return key - v.depth.x;
+    uint w = v.dims.x;
+    vec3 o, d;
+    view_ray(v, vec2(q % w, q / w), o, d);
+    return key * dot(d, v.dir.xyz);
+}
+
 uint64_t vis_key(float depth, uint id) {
     return (uint64_t(floatBitsToUint(depth)) << 32) | uint64_t(id);
+}
+
+// Octahedral unit-vector encoding in two snorm16 (error < 2e-5 rad per axis).
+vec2 oct_wrap(vec2 v) { return (1.0 - abs(v.yx)) * vec2(v.x >= 0.0 ? 1.0 : -1.0, v.y >= 0.0 ? 1.0 : -1.0); }
+uint pack_normal(vec3 n) {
+    n /= abs(n.x) + abs(n.y) + abs(n.z);
+    vec2 e = n.z >= 0.0 ? n.xy : oct_wrap(n.xy);
+    return packSnorm2x16(e);
+}
+vec3 unpack_normal(uint u) {
+    vec2 e = unpackSnorm2x16(u);
+    vec3 n = vec3(e, 1.0 - abs(e.x) - abs(e.y));
+    if (n.z < 0.0) n.xy = oct_wrap(n.xy);
+    return normalize(n);
 }
 
 uint pack_rgba8(vec4 c) {

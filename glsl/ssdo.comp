@@ -1,116 +1,155 @@
 #version 460
 // Semantic screen-space directional occlusion with one indirect bounce
-// (seed 001). Per pixel, cosine-weighted hemisphere directions (Halton +
-// Malley, rotated per pixel):
-// - near radius: one sample point per direction; far radius: a fixed-step
-//   march along the direction up to the far radius (the paper's occluder
-//   search), the first occluder found counts;
+// (seed 001). Occluders are looked up in the half-resolution records of
+// ssdo_prep.comp (one fetch per tap, a vector gather on lavapipe); the
+// receivers are every pixel at full resolution, rebuilt exactly from
+// (pixel ray, sphere id). Directions come from the sample table (a uniform
+// buffer: Halton + Malley, made once on the CPU), rotated about the normal
+// by a 4x4 interleaved pattern over 2x2 blocks; with INTERLEAVE the block's
+// DIRS directions are split among its 4 pixels and the blur recombines
+// them. The occluder test uses the exact depth of the pixel a sample
+// projects to (its depth key); regions, normal and reflected light come
+// from its block's record. Per direction:
+// - near radius: one sample point; far radius: a fixed-step march along the
+//   direction up to the far radius (the paper's occluder search), the first
+//   occluder found counts;
 // - a sample is an occluder if the surface seen at its projection is closer
 //   to the viewer than the sample, lies within the radius, and (semantic
 //   mode) belongs to a different region than the receiver: the region test
-//   is a blend of two hierarchy levels (weight `blend` on level_b);
+//   is a blend of two hierarchy levels (weight `blend` on level b);
 // - visibility = V_near * V_far (multiplying visibilities, not occlusion);
 // - bounce (Ritschel et al.): sum over far occluders of
 //   (albedo/pi) * L_direct(Q) * A_s * cos_s * cos_r / d^2, A_s = pi r^2 / N.
-#include "ssdo_common.glsl"
+// Output per pixel (ssdo_common.glsl pack_ao): near and far visibility
+// (V = V_near * V_far after the blur), the incoming bounce, and the block's
+// screen-space key-light visibility.
+#include "shared.glsl"
 
 layout(local_size_x_id = 0) in;
+layout(constant_id = 1) const bool SEMANTIC = true;
+layout(constant_id = 2) const uint DIRS = 12;
+layout(constant_id = 3) const uint STEPS = 4;
+// Interleaved: each pixel of a 2x2 block takes a quarter of the DIRS
+// directions (large spheres on screen); else every pixel takes all of them
+// (small spheres: the AO changes from pixel to pixel, measured in notes).
+layout(constant_id = 4) const bool INTERLEAVE = true;
 
 layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
-layout(set = 0, binding = 1) readonly buffer Attrs { SphereAttr attrs[]; };
-layout(set = 0, binding = 2) readonly buffer Vis { uint64_t vis[]; };
-layout(set = 0, binding = 3) readonly buffer GPos { vec4 gpos[]; };
-layout(set = 0, binding = 4) readonly buffer GNorm { vec4 gnorm[]; };
-layout(set = 0, binding = 5) readonly buffer GRegion { uvec4 gregion[]; };
-layout(set = 0, binding = 6) readonly buffer Shadow { float shadow[]; };
-layout(set = 0, binding = 7) writeonly buffer Ambient { vec4 ambient[]; };
+layout(set = 0, binding = 1) uniform usamplerBuffer recordTex;
+layout(set = 0, binding = 2) uniform SampleTable { vec4 samples[64]; };
+layout(set = 0, binding = 3) writeonly buffer Ao { uint ao[]; };
+layout(set = 0, binding = 4) uniform usamplerBuffer visTex;
+layout(set = 0, binding = 5) uniform samplerBuffer sphereTex;
+layout(set = 0, binding = 6) uniform usamplerBuffer attrTex;
 
 layout(push_constant) uniform Push {
     float r_near;
     float r_far;
-    uint dirs;
-    uint steps;
-    uint semantic; // 0 plain, 1 semantic
+    float blend;   // weight of level b in the region test
+    float bounce;  // bounce strength
     uint level_a;
     uint level_b;
-    float blend;   // weight of level_b in the region test
-    float bounce;  // bounce strength
-    float pad0, pad1, pad2;
+    uint pad0, pad1;
 } pc;
 
-vec3 srgb_to_linear(vec3 c) { return pow(c, vec3(2.2)); }
+#include "surface.glsl"
+#include "ssdo_common.glsl"
+#include "ssdo_record.glsl"
+#include "tiles.glsl"
 
-// Occluder weight of the surface at pixel q for receiver regions rr (0..1).
-float region_weight(uvec4 rr, uint q) {
-    if (pc.semantic == 0u) return 1.0;
-    uvec4 rq = gregion[q];
-    float da = rr[pc.level_a] != rq[pc.level_a] ? 1.0 : 0.0;
-    float db = rr[pc.level_b] != rq[pc.level_b] ? 1.0 : 0.0;
+Record record_at(uvec2 b) { return unpack_record(texelFetch(recordTex, int(b.y * g.counts.y + b.x))); }
+
+// Occluder weight of a surface with regions (qa, qb) for a receiver (ra, rb).
+float region_weight(uint ra, uint rb, Record q) {
+    if (!SEMANTIC) return 1.0;
+    float da = ra != q.region_a ? 1.0 : 0.0;
+    float db = rb != q.region_b ? 1.0 : 0.0;
     return mix(da, db, pc.blend);
 }
 
-// Returns the pixel index seen at s, or -1 when off screen or background.
-int pixel_at(vec3 s) {
+// The surface seen at world point s (false when off screen or background):
+// its view distance and position exactly from the pixel's depth key, its
+// sphere, and the record of its block (regions, normal, reflected light).
+bool block_at(vec3 s, out uvec2 b, out Record q, out vec3 qp) {
     vec2 px = round(project_px(g.cam, s));
     uint w = g.cam.dims.x, h = g.cam.dims.y;
-    if (px.x < 0.0 || px.y < 0.0 || px.x >= float(w) || px.y >= float(h)) return -1;
-    uint q = uint(px.y) * w + uint(px.x);
-    return gnorm[q].w == 0.0 ? -1 : int(q);
+    if (px.x < 0.0 || px.y < 0.0 || px.x >= float(w) || px.y >= float(h)) return false;
+    uint j = uint(px.y) * w + uint(px.x);
+    uvec2 v = texelFetch(visTex, int(j)).xy;
+    if (v.x == NO_SPHERE) return false;
+    b = uvec2(px);
+    q = record_at(b / SSDO_BLOCK);
+    q.z = key_view_z(g.cam, j, uintBitsToFloat(v.y));
+    qp = point_at(g.cam, px, q.z);
+    return true;
 }
+
+const float BAYER4[16] = float[](0.0, 8.0, 2.0, 10.0, 12.0, 4.0, 14.0, 6.0,
+                                 3.0, 11.0, 1.0, 9.0, 15.0, 7.0, 13.0, 5.0);
 
 void main() {
     uint w = g.cam.dims.x, h = g.cam.dims.y;
-    uint i = FLAT_ID;
-    if (i >= w * h) return;
-    vec4 n4 = gnorm[i];
-    if (n4.w == 0.0) {
-        ambient[i] = vec4(1.0, 0.0, 0.0, 0.0);
+    uvec2 px;
+    if (!tile_pixel(w, h, px)) return;
+    uint i = px.y * w + px.x;
+    Surface s;
+    if (!surface_of(i, s)) {
+        ao[i] = pack_ao(vec2(1.0), vec3(0.0), 1.0);
         return;
     }
-    vec3 x = gpos[i].xyz, n = n4.xyz;
-    uvec4 rr = gregion[i];
-    float rot = hash12(uvec2(i % w, i / w));
-    vec3 l_key = -normalize(g.light_dir.xyz);
+    uvec2 own = px / SSDO_BLOCK;
+    float screen_vis = record_at(own).visibility;
+    uint ra, rb;
+    if (g.counts.w != 0u) {
+        // No hierarchy: every sphere is its own region.
+        ra = region_hash(s.id);
+        rb = ra;
+    } else {
+        uvec4 regions = texelFetch(attrTex, int(2u * s.id));
+        ra = region_hash(regions[pc.level_a]);
+        rb = region_hash(regions[pc.level_b]);
+    }
+    vec3 x = s.p, n = s.n;
+    float rot = (BAYER4[(own.y & 3u) * 4u + (own.x & 3u)] + 0.5) / 16.0;
+    uint slot = INTERLEAVE ? (px.x & 1u) + 2u * (px.y & 1u) : 0u;
+    mat3 frame = tangent_frame(n);
+    const uint MINE = INTERLEAVE ? DIRS / 4u : DIRS;
+    const uint STRIDE = INTERLEAVE ? 4u : 1u;
     float occ_near = 0.0, occ_far = 0.0;
     vec3 bounce = vec3(0.0);
-    float area = 3.14159265 * pc.r_far * pc.r_far / float(pc.dirs);
-    for (uint k = 0u; k < pc.dirs; ++k) {
-        vec3 dir = hemisphere_sample(k, n, rot);
+    float area = 3.14159265 * pc.r_far * pc.r_far / float(DIRS);
+    for (uint kk = 0u; kk < MINE; ++kk) {
+        vec4 t = samples[STRIDE * kk + slot];
+        vec3 dir = table_sample(t, frame, rot);
         // near: one sample at a Halton-distributed distance
-        float lam = mix(0.2, 1.0, fract(halton(k + 1u, 5u) + rot));
-        vec3 s = x + n * 1e-3 + lam * pc.r_near * dir;
-        int q = pixel_at(s);
-        if (q >= 0 && uint(q) != i) {
-            vec3 qp = gpos[q].xyz;
-            if (view_z(g.cam, qp) < view_z(g.cam, s) && distance(qp, x) < pc.r_near)
-                occ_near += region_weight(rr, uint(q));
+        float lam = fract(t.w + rot) * 0.8 + 0.2;
+        vec3 sn = x + n * 1e-3 + lam * pc.r_near * dir;
+        uvec2 qb;
+        Record q;
+        vec3 qp;
+        if (block_at(sn, qb, q, qp) && qb != px) {
+            if (q.z < view_z(g.cam, sn) && distance(qp, x) < pc.r_near) occ_near += region_weight(ra, rb, q);
         }
         // far: fixed-step search for the first occluder
-        for (uint j = 1u; j <= pc.steps; ++j) {
-            float t = (float(j) - 0.5 + 0.5 * rot) / float(pc.steps);
-            vec3 sf = x + n * 1e-3 + t * pc.r_far * dir;
-            int qf = pixel_at(sf);
-            if (qf < 0 || uint(qf) == i) continue;
-            vec3 qp = gpos[qf].xyz;
+        for (uint j = 1u; j <= STEPS; ++j) {
+            float tt = (float(j) - 0.5 + 0.5 * rot) / float(STEPS);
+            vec3 sf = x + n * 1e-3 + tt * pc.r_far * dir;
+            if (!block_at(sf, qb, q, qp) || qb == px) continue;
             float d = distance(qp, x);
-            if (view_z(g.cam, qp) < view_z(g.cam, sf) && d < pc.r_far) {
-                float wgt = region_weight(rr, uint(qf));
+            if (q.z < view_z(g.cam, sf) && d < pc.r_far) {
+                float wgt = region_weight(ra, rb, q);
                 occ_far += wgt;
                 // Light bounced off the occluder's directly lit surface.
-                vec3 nq = gnorm[qf].xyz;
                 vec3 to_x = (x - qp) / max(d, 1e-4);
-                float cs = max(dot(nq, to_x), 0.0), cr = max(dot(n, -to_x), 0.0);
-                uint idq = uint(vis[qf] & 0xFFFFFFFFul);
-                vec3 alb = srgb_to_linear(unpack_rgba8(attrs[idq].color).rgb);
-                vec3 lq = alb * max(dot(nq, l_key), 0.0) * shadow[qf];
+                float cs = max(dot(q.n, to_x), 0.0), cr = max(dot(n, -to_x), 0.0);
                 float d2 = max(d * d, 0.25 * pc.r_near * pc.r_near);
-                bounce += wgt * lq * (area * cs * cr / d2) / 3.14159265;
+                bounce += wgt * q.radiance * (area * cs * cr / d2) / 3.14159265;
                 break;
             }
         }
     }
-    float v = (1.0 - occ_near / float(pc.dirs)) * (1.0 - occ_far / float(pc.dirs));
-    uint id = uint(vis[i] & 0xFFFFFFFFul);
-    vec3 alb = srgb_to_linear(unpack_rgba8(attrs[id].color).rgb);
-    ambient[i] = vec4(v, pc.bounce * alb * bounce);
+    vec2 v = vec2(1.0 - occ_near / float(MINE), 1.0 - occ_far / float(MINE));
+    // Interleaved, each pixel saw a quarter of the directions: its bounce
+    // sum is scaled to the whole set. The receiver's albedo is applied in shade.
+    ao[i] = pack_ao(v, pc.bounce * float(STRIDE) * bounce, screen_vis);
 }

@@ -48,25 +48,28 @@ vec3 hemisphere_sample(uint i, vec3 n, float rot) {
     return tangent_frame(n) * malley(u);
 }
 
-// Pixel coordinates (continuous, pixel centres at integers) of a world point.
-vec2 project_px(View v, vec3 p) {
-    float ppu = v.center.w, w = v.right.w, h = v.up.w;
-    vec2 xy;
-    if (v.dir.w == 0.0) {
-        vec3 q = p - v.center.xyz;
-        xy = vec2(dot(q, v.right.xyz), dot(q, v.up.xyz));
-    } else {
-        vec3 q = p - (v.center.xyz - v.dir.w * v.dir.xyz);
-        float z = max(dot(q, v.dir.xyz), 1e-6);
-        xy = vec2(dot(q, v.right.xyz), dot(q, v.up.xyz)) * (v.dir.w / z);
-    }
-    return vec2(xy.x * ppu + 0.5 * w - 0.5, 0.5 * h - xy.y * ppu - 0.5);
+// A direction of the sample table (tangent space xyz: Halton + Malley,
+// made on the CPU by src/passes/ssdo.rs) rotated about the normal by
+// rot (0..1 of a turn) into the frame of the normal.
+vec3 table_sample(vec4 t, mat3 frame, float rot) {
+    float ca = cos(6.2831853 * rot), sa = sin(6.2831853 * rot);
+    return frame * vec3(ca * t.x - sa * t.y, sa * t.x + ca * t.y, t.z);
 }
 
-// Distance along the view direction (larger = farther from the viewer).
-float view_z(View v, vec3 p) {
-    vec3 o = v.dir.w == 0.0 ? v.center.xyz : v.center.xyz - v.dir.w * v.dir.xyz;
-    return dot(p - o, v.dir.xyz);
+// The per-pixel SSDO result in 32 bits: the near and far visibilities
+// (8 bits each; multiplied only after the blur, since a product of few-
+// sample fractions is biased), the incoming bounce as RGB 4:4:4 (clamped
+// to 1), and the screen-space key-light visibility (4 bits; --shadows none).
+uint pack_ao(vec2 v, vec3 bounce, float screen_vis) {
+    uvec2 vv = uvec2(clamp(v, 0.0, 1.0) * 255.0 + 0.5);
+    uvec3 b = uvec3(clamp(bounce, 0.0, 1.0) * 15.0 + 0.5);
+    return vv.x | (vv.y << 8) | (b.r << 16) | (b.g << 20) | (b.b << 24)
+         | (uint(clamp(screen_vis, 0.0, 1.0) * 15.0 + 0.5) << 28);
+}
+void unpack_ao(uint u, out vec2 v, out vec3 bounce, out float screen_vis) {
+    v = vec2(float(u & 0xFFu), float((u >> 8) & 0xFFu)) / 255.0;
+    bounce = vec3(float((u >> 16) & 15u), float((u >> 20) & 15u), float((u >> 24) & 15u)) / 15.0;
+    screen_vis = float(u >> 28) / 15.0;
 }
 
 float hash12(uvec2 p) {

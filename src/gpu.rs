@@ -31,9 +31,16 @@ pub struct Globals {
     /// xyz normalised key-light direction (from the light toward the scene).
     pub light_dir: [f32; 4],
     pub background: [f32; 4],
-    /// x sphere count.
+    /// x sphere count, y half-resolution width, z half-resolution height,
+    /// w 1 when the scene has no region hierarchy (each sphere is its own
+    /// region for semantic SSDO).
     pub counts: [u32; 4],
     pub params: [f32; 4],
+    /// Parameters of the active shadow technique's lookup (glsl/lookup_*.glsl
+    /// say which field is what).
+    pub shadow_f0: [f32; 4],
+    pub shadow_f1: [f32; 4],
+    pub shadow_u: [u32; 4],
 }
 
 /// Per-sphere attributes used after visibility (shading, regions).
@@ -55,7 +62,7 @@ pub type GpuSphere = [f32; 4];
 pub const VIS_EMPTY: u64 = u64::MAX;
 
 const _: () = assert!(std::mem::size_of::<GpuView>() == 96);
-const _: () = assert!(std::mem::size_of::<Globals>() == 2 * 96 + 4 * 16);
+const _: () = assert!(std::mem::size_of::<Globals>() == 2 * 96 + 7 * 16);
 const _: () = assert!(std::mem::size_of::<SphereAttr>() == 32);
 const _: () = assert!(std::mem::size_of::<GpuSphere>() == 16);
 

@@ -45,6 +45,9 @@ gpu_constants! {
     R_BANDS_RUN: u32 = 1;
     /// Raster counters: first of the three indirect dispatch words.
     R_ARGS: u32 = 4;
+    /// SSDO block side in pixels: SSDO runs on one representative pixel per
+    /// SSDO_BLOCK x SSDO_BLOCK block.
+    SSDO_BLOCK: u32 = 2;
     /// Deep lists: light-space disk enlargement in texels (conservative
     /// footprints: a missed texel would leak light, an extra entry costs one
     /// exact ray test).

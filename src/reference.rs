@@ -301,7 +301,11 @@ impl Grid3 {
     fn index(&self, p: DVec3) -> [usize; 3] {
         let q = ((p - self.lo) / self.cell).floor();
         let c = |v: f64, n: usize| (v.max(0.0) as usize).min(n - 1);
-        [c(q.x, self.dims[0]), c(q.y, self.dims[1]), c(q.z, self.dims[2])]
+        [
+            c(q.x, self.dims[0]),
+            c(q.y, self.dims[1]),
+            c(q.z, self.dims[2]),
+        ]
     }
 
     /// Every sphere with a cell within `reach` of `p` (may repeat ids).
@@ -344,7 +348,9 @@ pub fn ambient_occlusion(
     let grid = Grid3::new(spheres, (radius + r_max).max(1e-3));
     let side = (rays as f64).sqrt().ceil() as u32;
     let n = img.ids.len();
-    let threads = std::thread::available_parallelism().map_or(1, |t| t.get()).min(8);
+    let threads = std::thread::available_parallelism()
+        .map_or(1, |t| t.get())
+        .min(8);
     let chunk = n.div_ceil(threads);
     let mut out = vec![None; n];
     std::thread::scope(|scope| {
@@ -375,7 +381,11 @@ pub fn ambient_occlusion(
                         j != img.ids[i] && (c - p).length() < radius + r && (c - p).dot(nrm) > -r
                     });
                     // Orthonormal frame around the normal.
-                    let t = if nrm.x.abs() < 0.9 { DVec3::X } else { DVec3::Y };
+                    let t = if nrm.x.abs() < 0.9 {
+                        DVec3::X
+                    } else {
+                        DVec3::Y
+                    };
                     let t = nrm.cross(t).normalize();
                     let b = nrm.cross(t);
                     let rot = ((px.wrapping_mul(73_856_093) ^ py.wrapping_mul(19_349_663)) % 1024)
@@ -398,10 +408,12 @@ pub fn ambient_occlusion(
                             let d = (x * t + y * b + z * nrm).normalize();
                             let hit = near.iter().any(|&j| {
                                 let s = &spheres[j as usize];
-                                ray_sphere(p, d, c64(s), s.radius as f64).is_some_and(|(th, disc)| {
-                                    let far = th + 2.0 * disc.max(0.0).sqrt();
-                                    far > 0.0 && th.max(0.0) < radius
-                                })
+                                ray_sphere(p, d, c64(s), s.radius as f64).is_some_and(
+                                    |(th, disc)| {
+                                        let far = th + 2.0 * disc.max(0.0).sqrt();
+                                        far > 0.0 && th.max(0.0) < radius
+                                    },
+                                )
                             });
                             if !hit {
                                 open += 1;
@@ -473,8 +485,16 @@ mod ao_tests {
             region: [0; 4],
         };
         let cam = |h: f64| {
-            Camera::new(DVec3::ZERO, DVec3::new(0.0, 0.0, -1.0), DVec3::Y, h, None, 16, 16)
-                .unwrap()
+            Camera::new(
+                DVec3::ZERO,
+                DVec3::new(0.0, 0.0, -1.0),
+                DVec3::Y,
+                h,
+                None,
+                16,
+                16,
+            )
+            .unwrap()
         };
         let lone = ambient_occlusion(&[s([0.0; 3], 1.0)], &cam(3.0), 2.0, 64, 1);
         assert!(lone.iter().flatten().all(|&v| v == 1.0));

@@ -40,5 +40,53 @@ fn plain_ssdo_ranks_like_ray_traced_ao() {
     let (rho, n) = correlation(SsdoMode::Plain);
     eprintln!("plain SSDO vs ray-traced AO: Spearman {rho:.3} over {n} pixels");
     assert!(n > 3000, "too few covered pixels: {n}");
-    assert!(rho >= 0.85, "plain SSDO rank correlation {rho:.3} < 0.85");
+    // Measured on lavapipe: 0.916; a0b2d65's full-resolution SSDO: 0.915.
+    // The goal is >= 0.85 and no lower than before (0.91 leaves room for
+    // other drivers' rounding).
+    assert!(rho >= 0.91, "plain SSDO rank correlation {rho:.3} < 0.91");
+}
+
+/// Measurement helper (ignored): Spearman of an `--aov ao` PNG rendered by
+/// any build (AO_PNG=path, the scene written to AO_XYZR first) against the
+/// reference, at the PNG's size. Used to compare builds in the notes.
+#[test]
+#[ignore]
+fn ao_png_correlation() {
+    let mut scene = load_data("1tii.pdb");
+    scene.spheres.truncate(2500);
+    if let Ok(path) = std::env::var("AO_XYZR") {
+        let text: String = scene
+            .spheres
+            .iter()
+            .map(|s| {
+                format!(
+                    "{} {} {} {}\n",
+                    s.center[0], s.center[1], s.center[2], s.radius
+                )
+            })
+            .collect();
+        std::fs::write(&path, text).unwrap();
+        eprintln!("wrote {path}");
+        return;
+    }
+    let path = std::env::var("AO_PNG").expect("AO_PNG");
+    let img = image::open(&path).expect("png").to_luma8();
+    let cam = camera(&scene, img.width(), img.height(), None);
+    let typical = 1.7f64; // median vdW radius of 1TII's first 2,500 atoms (C)
+    let px = 1.0 / cam.pixels_per_unit();
+    let radius = (8.0 * typical).max(8.0 * px);
+    let stride: u32 = std::env::var("AO_STRIDE").map_or(2, |s| s.parse().unwrap());
+    let reference = ambient_occlusion(&scene.spheres, &cam, radius, 256, stride);
+    let (mut a, mut b) = (Vec::new(), Vec::new());
+    for (i, v) in reference.iter().enumerate() {
+        if let Some(v) = v {
+            a.push(*v);
+            b.push(img.as_raw()[i] as f64);
+        }
+    }
+    eprintln!(
+        "{path}: Spearman {:.3} over {} pixels",
+        spearman(&a, &b),
+        a.len()
+    );
 }

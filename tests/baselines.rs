@@ -186,7 +186,7 @@ fn sm_hard_mask_and_bias_tradeoff_1tii() {
     for scale in [0.0f32, 0.1, 1.0, 3.0, 10.0] {
         let s = baseline_settings(&scene, ShadowMode::SmPcf, sm_params(scale, 1));
         let f = render(&ctx, &scene, s);
-        for n in ["raster", "sm_raster", "resolve", "sm_shadow", "composite"] {
+        for n in ["raster", "sm_raster", "shade"] {
             assert!(
                 f.names.contains(&n),
                 "pass {n} missing from the timings: {:?}",
@@ -259,7 +259,7 @@ fn osm_vs_deep(ctx: &Context, name: &str, scene: &Scene) {
         s.opacity = opacity;
         let reference = reference_for(scene, &s.camera, s.light, opacity as f64);
         let o = render(ctx, scene, s.clone());
-        for n in ["osm_raster", "osm_prefix", "osm_shadow"] {
+        for n in ["osm_raster", "osm_prefix", "shade"] {
             assert!(
                 o.names.contains(&n),
                 "pass {n} missing from the timings: {:?}",

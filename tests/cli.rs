@@ -221,12 +221,11 @@ fn validated_render_writes_schema_json_and_stable_hash() {
         for want in [
             "raster",
             "issm_raster",
-            "resolve",
-            "issm_shadow",
+            "ssdo_prep",
             "ssdo",
             "blur_h",
             "blur_v",
-            "composite",
+            "shade",
         ] {
             assert!(names.contains(&want), "pass {want} missing from {names:?}");
         }
@@ -413,11 +412,9 @@ fn graphics_runs_leave_compute_timings_alone() {
             .expect("pass")
     };
     for (shadows, pass) in [
-        ("none", "resolve"),
-        ("none", "composite"),
-        ("issm", "resolve"),
-        ("issm", "issm_shadow"),
-        ("issm", "composite"),
+        ("none", "shade"),
+        ("issm", "issm_raster"),
+        ("issm", "shade"),
     ] {
         let (c, g) = (ms(shadows, "compute", pass), ms(shadows, "graphics", pass));
         // Other tests' processes share the 2 cores, so single runs vary by

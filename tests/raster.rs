@@ -139,7 +139,7 @@ fn timestamps_report_every_pass() {
     let times = r.render_frame().expect("frame");
     let names: Vec<&str> = times.iter().map(|(n, _)| *n).collect();
     assert!(
-        names.contains(&"raster") && names.contains(&"resolve") && names.contains(&"composite"),
+        names.contains(&"raster") && names.contains(&"shade"),
         "{names:?}"
     );
     let mut unique = names.clone();

@@ -11,11 +11,12 @@ use sphereshade::camera::Camera;
 use sphereshade::gpu::Globals;
 use sphereshade::passes::blur::{Axis, BlurIo, BlurPass, BlurPush};
 use sphereshade::passes::spirv;
+use sphereshade::passes::ssdo::Record;
 use sphereshade::render::{Renderer, level_choice};
 use sphereshade::scene::{self, Scene, Sphere};
 use sphereshade::settings::{ShadowMode, SsdoMode};
 use sphereshade::vk::Grid;
-use sphereshade::vk::pipeline::{PipelineDesc, wo};
+use sphereshade::vk::pipeline::{PipelineDesc, uniform, wo};
 use sphereshade::vk::{Buffer, ComputePipeline, Context};
 
 #[repr(C)]
@@ -35,7 +36,7 @@ fn hemisphere_samples_are_cosine_weighted() {
         &PipelineDesc {
             name: "sample probe",
             shader: spirv::TEST_SAMPLES_COMP,
-            bindings: &[wo("Out")],
+            bindings: &[wo("Out"), uniform("SampleTable")],
             push_size: 32,
             local_size: 64,
             constants: &[],
@@ -44,6 +45,8 @@ fn hemisphere_samples_are_cosine_weighted() {
     .expect("pipeline");
     let n = 8192u32;
     let mut out = Buffer::storage(&ctx, "samples", n as u64 * 16).expect("buffer");
+    // The table SSDO itself binds.
+    let mut ssdo = sphereshade::passes::ssdo::SsdoPass::new(&ctx).expect("ssdo");
     for (normal, rot) in [
         ([0.0f32, 0.0, 1.0], 0.0f32),
         ([0.3, -0.8, 0.2], 0.37),
@@ -59,7 +62,12 @@ fn hemisphere_samples_are_cosine_weighted() {
         };
         ctx.one_shot_passes("samples", |rec| {
             rec.pass("samples", |pass| {
-                pass.dispatch(&p, &push, Grid::Groups([n / 64, 1, 1]), &[("Out", &out)]);
+                pass.dispatch(
+                    &p,
+                    &push,
+                    Grid::Groups([n / 64, 1, 1]),
+                    &[("Out", &out), ("SampleTable", ssdo.table())],
+                );
                 Ok(())
             })
         })
@@ -86,6 +94,7 @@ fn hemisphere_samples_are_cosine_weighted() {
         );
     }
     out.destroy(&ctx);
+    ssdo.destroy(&ctx);
     p.destroy(&ctx);
     assert_no_validation_messages(&ctx);
 }
@@ -224,6 +233,10 @@ fn flat_layer_is_open_crevice_is_occluded_and_semantic_ignores_own_region() {
 
 #[test]
 fn bilateral_blur_keeps_depth_edges_and_smooths_flat_areas() {
+    // A 64x32 frame: the left half a flat layer at view distance 0 with
+    // noisy ambient visibility around 0.2, the right half 50 units behind
+    // with visibility around 0.9 (depth keys in the visibility buffer, the
+    // normals and regions in the half-resolution records).
     let ctx = validated_context();
     let (w, h) = (64u32, 32u32);
     let n = (w * h) as usize;
@@ -237,14 +250,29 @@ fn bilateral_blur_keeps_depth_edges_and_smooths_flat_areas() {
         h,
     )
     .expect("camera");
-    let globals = Globals {
-        cam: cam.to_gpu(100.0),
-        light: cam.to_gpu(100.0),
+    let offset = 100.0;
+    let mut globals = Globals {
+        cam: cam.to_gpu(offset),
+        light: cam.to_gpu(offset),
         ..Default::default()
     };
-    let mut gpos = vec![[0.0f32; 4]; n];
-    let gnorm = vec![[0.0f32, 0.0, 1.0, 1.0]; n];
-    let mut amb = vec![[0.0f32; 4]; n];
+    let (hw, hh) = (w / 2, h / 2);
+    globals.counts = [1, hw, hh, 0];
+    let record = Record {
+        z: 0.0,
+        normal: [0.0, 0.0, 1.0],
+        region_a: 0,
+        region_b: 0,
+        sub: [0, 0],
+        radiance: [0.0; 3],
+        visibility: 1.0,
+        covered: true,
+    }
+    .pack();
+    let records = vec![record; (hw * hh) as usize];
+    let mut vis = vec![0u64; n + 64];
+    let mut amb = vec![0.0f32; n];
+    let mut ao_in = vec![0u32; n];
     let mut seed = 12345u32;
     let mut noise = || {
         seed = seed.wrapping_mul(1664525).wrapping_add(1013904223);
@@ -253,10 +281,12 @@ fn bilateral_blur_keeps_depth_edges_and_smooths_flat_areas() {
     for y in 0..h {
         for x in 0..w {
             let i = (y * w + x) as usize;
-            let (px, py) = cam.plane(x as f64, y as f64);
             let left = x < w / 2;
-            gpos[i] = [px as f32, py as f32, if left { 0.0 } else { -50.0 }, 0.0];
-            amb[i] = [if left { 0.2 } else { 0.9 } + 0.2 * noise(), 0.0, 0.0, 0.0];
+            let key = (if left { 0.0f32 } else { 50.0 }) + offset as f32;
+            vis[i] = (key.to_bits() as u64) << 32; // sphere id 0
+            amb[i] = if left { 0.2 } else { 0.9 } + 0.2 * noise();
+            // pack_ao: near visibility, far visibility 1, no bounce
+            ao_in[i] = (amb[i].clamp(0.0, 1.0) * 255.0 + 0.5) as u32 | (255 << 8) | (15 << 28);
         }
     }
     let up = |name: &str, data: &[u8], usage| {
@@ -271,57 +301,57 @@ fn bilateral_blur_keeps_depth_edges_and_smooths_flat_areas() {
         b.upload(&ctx, 0, data).expect("upload");
         b
     };
-    let st = ash::vk::BufferUsageFlags::STORAGE_BUFFER;
+    let st =
+        ash::vk::BufferUsageFlags::STORAGE_BUFFER | ash::vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER;
     let mut bufs = vec![
         up(
             "globals",
             bytemuck::bytes_of(&globals),
             ash::vk::BufferUsageFlags::UNIFORM_BUFFER,
         ),
-        up("gpos", bytemuck::cast_slice(&gpos), st),
-        up("gnorm", bytemuck::cast_slice(&gnorm), st),
-        up("gregion", &vec![0u8; n * 16], st),
-        up("ambient", bytemuck::cast_slice(&amb), st),
-        up("shadow", &vec![0u8; n * 4], st),
-        up("a tmp", &vec![0u8; n * 16], st),
-        up("s tmp", &vec![0u8; n * 4], st),
-        up("a out", &vec![0u8; n * 16], st),
-        up("s out", &vec![0u8; n * 4], st),
+        up("records", bytemuck::cast_slice(&records), st),
+        up("ao in", bytemuck::cast_slice(&ao_in), st),
+        up("ao tmp", &vec![0u8; n * 4], st),
+        up("ao out", &vec![0u8; n * 4], st),
+        up("vis", bytemuck::cast_slice(&vis), st),
     ];
-    let mut blur = BlurPass::new(&ctx).expect("blur");
+    let mut blur = BlurPass::new();
+    blur.prepare(&ctx, false).expect("pipelines");
     let push = BlurPush {
         radius: 4,
         sigma_z: 1.0,
-        semantic: 0,
-        level: 0,
-        blur_shadow: 0,
-        pad: [0.0; 3],
+        level_b: 0,
+        pad: 0,
     };
     ctx.one_shot_passes("blur", |rec| {
         let b = &bufs;
-        let geometry = [&b[1], &b[2], &b[3]];
         for (axis, input, output) in [
-            (Axis::Horizontal, [&b[4], &b[5]], [&b[6], &b[7]]),
-            (Axis::Vertical, [&b[6], &b[7]], [&b[8], &b[9]]),
+            (Axis::Horizontal, &b[2], &b[3]),
+            (Axis::Vertical, &b[3], &b[4]),
         ] {
             let io = BlurIo {
                 globals: &b[0],
-                geometry,
+                vis: &b[5],
+                records: &b[1],
                 input,
                 output,
             };
-            blur.record(rec, axis, &io, &push, n as u64)?;
+            blur.record(rec, axis, false, &io, &push, (w, h))?;
         }
         Ok(())
     })
     .expect("run");
-    let out: Vec<[f32; 4]> = bufs[8].download_pod(&ctx, 0, n as u64).expect("read");
+    let raw: Vec<u32> = bufs[4].download_pod(&ctx, 0, n as u64).expect("read");
+    let out: Vec<f32> = raw
+        .iter()
+        .map(|v| (v & 0xFF) as f32 / 255.0 * ((v >> 8) & 0xFF) as f32 / 255.0)
+        .collect();
     blur.destroy(&ctx);
     for b in &mut bufs {
         b.destroy(&ctx);
     }
-    let col = |x: u32, src: &[[f32; 4]]| -> Vec<f32> {
-        (4..h - 4).map(|y| src[(y * w + x) as usize][0]).collect()
+    let col = |x: u32, src: &[f32]| -> Vec<f32> {
+        (4..h - 4).map(|y| src[(y * w + x) as usize]).collect()
     };
     let mean = |v: &[f32]| v.iter().sum::<f32>() / v.len() as f32;
     let var = |v: &[f32]| {

@@ -172,19 +172,16 @@ fn binding_mismatches_are_rejected_with_the_shader_and_binding_named() {
     let ctx = validated_context();
     let good = [
         uniform("GlobalsBlock"),
-        ro("Spheres"),
-        ro("Vis"),
-        wo("GPos"),
-        wo("GNorm"),
-        ro("Attrs"),
-        wo("GRegion"),
+        rw("Texels"),
+        wo("Tiles"),
+        rw("Counters"),
     ];
     let make = |bindings: &[sphereshade::vk::pipeline::Binding], push: u32| {
         ComputePipeline::new(
             &ctx,
             &PipelineDesc {
                 name: "mismatch probe",
-                shader: spirv::RESOLVE_COMP,
+                shader: spirv::DEEP_ALLOC_COMP,
                 bindings,
                 push_size: push,
                 local_size: 64,
@@ -192,48 +189,56 @@ fn binding_mismatches_are_rejected_with_the_shader_and_binding_named() {
             },
         )
     };
-    let mut ok = make(&good, 0).expect("the correct declaration is accepted");
+    let mut ok = make(&good, 4).expect("the correct declaration is accepted");
     // A dispatch naming a binding the pipeline lacks, or missing one, fails.
     let buf = Buffer::storage(&ctx, "probe", 64).expect("buffer");
     let err = ok
-        .uses(&[("Spheres", &buf), ("Nope", &buf)])
+        .uses(&[("Texels", &buf), ("Nope", &buf)])
         .expect_err("unknown binding name");
     assert!(err.to_string().contains("'Nope'"), "{err}");
-    let err = ok.uses(&[("Spheres", &buf)]).expect_err("missing bindings");
+    let err = ok.uses(&[("Texels", &buf)]).expect_err("missing bindings");
     assert!(err.to_string().contains("no buffer given"), "{err}");
     ok.destroy(&ctx);
     ok.destroy(&ctx); // idempotent
 
     let mut swapped = good;
-    swapped[2] = rw("Vis");
+    swapped[1] = ro("Texels");
     let mut missing = good.to_vec();
-    missing.remove(5);
+    missing.remove(2);
     let mut renamed = good;
-    renamed[1] = ro("Sphere");
+    renamed[3] = rw("Counter");
     let mut extra = good.to_vec();
     extra.push(ro("Shadow"));
     for (bindings, push, needles) in [
         (
             swapped.to_vec(),
-            0,
+            4,
             vec![
-                "resolve.comp",
-                "'Vis'",
-                "readonly storage buffer",
-                "read-write",
+                "deep_alloc.comp",
+                "'Texels'",
+                "read-write storage buffer",
+                "readonly",
             ],
         ),
-        (missing, 0, vec!["resolve.comp", "'Attrs'", "not declared"]),
+        (
+            missing,
+            4,
+            vec!["deep_alloc.comp", "'Tiles'", "not declared"],
+        ),
         (
             renamed.to_vec(),
-            0,
-            vec!["resolve.comp", "'Spheres'", "not declared"],
+            4,
+            vec!["deep_alloc.comp", "'Counters'", "not declared"],
         ),
-        (extra, 0, vec!["resolve.comp", "'Shadow'", "does not have"]),
+        (
+            extra,
+            4,
+            vec!["deep_alloc.comp", "'Shadow'", "does not have"],
+        ),
         (
             good.to_vec(),
             16,
-            vec!["resolve.comp", "push constants", "16"],
+            vec!["deep_alloc.comp", "push constants", "16"],
         ),
     ] {
         let err = make(&bindings, push)

@@ -1,21 +1,26 @@
-//! Separable bilateral blur (`blur_h`, `blur_v`): one shader, the axis is
-//! specialization constant 1.
+//! Separable bilateral blur (`blur_h`, `blur_v`) of the per-pixel SSDO
+//! result, which also recombines its interleaved direction sets: one
+//! shader, the axis and the semantic region test are specialization
+//! constants. See glsl/blur.comp.
 
-use super::{LOCAL_SIZE, spirv};
-use crate::error::Result;
-use crate::vk::pipeline::{PipelineDesc, ro, uniform, wo};
-use crate::vk::{Buffer, ComputePipeline, Context, Grid, Recorder};
+use super::shade::{Variants, tile_grid};
+use super::spirv;
+use crate::error::{Error, Result};
+use crate::vk::pipeline::{Binding, texel, uniform, wo};
+use crate::vk::{Buffer, Context, Recorder};
+use ash::vk::Format;
 use bytemuck::{Pod, Zeroable};
 
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct BlurPush {
+    /// Taps on each side, in pixels.
     pub radius: i32,
+    /// Depth tolerance (world units).
     pub sigma_z: f32,
-    pub semantic: u32,
-    pub level: u32,
-    pub blur_shadow: u32,
-    pub pad: [f32; 3],
+    /// 1: region edges at level b, 0: at level a.
+    pub level_b: u32,
+    pub pad: u32,
 }
 
 /// Which axis a blur dispatch runs along.
@@ -34,80 +39,76 @@ impl Axis {
     }
 }
 
+const BINDINGS: [Binding; 5] = [
+    uniform("GlobalsBlock"),
+    texel("recordTex", Format::R32G32B32A32_UINT),
+    texel("inTex", Format::R32_UINT),
+    wo("Out"),
+    texel("visTex", Format::R32G32_UINT),
+];
+
+#[derive(Default)]
 pub struct BlurPass {
-    h: ComputePipeline,
-    v: ComputePipeline,
+    variants: Variants,
 }
 
 /// What one blur dispatch reads and writes.
 pub struct BlurIo<'a> {
     pub globals: &'a Buffer,
-    /// [gpos, gnorm, gregion]
-    pub geometry: [&'a Buffer; 3],
-    /// (ambient, shadow) in
-    pub input: [&'a Buffer; 2],
-    /// (ambient, shadow) out
-    pub output: [&'a Buffer; 2],
+    pub vis: &'a Buffer,
+    pub records: &'a Buffer,
+    pub input: &'a Buffer,
+    pub output: &'a Buffer,
 }
 
 impl BlurPass {
-    pub fn new(ctx: &Context) -> Result<Self> {
-        let make = |axis: Axis| {
-            ComputePipeline::new(
-                ctx,
-                &PipelineDesc {
-                    name: axis.name(),
-                    shader: spirv::BLUR_COMP,
-                    bindings: &[
-                        uniform("GlobalsBlock"),
-                        ro("GPos"),
-                        ro("GNorm"),
-                        ro("GRegion"),
-                        ro("InA"),
-                        ro("InS"),
-                        wo("OutA"),
-                        wo("OutS"),
-                    ],
-                    push_size: std::mem::size_of::<BlurPush>() as u32,
-                    local_size: LOCAL_SIZE,
-                    constants: &[(axis == Axis::Vertical) as u32],
-                },
-            )
-        };
-        let h = ctx.guard(make(Axis::Horizontal)?);
-        let v = make(Axis::Vertical)?;
-        Ok(BlurPass { h: h.keep(), v })
+    pub fn new() -> Self {
+        Self::default()
     }
 
-    /// Blurs (ambient, shadow) into (out ambient, out shadow) along `axis`,
-    /// as the pass `axis.name()`.
+    fn constants(axis: Axis, semantic: bool) -> [u32; 2] {
+        [(axis == Axis::Vertical) as u32, semantic as u32]
+    }
+
+    pub fn prepare(&mut self, ctx: &Context, semantic: bool) -> Result<()> {
+        for axis in [Axis::Horizontal, Axis::Vertical] {
+            self.variants.ensure(
+                ctx,
+                axis.name(),
+                spirv::BLUR_COMP,
+                &BINDINGS,
+                std::mem::size_of::<BlurPush>() as u32,
+                &Self::constants(axis, semantic),
+            )?;
+        }
+        Ok(())
+    }
+
+    /// Blurs `input` into `output` along `axis`, as the pass `axis.name()`.
     pub fn record(
         &self,
         rec: &mut Recorder,
         axis: Axis,
+        semantic: bool,
         io: &BlurIo,
         push: &BlurPush,
-        pixels: u64,
+        size: (u32, u32),
     ) -> Result<()> {
-        let pipe = if axis == Axis::Horizontal {
-            &self.h
-        } else {
-            &self.v
-        };
+        let pipe = self
+            .variants
+            .get(spirv::BLUR_COMP, &Self::constants(axis, semantic))
+            .ok_or_else(|| Error::Internal("blur: pipeline not prepared".into()))?;
         rec.pass(axis.name(), |p| {
             p.dispatch(
                 pipe,
                 push,
-                Grid::Invocations(pixels),
+                tile_grid(size.0, size.1),
                 &[
                     ("GlobalsBlock", io.globals),
-                    ("GPos", io.geometry[0]),
-                    ("GNorm", io.geometry[1]),
-                    ("GRegion", io.geometry[2]),
-                    ("InA", io.input[0]),
-                    ("InS", io.input[1]),
-                    ("OutA", io.output[0]),
-                    ("OutS", io.output[1]),
+                    ("recordTex", io.records),
+                    ("inTex", io.input),
+                    ("Out", io.output),
+                    ("visTex", io.vis),
                 ],
             );
             Ok(())
@@ -115,7 +116,6 @@ impl BlurPass {
     }
 
     pub fn destroy(&mut self, ctx: &Context) {
-        self.h.destroy(ctx);
-        self.v.destroy(ctx);
+        self.variants.destroy(ctx);
     }
 }

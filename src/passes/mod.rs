@@ -6,10 +6,9 @@
 
 pub mod bands;
 pub mod blur;
-pub mod composite;
 pub mod raster;
 pub mod raster_graphics;
-pub mod resolve;
+pub mod shade;
 pub mod shadows;
 pub mod ssdo;
 
@@ -23,16 +22,12 @@ pub mod spirv {
     include!(concat!(env!("OUT_DIR"), "/shaders.rs"));
 }
 
-/// What every light-space shadow technique reads and writes in a frame: the
-/// scene, the camera's visibility buffer and G-buffer, and the key-light
-/// visibility it fills (one f32 per pixel).
+/// What a shadow technique's light-space passes read in a frame: the
+/// scene, the camera's visibility buffer (for per-pixel passes of its own).
 pub struct ShadowInputs<'a> {
     pub globals: &'a Buffer,
     pub spheres: &'a Buffer,
     pub vis: &'a Buffer,
-    pub gpos: &'a Buffer,
-    pub gnorm: &'a Buffer,
-    pub shadow: &'a Buffer,
     /// Sphere opacity for the translucent techniques (1 = opaque).
     pub opacity: f32,
     pub pixels: u64,
@@ -44,8 +39,7 @@ pub struct ShadowInputs<'a> {
 crate::impl_destroy!(
     raster::RasterPass,
     raster_graphics::GraphicsRasterPass,
-    resolve::ResolvePass,
-    composite::CompositePass,
+    shade::ShadePass,
     ssdo::SsdoPass,
     blur::BlurPass,
     bands::BandArgs,

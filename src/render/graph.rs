@@ -7,11 +7,9 @@ use super::Resources;
 use crate::error::Result;
 use crate::passes::ShadowInputs;
 use crate::passes::blur::{Axis, BlurIo};
-use crate::passes::composite::{CompositeInputs, CompositePush};
 use crate::passes::raster::{RasterPass, ViewIndex};
-use crate::passes::resolve::ResolveIo;
-use crate::passes::ssdo::GBuffer;
-use crate::settings::RenderSettings;
+use crate::passes::shade::{ScreenInputs, ShadePush};
+use crate::settings::{RenderSettings, SsdoMode};
 use crate::vk::{Buffer, Recorder};
 
 /// Fraction of the key light's diffuse term kept in full shadow.
@@ -57,41 +55,21 @@ pub const PASSES: &[(&str, &str)] = &[
         "prefix sum of the optical depth across the slices",
     ),
     (
-        "resolve",
-        "visibility → G-buffer (position, normal, regions buffer)",
-    ),
-    (
-        "issm_shadow",
-        "per visible point: exact light-ray tests against the spheres of the (2t+1)² ISSM patch (dense 3x3 core, then every `stride` texels where stride ≤ the smallest sphere radius in texels); identity check; soft: `(1 - s'/s_eff)^x` with `s_eff = s (1 - exp(-k²/2b²))`, minimum over the patch",
-    ),
-    (
-        "deep_shadow",
-        "per visible point: exact transmittance walk of its light texel's list (no spinning on other invocations)",
-    ),
-    (
-        "sm_shadow",
-        "slope-scaled bias, PCF over a per-pixel rotated Vogel disk",
-    ),
-    (
-        "osm_shadow",
-        "lookup interpolated between slices and texels, the receiver's own deposit subtracted",
-    ),
-    (
-        "key_shadow",
-        "screen-space march toward the key light (only with `--shadows none`: the light-space techniques are used as they are)",
+        "ssdo_prep",
+        "half resolution: per 2x2 block one representative covered pixel, its surface rebuilt from (pixel ray, sphere id), key-light visibility by the technique's lookup, packed into a 16-byte record (view depth, octahedral normal, region hashes, reflected key light)",
     ),
     (
         "ssdo",
-        "Halton + Malley cosine-weighted directions, near sample × far fixed-step search (visibilities multiplied), occluder = closer to the viewer and (semantic) in another region at the active hierarchy level, blended between two levels by zoom; one bounce (Ritschel et al.)",
+        "half resolution, one record fetch per tap: directions from a sample table (Halton + Malley) rotated by a 4x4 interleaved pattern, near sample × far fixed-step search (visibilities multiplied), occluder = closer to the viewer and (semantic) in another region at the active hierarchy level, blended between two levels by zoom; one bounce (Ritschel et al.)",
     ),
     (
         "blur_h",
-        "separable bilateral blur (depth, normal and region aware) of occlusion + bounce (and screen-space shadows), horizontal",
+        "separable bilateral blur (depth, normal and region aware) of occlusion + bounce (and screen-space shadows) at half resolution, horizontal",
     ),
     ("blur_v", "the same, vertical"),
     (
-        "composite",
-        "key (shadowed: ambient + fill + rim only), fill and rim lights, ambient × occlusion + bounce, tone map",
+        "shade",
+        "full resolution: surface from (pixel ray, sphere id); key-light lookup compiled in per technique (ISSM: exact light-ray tests against the spheres of the (2t+1)² patch, soft `(1 - s'/s_eff)^x`; deep: exact transmittance walk of the texel's list; sm-pcf: biased PCF; osm: interpolated optical depth; none+SSDO: screen-space march); SSDO upsampled edge-aware; key (shadowed: ambient + fill + rim only), fill and rim lights, ambient × occlusion + bounce, tone map",
     ),
 ];
 
@@ -151,104 +129,73 @@ impl Resources {
             Ok(())
         })?;
 
-        let shadow = self.active_shadow();
-        let inputs = ShadowInputs {
+        if let Some(s) = self.active_shadow()
+            && !self.light_cached
+        {
+            s.record_light(
+                rec,
+                &ShadowInputs {
+                    globals,
+                    spheres: &self.spheres,
+                    vis: &t.vis,
+                    opacity: settings.opacity,
+                    pixels,
+                    sphere_count: self.sphere_count,
+                    raster: &self.raster,
+                },
+            )?;
+        }
+
+        let lookup = self.lookup(settings);
+        let screen = ScreenInputs {
             globals,
-            spheres: &self.spheres,
             vis: &t.vis,
-            gpos: &t.gpos,
-            gnorm: &t.gnorm,
-            shadow: &t.shadow,
-            opacity: settings.opacity,
-            pixels,
-            sphere_count: self.sphere_count,
-            raster: &self.raster,
+            spheres: &self.spheres,
+            attrs: &self.attrs,
         };
-        if let Some(s) = shadow {
-            s.record_light(rec, &inputs)?;
-        }
-
-        self.resolve.record(
-            rec,
-            &ResolveIo {
-                globals,
-                spheres: &self.spheres,
-                attrs: &self.attrs,
-                vis: &t.vis,
-                gpos: &t.gpos,
-                gnorm: &t.gnorm,
-                gregion: &t.gregion,
-            },
-            pixels,
-        )?;
-
-        if let Some(s) = shadow {
-            s.record_lookup(rec, &inputs)?;
-        }
-
-        let mut ambient_final = &t.ambient;
-        let mut shadow_final = &t.shadow;
+        let half = t.half();
         let ssdo = self.ssdo.as_ref().filter(|_| settings.ssdo_on());
         if let Some(st) = ssdo {
-            let params = self.ssdo_params(settings);
-            let gb = GBuffer {
-                globals,
-                attrs: &self.attrs,
-                vis: &t.vis,
-                gpos: &t.gpos,
-                gnorm: &t.gnorm,
-                gregion: &t.gregion,
-            };
-            if shadow.is_none() {
-                // Screen-space key shadows stand in for the light-space techniques.
-                st.pass
-                    .record_key_shadow(rec, &gb, &t.shadow, &params.key_shadow, pixels)?;
-            }
+            let p = self.ssdo_params(settings);
+            let semantic = settings.ssdo == SsdoMode::Semantic;
             st.pass
-                .record_ssdo(rec, &gb, &t.shadow, &t.ambient, &params.ssdo, pixels)?;
+                .record_prep(rec, &screen, &lookup, &t.records, &p.prep, half)?;
+            let size = (t.width, t.height);
+            st.pass.record_ssdo(
+                rec, &screen, &t.records, &t.ao, &p.ssdo, semantic, p.taps, size,
+            )?;
             if settings.blur {
-                let [a_tmp, s_tmp, a_out, s_out] = &t.blurred;
-                let geometry = [&t.gpos, &t.gnorm, &t.gregion];
                 for (axis, input, output) in [
-                    (Axis::Horizontal, [&t.ambient, &t.shadow], [a_tmp, s_tmp]),
-                    (Axis::Vertical, [a_tmp, s_tmp], [a_out, s_out]),
+                    (Axis::Horizontal, &t.ao, &t.ao_tmp),
+                    (Axis::Vertical, &t.ao_tmp, &t.ao),
                 ] {
                     let io = BlurIo {
                         globals,
-                        geometry,
+                        vis: &t.vis,
+                        records: &t.records,
                         input,
                         output,
                     };
-                    st.blur.record(rec, axis, &io, &params.blur, pixels)?;
+                    st.blur.record(rec, axis, semantic, &io, &p.blur, size)?;
                 }
-                (ambient_final, shadow_final) = (a_out, s_out);
             }
         }
 
-        let light_space = shadow.is_some();
-        self.composite.record(
+        self.shade.record(
             rec,
-            &CompositeInputs {
-                globals,
-                attrs: &self.attrs,
-                vis: &t.vis,
-                gpos: &t.gpos,
-                gnorm: &t.gnorm,
-                shadow: shadow_final,
-                ambient: ambient_final,
-                color: &t.color,
-            },
-            &CompositePush {
-                use_shadow: (light_space || ssdo.is_some()) as u32,
-                use_ambient: ssdo.is_some() as u32,
+            &screen,
+            &lookup,
+            self.shade_mode(settings, &lookup),
+            &t.ao,
+            (&t.color, &t.aov),
+            &ShadePush {
                 // Lighting rule (issue 4, after the ISSM paper): a fully
                 // shadowed point keeps ambient and this fraction of the key's
                 // diffuse term, and loses its specular term.
                 shadow_diffuse: SHADOW_DIFFUSE,
-                swap_rb: self.bgra as u32,
+                pad: [0.0; 3],
             },
-            pixels,
-        )?;
-        Ok(())
+            (t.width, t.height),
+        )
     }
 }

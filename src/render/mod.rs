@@ -12,16 +12,17 @@ use crate::camera::Camera;
 use crate::error::{Error, Result};
 use crate::gpu::{Globals, GpuSphere, SphereAttr};
 use crate::passes::blur::{BlurPass, BlurPush};
-use crate::passes::composite::CompositePass;
 use crate::passes::raster::RasterPass;
 use crate::passes::raster_graphics::GraphicsRasterPass;
-use crate::passes::resolve::ResolvePass;
+use crate::passes::shade::{ShadeMode, ShadePass};
 use crate::passes::shadows::deep::{DeepShadows, DeepStats};
 use crate::passes::shadows::issm::Issm;
 use crate::passes::shadows::osm::OpacityShadows;
 use crate::passes::shadows::shadow_map::ShadowMap;
-use crate::passes::shadows::{self, FrameCheck, ShadowSetup, ShadowTechnique};
-use crate::passes::ssdo::{KeyShadowPush, SsdoPass, SsdoPush};
+use crate::passes::shadows::{
+    self, FrameCheck, Lookup, LookupKind, ShadowParams, ShadowSetup, ShadowTechnique,
+};
+use crate::passes::ssdo::{PrepPush, SsdoPass, SsdoPush, Taps};
 use crate::scene::Scene;
 use crate::semantic::{self, LevelChoice};
 use crate::settings::{RasterMode, RenderSettings, ShadowMode, SsdoMode};
@@ -81,10 +82,44 @@ impl Destroy for SsdoState {
 
 /// Push constants of the screen-space passes for one frame.
 pub(crate) struct SsdoParams {
+    pub prep: PrepPush,
     pub ssdo: SsdoPush,
-    pub key_shadow: KeyShadowPush,
+    pub taps: Taps,
     pub blur: BlurPush,
+    /// The screen-space key-light march (`--shadows none` with SSDO).
+    pub screen: ShadowParams,
 }
+
+/// SSDO taps when spheres are large on screen: 12 directions interleaved
+/// over 2x2 blocks (3 per pixel) x (1 near + 4 far steps), blurred 4 px
+/// each side to recombine them.
+pub const SSDO_TAPS_LARGE: (Taps, i32) = (
+    Taps {
+        dirs: 12,
+        steps: 4,
+        interleave: true,
+    },
+    4,
+);
+/// ... and when they are small (typical radius under
+/// [`SSDO_SMALL_RADIUS_PX`] pixels): 8 directions x (1 + 5 steps) for
+/// every pixel, blurred 2 px each side.
+pub const SSDO_TAPS_SMALL: (Taps, i32) = (
+    Taps {
+        dirs: 8,
+        steps: 5,
+        interleave: false,
+    },
+    2,
+);
+/// Below this typical sphere radius on screen (pixels) the AO changes too
+/// much from pixel to pixel for interleaving. Spearman rank correlation
+/// with the ray-traced reference (tests/ao.rs scene, 8-bit AO AOV):
+/// radius ~6 px: all-8 0.912, interleaved-12 0.870 (a0b2d65: 0.910);
+/// ~12 px: 0.927 vs 0.911 (0.926); ~24 px: 0.933 vs 0.935 (0.933). With
+/// f32 AO at 320x240 (tests/ao.rs): 8 x (1+4) 0.912, 8 x (1+5) 0.916,
+/// 8 x (1+6) 0.918, 12 x (1+4) 0.914; a0b2d65 0.915.
+pub const SSDO_SMALL_RADIUS_PX: f64 = 16.0;
 
 /// Everything on the GPU except the frame slots.
 pub(crate) struct Resources {
@@ -107,12 +142,16 @@ pub(crate) struct Resources {
     raster: RasterPass,
     /// The vertex/fragment baseline, when `--raster graphics`.
     raster_graphics: Option<GraphicsRasterPass>,
-    resolve: ResolvePass,
-    composite: CompositePass,
+    shade: ShadePass,
     techniques: Vec<Kept>,
     /// Index into `techniques` of the active one (None = `--shadows none`).
     active: Option<usize>,
     ssdo: Option<SsdoState>,
+    /// The active technique's light-space structure is up to date (nothing
+    /// it depends on changed since it was built): skip its passes.
+    light_cached: bool,
+    /// Reuse light-space structures while valid (`set_light_cache`).
+    light_cache: bool,
 }
 
 /// Typical sphere radius (median of a sample) to scale screen-space effects.
@@ -180,41 +219,98 @@ impl Resources {
         let r = self.typical_radius;
         let px = 1.0 / cam.pixels_per_unit();
         let choice = self.level_choice(cam);
-        let semantic = (settings.ssdo == SsdoMode::Semantic) as u32;
+        let taps = if r / px < SSDO_SMALL_RADIUS_PX {
+            SSDO_TAPS_SMALL
+        } else {
+            SSDO_TAPS_LARGE
+        };
         SsdoParams {
+            prep: PrepPush {
+                level_a: choice.level_a,
+                level_b: choice.level_b,
+                pad: [0; 2],
+            },
             ssdo: SsdoPush {
                 r_near: (2.0 * r).max(2.0 * px) as f32,
                 r_far: (8.0 * r).max(8.0 * px) as f32,
-                dirs: 12,
-                steps: 4,
-                semantic,
-                level_a: choice.level_a,
-                level_b: choice.level_b,
                 blend: choice.blend,
                 bounce: 1.0,
-                pad: [0.0; 3],
+                level_a: choice.level_a,
+                level_b: choice.level_b,
+                pad: [0; 2],
             },
-            key_shadow: KeyShadowPush {
-                march: (6.0 * r).max(6.0 * px) as f32,
-                thickness: (2.0 * r).max(px) as f32,
-                steps: 12,
-                pad: 0.0,
-            },
+            taps: taps.0,
             blur: BlurPush {
-                radius: 4,
+                radius: taps.1,
                 sigma_z: (0.5 * r).max(px) as f32,
-                semantic,
-                level: if choice.blend >= 0.5 {
-                    choice.level_b
-                } else {
-                    choice.level_a
-                },
-                // Light-space shadows are smooth already: only the noisy
-                // screen-space ones are blurred.
-                blur_shadow: self.active.is_none() as u32,
-                pad: [0.0; 3],
+                level_b: (choice.blend >= 0.5) as u32,
+                pad: 0,
+            },
+            screen: ShadowParams {
+                f0: [
+                    (6.0 * r).max(6.0 * px) as f32,
+                    (2.0 * r).max(px) as f32,
+                    0.0,
+                    0.0,
+                ],
+                u: [12, 0, 0, 0],
+                ..Default::default()
             },
         }
+    }
+
+    /// How shade reads key-light visibility this frame.
+    pub(crate) fn lookup(&self, settings: &RenderSettings) -> Lookup<'_> {
+        match self.active_shadow() {
+            Some(t) => t.lookup(settings.opacity),
+            None if settings.ssdo_on() => {
+                Lookup::plain(LookupKind::Screen, self.ssdo_params(settings).screen)
+            }
+            None => Lookup::plain(LookupKind::None, ShadowParams::default()),
+        }
+    }
+
+    pub(crate) fn shade_mode(&self, settings: &RenderSettings, lookup: &Lookup) -> ShadeMode {
+        ShadeMode {
+            kind: lookup.kind,
+            soft: lookup.soft,
+            ao: settings.ssdo_on(),
+            swap_rb: self.bgra,
+        }
+    }
+
+    /// Makes the pipelines this frame's modes need (the first time), and
+    /// the frame's uniforms: the lookup's parameters, the half size.
+    fn prepare(&mut self, ctx: &Context, settings: &RenderSettings) -> Result<()> {
+        let (hw, hh) = self.targets.half();
+        self.globals.counts[1] = hw;
+        self.globals.counts[2] = hh;
+        // The lookup borrows the technique: keep what the pipelines need.
+        let (plain, mode) = {
+            let l = self.lookup(settings);
+            let mode = self.shade_mode(settings, &l);
+            let plain: Lookup<'static> = Lookup {
+                kind: l.kind,
+                soft: l.soft,
+                bindings: l.bindings,
+                buffers: Vec::new(),
+                params: l.params,
+            };
+            (plain, mode)
+        };
+        self.globals.shadow_f0 = plain.params.f0;
+        self.globals.shadow_f1 = plain.params.f1;
+        self.globals.shadow_u = plain.params.u;
+        self.shade.prepare(ctx, mode, &plain)?;
+        let taps = self.ssdo_params(settings).taps;
+        if settings.ssdo_on()
+            && let Some(st) = &mut self.ssdo
+        {
+            let semantic = settings.ssdo == SsdoMode::Semantic;
+            st.pass.prepare(ctx, &plain, semantic, taps)?;
+            st.blur.prepare(ctx, semantic)?;
+        }
+        Ok(())
     }
 }
 
@@ -268,8 +364,6 @@ impl<'c> Renderer<'c> {
             slots.push(FrameSlot::new(ctx, i)?);
         }
         let raster = ctx.guard(RasterPass::new(ctx)?);
-        let resolve = ctx.guard(ResolvePass::new(ctx)?);
-        let composite = ctx.guard(CompositePass::new(ctx)?);
 
         let (bs_center, bs_radius) = scene.bounding_sphere();
         let levels = semantic::useful_levels(scene);
@@ -293,13 +387,17 @@ impl<'c> Renderer<'c> {
             targets: targets.keep(),
             raster: raster.keep(),
             raster_graphics: raster_graphics.keep(),
-            resolve: resolve.keep(),
-            composite: composite.keep(),
+            shade: ShadePass::new(),
             techniques: Vec::new(),
             active: None,
             ssdo: None,
+            light_cached: false,
+            light_cache: false,
         };
-        res.globals.counts = [res.sphere_count, 0, 0, 0];
+        // Without a hierarchy every sphere is its own region (semantic SSDO
+        // then equals plain SSDO).
+        let no_levels = res.levels.is_empty() as u32;
+        res.globals.counts = [res.sphere_count, 0, 0, no_levels];
         res.globals.cam = cam.to_gpu(res.depth_offset(&cam));
         let mut r = Renderer {
             ctx,
@@ -380,6 +478,7 @@ impl<'c> Renderer<'c> {
             return Err(Error::Input("--light must be a non-zero direction".into()));
         }
         self.settings.light = dir;
+        self.res.light_cached = false;
         for k in &mut self.res.techniques {
             k.stale = true;
         }
@@ -436,10 +535,8 @@ impl<'c> Renderer<'c> {
                 }
             }
         };
-        if index.is_none() && self.res.active.is_some() {
-            // No technique writes key-light visibility any more.
-            self.wait_idle()?;
-            self.res.targets.clear_shadow(self.ctx)?;
+        if index != self.res.active {
+            self.res.light_cached = false;
         }
         self.res.active = index;
         self.settings.shadows = mode;
@@ -450,11 +547,9 @@ impl<'c> Renderer<'c> {
     /// Chooses the SSDO mode; its pipelines are created the first time.
     pub fn set_ssdo(&mut self, mode: SsdoMode) -> Result<()> {
         if mode != SsdoMode::Off && self.res.ssdo.is_none() {
-            let pass = self.ctx.guard(SsdoPass::new(self.ctx)?);
-            let blur = BlurPass::new(self.ctx)?;
             self.res.ssdo = Some(SsdoState {
-                pass: pass.keep(),
-                blur,
+                pass: SsdoPass::new(self.ctx)?,
+                blur: BlurPass::new(),
             });
         }
         self.settings.ssdo = mode;
@@ -469,6 +564,10 @@ impl<'c> Renderer<'c> {
     pub fn set_opacity(&mut self, opacity: f32) -> Result<()> {
         if !(0.0..=1.0).contains(&opacity) {
             return Err(Error::Input("--opacity must be between 0 and 1".into()));
+        }
+        if opacity != self.settings.opacity {
+            // deep lists and opacity maps hold the opacity
+            self.res.light_cached = false;
         }
         self.settings.opacity = opacity;
         Ok(())
@@ -493,9 +592,10 @@ impl<'c> Renderer<'c> {
             "uniforms",
             self.slots.iter().map(|f| f.globals.size).sum::<u64>(),
         );
-        let (vis, gbuffer) = self.res.targets.memory();
+        let (vis, gbuffer, ssdo) = self.res.targets.memory();
         add("visibility", vis + self.res.raster.memory_bytes());
         add("gbuffer", gbuffer);
+        add("ssdo", ssdo);
         if let Some(t) = self.res.active_shadow() {
             for (class, bytes) in t.memory() {
                 add(class, bytes);
@@ -522,10 +622,30 @@ impl<'c> Renderer<'c> {
     }
 
     fn after_frame(&mut self) -> Result<FrameCheck> {
-        match self.res.active {
-            Some(i) => self.res.techniques[i].technique.after_frame(self.ctx),
-            None => Ok(FrameCheck::Done),
+        let check = match self.res.active {
+            Some(i) => self.res.techniques[i].technique.after_frame(self.ctx)?,
+            None => FrameCheck::Done,
+        };
+        if check == FrameCheck::Retry {
+            self.res.light_cached = false;
         }
+        Ok(check)
+    }
+
+    /// Reuse the light-space structure (ISSM map, deep lists, shadow maps)
+    /// across frames while the light, the spheres and the opacity stay as
+    /// they are: only the camera then costs (the viewer's orbit, the
+    /// bench's cached runs). Off by default.
+    pub fn set_light_cache(&mut self, on: bool) {
+        self.res.light_cache = on;
+        if !on {
+            self.res.light_cached = false;
+        }
+    }
+
+    /// Whether the next frame reuses the light-space structure.
+    pub fn light_cached(&self) -> bool {
+        self.res.light_cached
     }
 
     /// Records and submits the next frame without waiting for it; returns
@@ -575,6 +695,7 @@ impl<'c> Renderer<'c> {
             res,
             ..
         } = self;
+        res.prepare(ctx, settings)?;
         let fs = &mut slots[slot];
         fs.wait(ctx)?;
         match fs.globals.mapped_mut() {
@@ -613,6 +734,9 @@ impl<'c> Renderer<'c> {
             result,
         })?;
         recorded?;
+        // The light-space structure this frame builds serves the next ones
+        // until something it depends on changes.
+        res.light_cached = res.light_cache && res.active.is_some();
         let cmds = [cmd];
         let submit = [vk::SubmitInfo::default().command_buffers(&cmds)];
         // SAFETY: the fence is unsignalled only by this submission.
@@ -636,6 +760,7 @@ impl<'c> Renderer<'c> {
     /// (tests check it with [`crate::vk::barrier::check_hazards`]).
     pub fn frame_log(&mut self) -> Result<Vec<crate::vk::barrier::Event>> {
         let ctx = self.ctx;
+        self.res.prepare(ctx, &self.settings)?;
         let cmd = ctx.command_buffer("frame log")?;
         let mut arena = crate::vk::descriptors::DescriptorArena::default();
         let begin = vk::CommandBufferBeginInfo::default();
@@ -686,39 +811,75 @@ impl<'c> Renderer<'c> {
             .download_pod(self.ctx, 0, self.pixels())
     }
 
-    /// G-buffer positions: xyz world, w depth key (-1 = background).
+    /// Visible positions: xyz world (the shader's reconstruction from the
+    /// pixel ray and the sphere, redone on the CPU in f32), w the depth key
+    /// (-1 = background).
     pub fn read_gpos(&self) -> Result<Vec<[f32; 4]>> {
+        let cam = &self.settings.camera;
+        let vis = self.read_vis()?;
+        Ok(vis
+            .iter()
+            .enumerate()
+            .map(|(i, &k)| {
+                if k == crate::gpu::VIS_EMPTY {
+                    return [0.0, 0.0, 0.0, -1.0];
+                }
+                let s = self.res.geom[(k & 0xFFFF_FFFF) as usize];
+                let (o, d) = cam.ray(i as u32 % cam.width, i as u32 / cam.width);
+                let c = glam::DVec3::new(s[0] as f64, s[1] as f64, s[2] as f64);
+                let (t, _) =
+                    crate::reference::ray_sphere(o, d, c, s[3] as f64).unwrap_or((0.0, 0.0));
+                let p = o + t * d;
+                [
+                    p.x as f32,
+                    p.y as f32,
+                    p.z as f32,
+                    f32::from_bits((k >> 32) as u32),
+                ]
+            })
+            .collect())
+    }
+
+    /// The shadow and ao AOVs as shade wrote them (unorm16 each).
+    fn read_aov(&self) -> Result<Vec<u32>> {
         self.res
             .targets
-            .gpos
+            .aov
             .download_pod(self.ctx, 0, self.pixels())
     }
 
+    /// Key-light visibility per pixel (1 on background), 16-bit precision.
     pub fn read_shadow(&self) -> Result<Vec<f32>> {
-        self.res
-            .targets
-            .shadow
-            .download_pod(self.ctx, 0, self.pixels())
+        Ok(self
+            .read_aov()?
+            .into_iter()
+            .map(|a| (a & 0xFFFF) as f32 / 65535.0)
+            .collect())
     }
 
-    /// Ambient visibility (x) and bounce (yzw) before the blur.
-    pub fn read_ambient_raw(&self) -> Result<Vec<[f32; 4]>> {
-        self.res
-            .targets
-            .ambient
-            .download_pod(self.ctx, 0, self.pixels())
-    }
-
-    /// Ambient visibility (x) and bounce (yzw) as the composite uses it
-    /// (after the blur when it is on).
+    /// Ambient visibility per pixel as shade used it (x: after the blur
+    /// and the upsample; the bounce, yzw, is not kept at full resolution
+    /// and reads 0), 16-bit precision; 1 without SSDO.
     pub fn read_ambient(&self) -> Result<Vec<[f32; 4]>> {
-        let t = &self.res.targets;
-        let b = if self.settings.ssdo_on() && self.settings.blur {
-            &t.blurred[2]
-        } else {
-            &t.ambient
-        };
-        b.download_pod(self.ctx, 0, self.pixels())
+        Ok(self
+            .read_aov()?
+            .into_iter()
+            .map(|a| [(a >> 16) as f32 / 65535.0, 0.0, 0.0, 0.0])
+            .collect())
+    }
+
+    /// The half-resolution SSDO records of the last frame (tests).
+    pub fn read_records(&self) -> Result<Vec<crate::passes::ssdo::Record>> {
+        let (hw, hh) = self.res.targets.half();
+        let raw: Vec<[u32; 4]> =
+            self.res
+                .targets
+                .records
+                .download_pod(self.ctx, 0, hw as u64 * hh as u64)?;
+        Ok(raw
+            .into_iter()
+            .map(crate::passes::ssdo::Record::unpack)
+            .collect())
     }
 
     fn technique<T: 'static>(&self) -> Option<&T> {
@@ -797,8 +958,7 @@ impl Drop for Renderer<'_> {
         let r = &mut self.res;
         r.raster.destroy(ctx);
         r.raster_graphics.destroy_with(ctx);
-        r.resolve.destroy(ctx);
-        r.composite.destroy(ctx);
+        r.shade.destroy(ctx);
         r.techniques.destroy_with(ctx);
         r.ssdo.destroy_with(ctx);
         r.targets.destroy(ctx);

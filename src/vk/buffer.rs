@@ -109,7 +109,8 @@ impl Buffer {
     /// A texel-buffer view of the whole buffer in `format` (made once,
     /// destroyed with the buffer).
     pub fn view(&self, ctx: &Context, format: vk::Format) -> Result<vk::BufferView> {
-        let texel = vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER | vk::BufferUsageFlags::STORAGE_TEXEL_BUFFER;
+        let texel =
+            vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER | vk::BufferUsageFlags::STORAGE_TEXEL_BUFFER;
         if !self.usage.intersects(texel) {
             return Err(Error::Internal(format!(
                 "'{}' was not created for texel-buffer views",
@@ -128,7 +129,8 @@ impl Buffer {
             .format(format)
             .offset(0)
             .range(vk::WHOLE_SIZE);
-        let view = unsafe { ctx.device.create_buffer_view(&info, None) }.vk("vkCreateBufferView")?;
+        let view =
+            unsafe { ctx.device.create_buffer_view(&info, None) }.vk("vkCreateBufferView")?;
         ctx.name(view, &format!("{} {format:?}", self.name));
         views.push((format, view));
         Ok(view)

@@ -1,26 +1,35 @@
 //! A trivial shadow technique for unit tests: key-light visibility 0.5 on
-//! every pixel, no light-space structure. It exists to show (and test)
-//! what adding a technique takes: this file, a `ShadowMode` value, one arm
-//! in `shadows::create` (and, for a real one, its row in the pass list).
+//! every pixel, written by a pass of its own into a per-pixel buffer that
+//! shade reads (`LookupKind::Buffer`, the generic way in). It exists to
+//! show (and test) what adding a technique takes: this file, a `ShadowMode`
+//! value, one arm in `shadows::create` (and, for a real one, its row in the
+//! pass list).
 
-use super::{ShadowSetup, ShadowTechnique};
+use super::{Lookup, LookupKind, ShadowParams, ShadowSetup, ShadowTechnique};
 use crate::camera::Camera;
 use crate::error::Result;
 use crate::passes::ShadowInputs;
 use crate::settings::ShadowMode;
-use crate::vk::{Context, Recorder};
+use crate::vk::pipeline::{Binding, texel};
+use crate::vk::{Buffer, Context, Recorder};
 use std::any::Any;
 
 pub const NAME: &str = "test_constant";
 
+const LOOKUP: [Binding; 1] = [texel("visibilityTex", ash::vk::Format::R32_SFLOAT)];
+
 pub struct Constant {
     light: Camera,
+    visibility: Buffer,
 }
 
 impl Constant {
     pub fn new(setup: &ShadowSetup) -> Result<Self> {
+        let cam = &setup.settings.camera;
+        let pixels = cam.width as u64 * cam.height as u64;
         Ok(Constant {
             light: setup.fit(16)?,
+            visibility: Buffer::storage(setup.ctx, "test constant visibility", pixels * 4)?,
         })
     }
 }
@@ -32,14 +41,20 @@ impl ShadowTechnique for Constant {
     fn light(&self) -> &Camera {
         &self.light
     }
-    fn record_light<'b>(&'b self, _: &mut Recorder, _: &ShadowInputs<'b>) -> Result<()> {
-        Ok(())
-    }
-    fn record_lookup<'b>(&'b self, rec: &mut Recorder, f: &ShadowInputs<'b>) -> Result<()> {
+    fn record_light<'b>(&'b self, rec: &mut Recorder, f: &ShadowInputs<'b>) -> Result<()> {
         rec.pass(NAME, |p| {
-            p.fill(f.shadow, f.pixels * 4, 0.5f32.to_bits());
+            p.fill(&self.visibility, f.pixels * 4, 0.5f32.to_bits());
             Ok(())
         })
+    }
+    fn lookup(&self, _opacity: f32) -> Lookup<'_> {
+        Lookup {
+            kind: LookupKind::Buffer,
+            soft: false,
+            bindings: &LOOKUP,
+            buffers: vec![("visibilityTex", &self.visibility)],
+            params: ShadowParams::default(),
+        }
     }
     fn refit(&mut self, setup: &ShadowSetup) -> Result<()> {
         self.light = setup.fit(16)?;
@@ -54,7 +69,9 @@ impl ShadowTechnique for Constant {
     fn as_any_mut(&mut self) -> &mut dyn Any {
         self
     }
-    fn destroy(&mut self, _: &Context) {}
+    fn destroy(&mut self, ctx: &Context) {
+        self.visibility.destroy(ctx);
+    }
 }
 
 #[cfg(test)]
@@ -96,7 +113,15 @@ mod tests {
         let shadow = r.read_shadow().unwrap();
         let covered = vis.iter().filter(|&&k| k != crate::gpu::VIS_EMPTY).count();
         assert!(covered > 0);
-        assert!(shadow.iter().all(|&s| s == 0.5));
+        // (the shadow AOV is unorm16: 0.5 reads back as 32768 / 65535)
+        for (k, s) in vis.iter().zip(&shadow) {
+            let want = if *k == crate::gpu::VIS_EMPTY {
+                1.0
+            } else {
+                0.5
+            };
+            assert!((s - want).abs() < 1e-4, "{s} vs {want}");
+        }
         drop(r);
         assert_eq!(
             ctx.validation_messages(),

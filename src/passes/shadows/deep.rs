@@ -35,7 +35,7 @@
 //!   each entry at head + atomic per-texel cursor;
 //! - `deep_sort`: per texel, sort its contiguous run by (depth, id), write
 //!   links, transmittance and the epsilon-compressed visibility nodes;
-//! - `deep_shadow`: per visible pixel, walk its light texel's list with exact
+//! - the lookup (glsl/lookup_deep.glsl, in `shade`): per visible pixel, walk its light texel's list with exact
 //!   ray tests.
 //!
 //! Vulkan has no forward-progress guarantee between invocations, so nothing
@@ -44,14 +44,14 @@
 //! every list and counter buffer carries [`GUARD_WORDS`] guard words after
 //! its payload, filled once with [`GUARD_PATTERN`]; see [`DeepShadows::damaged_guards`].
 
-use super::{FrameCheck, ShadowSetup, ShadowTechnique};
+use super::{FrameCheck, Lookup, LookupKind, ShadowParams, ShadowSetup, ShadowTechnique};
 use crate::camera::Camera;
 use crate::error::{Error, Result};
 use crate::gpu::consts;
 use crate::passes::bands::{BandArgs, BandCounters, BandPipelines};
 use crate::passes::{LOCAL_SIZE, ShadowInputs, spirv};
 use crate::settings::ShadowMode;
-use crate::vk::pipeline::{PipelineDesc, ro, rw, uniform, wo};
+use crate::vk::pipeline::{Binding, PipelineDesc, ro, rw, uniform, wo};
 use crate::vk::{Buffer, ComputePipeline, Context, Grid, Recorder};
 use ash::vk;
 use bytemuck::{Pod, Zeroable};
@@ -137,6 +137,16 @@ pub struct DeepTile {
 
 pub const TILE_OVERFLOWED: u32 = consts::DEEP_TILE_OVERFLOWED;
 
+/// The lookup's bindings (glsl/lookup_deep.glsl).
+const LOOKUP: [Binding; 6] = [
+    ro("Texels"),
+    ro("Tiles"),
+    ro("Depth"),
+    ro("Alpha"),
+    ro("Ids"),
+    ro("Next"),
+];
+
 const _: () = assert!(std::mem::size_of::<DeepTexel>() == 16);
 const _: () = assert!(std::mem::size_of::<DeepTile>() == 16);
 
@@ -162,13 +172,6 @@ struct AllocPush {
 struct SortPush {
     eps: f32,
     entry_capacity: u32,
-}
-
-#[repr(C)]
-#[derive(Clone, Copy, Pod, Zeroable)]
-struct ShadowPush {
-    entry_capacity: u32,
-    sphere_count: u32,
 }
 
 const MODE_COUNT: u32 = 0;
@@ -343,7 +346,6 @@ pub struct DeepShadows {
     args: BandArgs,
     alloc: ComputePipeline,
     sort: ComputePipeline,
-    shadow: ComputePipeline,
     /// Statistics of the last frame (after any pool growth).
     pub stats: Option<DeepStats>,
     /// The last frame overflowed (and was rendered again).
@@ -504,25 +506,6 @@ impl DeepShadows {
             std::mem::size_of::<SortPush>(),
             64,
         )?);
-        let shadow = ctx.guard(pipe(
-            "deep shadow",
-            spirv::DEEP_SHADOW_COMP,
-            &[
-                uniform("GlobalsBlock"),
-                ro("Spheres"),
-                ro("Vis"),
-                ro("GPos"),
-                ro("Texels"),
-                ro("Tiles"),
-                ro("Depth"),
-                ro("Alpha"),
-                ro("Ids"),
-                ro("Next"),
-                wo("Shadow"),
-            ],
-            std::mem::size_of::<ShadowPush>(),
-            LOCAL_SIZE,
-        )?);
         let lists = Lists::new(ctx, capacity)?;
         let mut b = bufs.keep().into_iter();
         let mut nb = || b.next().expect("buffers");
@@ -543,7 +526,6 @@ impl DeepShadows {
             args: args.keep(),
             alloc: alloc.keep(),
             sort: sort.keep(),
-            shadow: shadow.keep(),
             stats: None,
             retried: false,
         })
@@ -697,35 +679,6 @@ impl DeepShadows {
                     ("Counters", &self.counters),
                     ("NodeDepth", &l.node_depth),
                     ("NodeVis", &l.node_vis),
-                ],
-            );
-            Ok(())
-        })
-    }
-
-    /// `deep_shadow`: walk each visible pixel's light texel list.
-    fn record_shadow<'b>(&'b self, rec: &mut Recorder, f: &ShadowInputs<'b>) -> Result<()> {
-        let l = &self.lists;
-        rec.pass("deep_shadow", |p| {
-            p.dispatch(
-                &self.shadow,
-                &ShadowPush {
-                    entry_capacity: self.entry_capacity(),
-                    sphere_count: self.sphere_count,
-                },
-                Grid::Invocations(f.pixels),
-                &[
-                    ("GlobalsBlock", f.globals),
-                    ("Spheres", f.spheres),
-                    ("Vis", f.vis),
-                    ("GPos", f.gpos),
-                    ("Texels", &self.texels),
-                    ("Tiles", &self.tiles),
-                    ("Depth", &l.depth),
-                    ("Alpha", &l.alpha),
-                    ("Ids", &l.ids),
-                    ("Next", &l.next),
-                    ("Shadow", f.shadow),
                 ],
             );
             Ok(())
@@ -915,7 +868,6 @@ impl DeepShadows {
         self.fill.destroy(ctx);
         self.alloc.destroy(ctx);
         self.sort.destroy(ctx);
-        self.shadow.destroy(ctx);
         self.args.destroy(ctx);
         for b in [
             &mut self.texels,
@@ -943,8 +895,25 @@ impl ShadowTechnique for DeepShadows {
         self.record_lists(rec, f)
     }
 
-    fn record_lookup<'b>(&'b self, rec: &mut Recorder, f: &ShadowInputs<'b>) -> Result<()> {
-        self.record_shadow(rec, f)
+    fn lookup(&self, _opacity: f32) -> Lookup<'_> {
+        let l = &self.lists;
+        Lookup {
+            kind: LookupKind::Deep,
+            soft: false,
+            bindings: &LOOKUP,
+            buffers: vec![
+                ("Texels", &self.texels),
+                ("Tiles", &self.tiles),
+                ("Depth", &l.depth),
+                ("Alpha", &l.alpha),
+                ("Ids", &l.ids),
+                ("Next", &l.next),
+            ],
+            params: ShadowParams {
+                u: [self.entry_capacity(), 0, 0, 0],
+                ..Default::default()
+            },
+        }
     }
 
     /// The same map size and pool; the lists are rebuilt every frame, and

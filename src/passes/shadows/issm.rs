@@ -3,14 +3,14 @@
 //! (`issm_raster`), then `issm_shadow` tests each visible point's light ray
 //! against the spheres of a (2t+1)^2 texel patch.
 
-use super::{ShadowSetup, ShadowTechnique};
+use super::{Lookup, LookupKind, ShadowParams, ShadowSetup, ShadowTechnique};
 use crate::camera::Camera;
 use crate::error::Result;
+use crate::passes::ShadowInputs;
 use crate::passes::raster;
-use crate::passes::{LOCAL_SIZE, ShadowInputs, spirv};
 use crate::settings::{IssmParams, ShadowMode};
-use crate::vk::pipeline::{PipelineDesc, ro, uniform, wo};
-use crate::vk::{Buffer, ComputePipeline, Context, Grid, Recorder};
+use crate::vk::pipeline::{Binding, texel};
+use crate::vk::{Buffer, Context, Recorder};
 use bytemuck::{Pod, Zeroable};
 use std::any::Any;
 
@@ -44,18 +44,20 @@ pub fn auto_stride(min_radius: f32, texel: f64) -> u32 {
     ((min_radius as f64 / texel.max(1e-9)).floor() as u32).max(1)
 }
 
-/// The key light's sphere id map and the lookup that reads it.
+/// The key light's sphere id map (read by glsl/lookup_issm.glsl).
 pub struct Issm {
     soft: bool,
     pub light: Camera,
     map: Buffer,
-    pipeline: ComputePipeline,
     pub push: IssmPush,
 }
 
+/// The lookup's binding: the 64-bit depth|id map read as 32-bit words
+/// (even words = ids).
+const LOOKUP: [Binding; 1] = [texel("issmTex", ash::vk::Format::R32_UINT)];
+
 impl Issm {
     pub const RASTER_NAME: &'static str = "issm_raster";
-    pub const NAME: &'static str = "issm_shadow";
 
     pub fn new(setup: &ShadowSetup, soft: bool) -> Result<Self> {
         let ctx = setup.ctx;
@@ -66,29 +68,10 @@ impl Issm {
             "issm",
             p.size as u64 * p.size as u64,
         )?);
-        let pipeline = ComputePipeline::new(
-            ctx,
-            &PipelineDesc {
-                name: Self::NAME,
-                shader: spirv::ISSM_SHADOW_COMP,
-                bindings: &[
-                    uniform("GlobalsBlock"),
-                    ro("Spheres"),
-                    ro("Vis"),
-                    ro("GPos"),
-                    ro("Issm"),
-                    wo("Shadow"),
-                ],
-                push_size: std::mem::size_of::<IssmPush>() as u32,
-                local_size: LOCAL_SIZE,
-                constants: &[],
-            },
-        )?;
         let mut issm = Issm {
             soft,
             light,
             map: map.keep(),
-            pipeline,
             push: IssmPush::zeroed(),
         };
         issm.fit_push(setup, light);
@@ -157,23 +140,19 @@ impl ShadowTechnique for Issm {
             .record_light_map(rec, Self::RASTER_NAME, f, &self.map, self.texels())
     }
 
-    fn record_lookup<'b>(&'b self, rec: &mut Recorder, f: &ShadowInputs<'b>) -> Result<()> {
-        rec.pass(Self::NAME, |p| {
-            p.dispatch(
-                &self.pipeline,
-                &self.push,
-                Grid::Invocations(f.pixels),
-                &[
-                    ("GlobalsBlock", f.globals),
-                    ("Spheres", f.spheres),
-                    ("Vis", f.vis),
-                    ("GPos", f.gpos),
-                    ("Issm", &self.map),
-                    ("Shadow", f.shadow),
-                ],
-            );
-            Ok(())
-        })
+    fn lookup(&self, _opacity: f32) -> Lookup<'_> {
+        let p = &self.push;
+        Lookup {
+            kind: LookupKind::Issm,
+            soft: self.soft,
+            bindings: &LOOKUP,
+            buffers: vec![("issmTex", &self.map)],
+            params: ShadowParams {
+                f0: [p.soft_s, p.soft_x, p.soft_b, 0.0],
+                u: [p.t as u32, p.stride as u32, 0, 0],
+                ..Default::default()
+            },
+        }
     }
 
     fn refit(&mut self, setup: &ShadowSetup) -> Result<()> {
@@ -195,7 +174,6 @@ impl ShadowTechnique for Issm {
     }
 
     fn destroy(&mut self, ctx: &Context) {
-        self.pipeline.destroy(ctx);
         self.map.destroy(ctx);
     }
 }

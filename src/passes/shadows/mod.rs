@@ -1,8 +1,11 @@
 //! Key-light shadow techniques, one shape for all: a technique builds its
-//! light-space structure in `record_light` (before the camera's resolve)
-//! and fills the per-pixel key-light visibility in `record_lookup`. Adding
-//! a technique = its file here, its shader(s), a `ShadowMode` value and one
-//! arm in [`create`].
+//! light-space structure in `record_light` and tells, in `lookup`, how
+//! `shade` (and `ssdo_prep`) read key-light visibility from it: a lookup
+//! compiled into those shaders (glsl/lookup_*.glsl, the fast path of the
+//! built-in techniques: no per-pixel visibility buffer is written and read
+//! back), or a per-pixel buffer its own pass fills (`LookupKind::Buffer`,
+//! the generic way in). Adding a technique = its file here, its shader(s),
+//! a `ShadowMode` value and one arm in [`create`] (see constant.rs).
 
 #[cfg(test)]
 pub mod constant;
@@ -16,7 +19,8 @@ use crate::camera::Camera;
 use crate::error::Result;
 use crate::gpu::GpuSphere;
 use crate::settings::{RenderSettings, ShadowMode};
-use crate::vk::{Context, Recorder};
+use crate::vk::pipeline::Binding;
+use crate::vk::{Buffer, Context, Recorder};
 use glam::DVec3;
 use std::any::Any;
 
@@ -52,14 +56,64 @@ pub enum FrameCheck {
     Retry,
 }
 
+/// Which key-light lookup shade.comp and ssdo_prep.comp are compiled with
+/// (their `SHADOW_*` variants, glsl/lookup.glsl).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum LookupKind {
+    /// No shadows.
+    None,
+    Issm,
+    Deep,
+    ShadowMap,
+    Opacity,
+    /// Screen-space march (`--shadows none` with SSDO).
+    Screen,
+    /// A per-pixel visibility buffer a technique's own pass wrote.
+    Buffer,
+}
+
+/// Parameters of a lookup, carried in `Globals.shadow_*` (each lookup
+/// header documents its fields).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ShadowParams {
+    pub f0: [f32; 4],
+    pub f1: [f32; 4],
+    pub u: [u32; 4],
+}
+
+/// How shade reads a technique's key-light visibility.
+pub struct Lookup<'a> {
+    pub kind: LookupKind,
+    /// ISSM soft shadows (a specialization constant of the lookup).
+    pub soft: bool,
+    /// The lookup's own bindings (from binding 16 on in GLSL).
+    pub bindings: &'static [Binding],
+    pub buffers: Vec<(&'static str, &'a Buffer)>,
+    pub params: ShadowParams,
+}
+
+impl Lookup<'static> {
+    /// No technique (or the screen-space march, which needs nothing bound).
+    pub fn plain(kind: LookupKind, params: ShadowParams) -> Self {
+        Lookup {
+            kind,
+            soft: false,
+            bindings: &[],
+            buffers: Vec::new(),
+            params,
+        }
+    }
+}
+
 pub trait ShadowTechnique {
     fn mode(&self) -> ShadowMode;
     /// The light view the technique's map uses (in `Globals.light`).
     fn light(&self) -> &Camera;
-    /// Light-space passes: maps or lists of the key light's view.
+    /// Light-space passes: maps or lists of the key light's view (and, for
+    /// `LookupKind::Buffer` techniques, their per-pixel pass).
     fn record_light<'b>(&'b self, rec: &mut Recorder, f: &ShadowInputs<'b>) -> Result<()>;
-    /// Per-pixel passes writing key-light visibility into `f.shadow`.
-    fn record_lookup<'b>(&'b self, rec: &mut Recorder, f: &ShadowInputs<'b>) -> Result<()>;
+    /// How shade reads the visibility (opacity of every sphere given).
+    fn lookup(&self, opacity: f32) -> Lookup<'_>;
     /// The light direction, the spheres or the settings changed: refit the
     /// light view and everything derived from it (maps keep their size).
     fn refit(&mut self, setup: &ShadowSetup) -> Result<()>;

@@ -26,14 +26,14 @@
 //! [`ALPHA_MAX`], so a fully opaque sphere leaves 0.001 of the light through
 //! (below one 8-bit step).
 
-use super::{ShadowSetup, ShadowTechnique};
+use super::{Lookup, LookupKind, ShadowParams, ShadowSetup, ShadowTechnique};
 use crate::camera::Camera;
 use crate::error::{Error, Result};
 use crate::passes::bands::{BandArgs, BandCounters, BandPipelines};
 use crate::passes::raster::RASTER_COUNTERS;
 use crate::passes::{LOCAL_SIZE, ShadowInputs, spirv};
 use crate::settings::ShadowMode;
-use crate::vk::pipeline::{PipelineDesc, ro, rw, uniform, wo};
+use crate::vk::pipeline::{Binding, PipelineDesc, ro, rw, texel, uniform};
 use crate::vk::{Buffer, ComputePipeline, Context, Grid, Recorder};
 use bytemuck::{Pod, Zeroable};
 use std::any::Any;
@@ -72,16 +72,6 @@ struct PrefixPush {
     inv_scale: f32,
 }
 
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable)]
-struct ShadowPush {
-    tau_fixed: u32,
-    slices: u32,
-    z_min: f32,
-    inv_dz: f32,
-    inv_scale: f32,
-}
-
 /// Fixed-point optical depth of one sphere of opacity `alpha`.
 pub fn tau_fixed(alpha: f32) -> u32 {
     let a = alpha.clamp(0.0, ALPHA_MAX) as f64;
@@ -108,8 +98,11 @@ pub struct OpacityShadows {
     raster: BandPipelines,
     args: BandArgs,
     prefix: ComputePipeline,
-    shadow: ComputePipeline,
 }
+
+/// The lookup's binding (glsl/lookup_osm.glsl): the prefix-summed optical
+/// depths as floats.
+const LOOKUP: [Binding; 1] = [texel("tauTex", ash::vk::Format::R32_SFLOAT)];
 
 /// Light depth range of the spheres in a light view, with a hair of margin
 /// so the extreme entries stay inside.
@@ -131,7 +124,6 @@ fn depth_range(light: &Camera, spheres: impl Iterator<Item = ([f32; 3], f32)>) -
 impl OpacityShadows {
     pub const RASTER_NAME: &'static str = "osm_raster";
     pub const PREFIX_NAME: &'static str = "osm_prefix";
-    pub const NAME: &'static str = "osm_shadow";
 
     pub fn new(setup: &ShadowSetup) -> Result<Self> {
         let ctx = setup.ctx;
@@ -187,24 +179,6 @@ impl OpacityShadows {
                 constants: &[],
             },
         )?);
-        let shadow = ctx.guard(ComputePipeline::new(
-            ctx,
-            &PipelineDesc {
-                name: "osm shadow",
-                shader: spirv::OSM_SHADOW_COMP,
-                bindings: &[
-                    uniform("GlobalsBlock"),
-                    ro("Spheres"),
-                    ro("Vis"),
-                    ro("GPos"),
-                    ro("Opacity"),
-                    wo("Shadow"),
-                ],
-                push_size: std::mem::size_of::<ShadowPush>() as u32,
-                local_size: LOCAL_SIZE,
-                constants: &[],
-            },
-        )?);
         let map = ctx.guard(Buffer::storage(
             ctx,
             "osm opacity slices",
@@ -230,7 +204,6 @@ impl OpacityShadows {
             raster: raster.keep(),
             args: args.keep(),
             prefix: prefix.keep(),
-            shadow: shadow.keep(),
         };
         o.log();
         Ok(o)
@@ -351,30 +324,18 @@ impl ShadowTechnique for OpacityShadows {
         })
     }
 
-    /// `osm_shadow`: transmittance at each visible point.
-    fn record_lookup<'b>(&'b self, rec: &mut Recorder, f: &ShadowInputs<'b>) -> Result<()> {
-        rec.pass(Self::NAME, |p| {
-            p.dispatch(
-                &self.shadow,
-                &ShadowPush {
-                    tau_fixed: tau_fixed(f.opacity),
-                    slices: self.slices,
-                    z_min: self.z_min,
-                    inv_dz: self.inv_dz(),
-                    inv_scale: 1.0 / FIXED_SCALE,
-                },
-                Grid::Invocations(f.pixels),
-                &[
-                    ("GlobalsBlock", f.globals),
-                    ("Spheres", f.spheres),
-                    ("Vis", f.vis),
-                    ("GPos", f.gpos),
-                    ("Opacity", &self.opacity_map),
-                    ("Shadow", f.shadow),
-                ],
-            );
-            Ok(())
-        })
+    fn lookup(&self, opacity: f32) -> Lookup<'_> {
+        Lookup {
+            kind: LookupKind::Opacity,
+            soft: false,
+            bindings: &LOOKUP,
+            buffers: vec![("tauTex", &self.opacity_map)],
+            params: ShadowParams {
+                f0: [self.z_min, self.inv_dz(), 1.0 / FIXED_SCALE, 0.0],
+                u: [tau_fixed(opacity), self.slices, 0, 0],
+                ..Default::default()
+            },
+        }
     }
 
     fn refit(&mut self, setup: &ShadowSetup) -> Result<()> {
@@ -403,7 +364,6 @@ impl ShadowTechnique for OpacityShadows {
     fn destroy(&mut self, ctx: &Context) {
         self.raster.destroy(ctx);
         self.prefix.destroy(ctx);
-        self.shadow.destroy(ctx);
         self.args.destroy(ctx);
         self.opacity_map.destroy(ctx);
         self.jobs.destroy(ctx);

@@ -25,14 +25,14 @@
 //! sphere (the id the rasterizer stores beside the depth) counts as
 //! unoccluded; everything else is the plain biased depth test.
 
-use super::{ShadowSetup, ShadowTechnique};
+use super::{Lookup, LookupKind, ShadowParams, ShadowSetup, ShadowTechnique};
 use crate::camera::Camera;
 use crate::error::Result;
+use crate::passes::ShadowInputs;
 use crate::passes::raster;
-use crate::passes::{LOCAL_SIZE, ShadowInputs, spirv};
 use crate::settings::{ShadowMapParams, ShadowMode};
-use crate::vk::pipeline::{PipelineDesc, ro, uniform, wo};
-use crate::vk::{Buffer, ComputePipeline, Context, Grid, Recorder};
+use crate::vk::pipeline::{Binding, texel};
+use crate::vk::{Buffer, Context, Recorder};
 use bytemuck::{Pod, Zeroable};
 use std::any::Any;
 
@@ -57,13 +57,15 @@ pub struct SmPush {
 pub struct ShadowMap {
     pub light: Camera,
     map: Buffer,
-    pipeline: ComputePipeline,
     pub push: SmPush,
 }
 
+/// The lookup's binding (glsl/lookup_sm.glsl): the depth|id map as pairs of
+/// 32-bit words (id, depth bits).
+const LOOKUP: [Binding; 1] = [texel("mapTex", ash::vk::Format::R32G32_UINT)];
+
 impl ShadowMap {
     pub const RASTER_NAME: &'static str = "sm_raster";
-    pub const NAME: &'static str = "sm_shadow";
 
     pub fn new(setup: &ShadowSetup) -> Result<Self> {
         let ctx = setup.ctx;
@@ -79,33 +81,10 @@ impl ShadowMap {
                 range >> 20
             )));
         }
-        let pipeline = ctx.guard(ComputePipeline::new(
-            ctx,
-            &PipelineDesc {
-                name: Self::NAME,
-                shader: spirv::SM_SHADOW_COMP,
-                bindings: &[
-                    uniform("GlobalsBlock"),
-                    ro("Vis"),
-                    ro("GPos"),
-                    ro("GNorm"),
-                    ro("Map"),
-                    wo("Shadow"),
-                ],
-                push_size: std::mem::size_of::<SmPush>() as u32,
-                local_size: LOCAL_SIZE,
-                constants: &[],
-            },
-        )?);
         let map = raster::vis_buffer(ctx, "shadow map", texels)?;
         let push = Self::push(&light, params);
         Self::log(&light, &push);
-        Ok(ShadowMap {
-            light,
-            map,
-            pipeline: pipeline.keep(),
-            push,
-        })
+        Ok(ShadowMap { light, map, push })
     }
 
     fn log(light: &Camera, push: &SmPush) {
@@ -173,24 +152,19 @@ impl ShadowTechnique for ShadowMap {
             .record_light_map(rec, Self::RASTER_NAME, f, &self.map, self.texels())
     }
 
-    /// `sm_shadow`: key-light visibility per visible pixel into `shadow`.
-    fn record_lookup<'b>(&'b self, rec: &mut Recorder, f: &ShadowInputs<'b>) -> Result<()> {
-        rec.pass(Self::NAME, |p| {
-            p.dispatch(
-                &self.pipeline,
-                &self.push,
-                Grid::Invocations(f.pixels),
-                &[
-                    ("GlobalsBlock", f.globals),
-                    ("Vis", f.vis),
-                    ("GPos", f.gpos),
-                    ("GNorm", f.gnorm),
-                    ("Map", &self.map),
-                    ("Shadow", f.shadow),
-                ],
-            );
-            Ok(())
-        })
+    fn lookup(&self, _opacity: f32) -> Lookup<'_> {
+        let p = &self.push;
+        Lookup {
+            kind: LookupKind::ShadowMap,
+            soft: false,
+            bindings: &LOOKUP,
+            buffers: vec![("mapTex", &self.map)],
+            params: ShadowParams {
+                f0: [p.bias_const, p.bias_slope, p.tan_max, p.radius],
+                u: [p.samples, 0, 0, 0],
+                ..Default::default()
+            },
+        }
     }
 
     fn refit(&mut self, setup: &ShadowSetup) -> Result<()> {
@@ -213,7 +187,6 @@ impl ShadowTechnique for ShadowMap {
     }
 
     fn destroy(&mut self, ctx: &Context) {
-        self.pipeline.destroy(ctx);
         self.map.destroy(ctx);
     }
 }

@@ -1,4 +1,3 @@
-#version 460
 // Opacity shadow maps (seed 004), pass 3: per visible point P, the optical
 // depth accumulated from the light up to P's light depth z, read from the
 // prefix-summed slices with linear interpolation between slice ends:
@@ -21,25 +20,14 @@
 // near occluder silhouettes (softened by the bilinear filter).
 //
 // texel_entry_slice() is shared with osm_raster.comp (osm_common.glsl).
-#include "shared.glsl"
+// Parameters: shadow_u.x = one sphere's optical depth (fixed point),
+// shadow_u.y = slices, shadow_f0 = (z_min, slices per world unit, fixed
+// point -> optical depth).
+layout(set = 0, binding = 16) uniform samplerBuffer tauTex; // R32F: prefix-summed optical depth, slice-major
 
-layout(local_size_x_id = 0) in;
-
-layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
-layout(set = 0, binding = 1) readonly buffer Spheres { vec4 spheres[]; };
-layout(set = 0, binding = 2) readonly buffer Vis { uint64_t vis[]; };
-layout(set = 0, binding = 3) readonly buffer GPos { vec4 gpos[]; };
-layout(set = 0, binding = 4) readonly buffer Opacity { float tau[]; };
-layout(set = 0, binding = 5) writeonly buffer Shadow { float shadow[]; };
-
-layout(push_constant) uniform Push {
-    uint tau_fixed;   // one sphere's optical depth, fixed point (as osm_raster)
-    uint slices;
-    float z_min;
-    float inv_dz;
-    float inv_scale;  // fixed point -> optical depth
-} pc;
-
+#define OSM_Z_MIN g.shadow_f0.x
+#define OSM_INV_DZ g.shadow_f0.y
+#define OSM_SLICES g.shadow_u.y
 #include "osm_common.glsl"
 
 // Optical depth in front of slice position u at texel t, without the
@@ -48,35 +36,26 @@ float optical_depth(View L, ivec2 t, float u, vec3 own_cv, float own_r) {
     uint n = L.dims.x;
     uint texels = n * L.dims.y;
     uint ti = uint(t.y) * n + uint(t.x);
-    int k = min(int(floor(u)), int(pc.slices) - 1);
+    int k = min(int(floor(u)), int(OSM_SLICES) - 1);
     float f = u - float(k);
-    float lo = k > 0 ? tau[uint(k - 1) * texels + ti] : 0.0;
-    float hi = tau[uint(k) * texels + ti];
+    float lo = k > 0 ? texelFetch(tauTex, int(uint(k - 1) * texels + ti)).x : 0.0;
+    float hi = texelFetch(tauTex, int(uint(k) * texels + ti)).x;
     float d = mix(lo, hi, f);
     int j = texel_entry_slice(L, own_cv, own_r, t);
-    if (j >= 0) d -= float(pc.tau_fixed) * pc.inv_scale * clamp(u - float(j), 0.0, 1.0);
+    if (j >= 0) d -= float(g.shadow_u.x) * g.shadow_f0.z * clamp(u - float(j), 0.0, 1.0);
     return max(d, 0.0);
 }
 
-void main() {
-    uint w = g.cam.dims.x, h = g.cam.dims.y;
-    uint i = FLAT_ID;
-    if (i >= w * h) return;
-    uint64_t key = vis[i];
-    if (key == VIS_EMPTY) {
-        shadow[i] = 1.0;
-        return;
-    }
-    uint self_id = uint(key & 0xFFFFFFFFul);
-    vec4 s = spheres[self_id];
-    vec3 p = gpos[i].xyz;
+float key_visibility(Surface s, uint pixel) {
+    vec4 sp = texelFetch(sphereTex, int(s.id));
+    vec3 p = s.p;
     View L = g.light;
-    vec3 own_cv = view_space(L, s.xyz);
+    vec3 own_cv = view_space(L, sp.xyz);
     vec3 q = p - L.center.xyz;
     float n = L.right.w;
     vec2 uv = light_uv(L, p) - 0.5;
     float z = dot(q, L.dir.xyz);
-    float u = clamp((z - pc.z_min) * pc.inv_dz, 0.0, float(pc.slices));
+    float u = clamp((z - OSM_Z_MIN) * OSM_INV_DZ, 0.0, float(OSM_SLICES));
 
     vec2 base = floor(uv);
     vec2 fr = uv - base;
@@ -88,8 +67,8 @@ void main() {
             float wgt = (dx == 0 ? 1.0 - fr.x : fr.x) * (dy == 0 ? 1.0 - fr.y : fr.y);
             if (wgt <= 0.0) continue;
             ivec2 t = clamp(b + ivec2(dx, dy), ivec2(0), ivec2(last));
-            v += wgt * exp(-optical_depth(L, t, u, own_cv, s.w));
+            v += wgt * exp(-optical_depth(L, t, u, own_cv, sp.w));
         }
     }
-    shadow[i] = clamp(v, 0.0, 1.0);
+    return clamp(v, 0.0, 1.0);
 }

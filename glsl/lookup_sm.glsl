@@ -1,4 +1,3 @@
-#version 460
 // Baseline hard shadows (seed 003): depth shadow map lookup with a
 // slope-scaled depth bias and percentage-closer filtering on a Vogel disk.
 //
@@ -26,24 +25,9 @@
 // terminator for tan_max = 10): no finite slope bias avoids acne there. All
 // other receivers use the plain biased depth test, so their acne and
 // peter-panning are exactly those of a classic shadow map.
-#include "shared.glsl"
-
-layout(local_size_x_id = 0) in;
-
-layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
-layout(set = 0, binding = 1) readonly buffer Vis { uint64_t vis[]; };
-layout(set = 0, binding = 2) readonly buffer GPos { vec4 gpos[]; };
-layout(set = 0, binding = 3) readonly buffer GNorm { vec4 gnorm[]; };
-layout(set = 0, binding = 4) readonly buffer Map { uint64_t map[]; };
-layout(set = 0, binding = 5) writeonly buffer Shadow { float shadow[]; };
-
-layout(push_constant) uniform Push {
-    float bias_const; // world units
-    float bias_slope; // world units per unit of tan(theta)
-    float tan_max;    // clamp of tan(theta) near the terminator
-    float radius;     // PCF disk radius in texels
-    uint samples;     // PCF taps (<= 1: single tap)
-} pc;
+// Parameters: shadow_f0 = (bias_const, bias_slope, tan_max, PCF radius in
+// texels) in world units, shadow_u.x = PCF taps.
+layout(set = 0, binding = 16) uniform usamplerBuffer mapTex; // RG32UI: x = id, y = depth bits
 
 const float GOLDEN_ANGLE = 2.4;
 const float TWO_PI = 6.2831853;
@@ -56,50 +40,43 @@ float hash01(uint x) {
     return float(w >> 8) * (1.0 / 16777216.0);
 }
 
-void main() {
-    uint w = g.cam.dims.x, h = g.cam.dims.y;
-    uint i = FLAT_ID;
-    if (i >= w * h) return;
-    uint64_t key = vis[i];
-    if (key == VIS_EMPTY) {
-        shadow[i] = 1.0;
-        return;
-    }
-    uint self_id = uint(key & 0xFFFFFFFFul);
-    vec3 p = gpos[i].xyz;
-    vec3 n = gnorm[i].xyz;
+float key_visibility(Surface s, uint pixel) {
+    vec3 p = s.p;
+    vec3 n = s.n;
     View L = g.light;
     vec3 q = p - L.center.xyz;
     float size = L.right.w;
     // Texel-index coordinates (texel centres at integers).
     vec2 uv = light_uv(L, p) - 0.5;
     float pd = dot(q, L.dir.xyz) + L.depth.x;
+    float bias_const = g.shadow_f0.x, bias_slope = g.shadow_f0.y;
+    float tan_max = g.shadow_f0.z, radius = g.shadow_f0.w;
 
     float ndl = dot(n, -L.dir.xyz);
-    bool back = ndl * sqrt(1.0 + pc.tan_max * pc.tan_max) <= 1.0;
-    float tan_t = back ? pc.tan_max : min(sqrt(max(1.0 - ndl * ndl, 0.0)) / ndl, pc.tan_max);
-    float bias = pc.bias_const + pc.bias_slope * tan_t;
+    bool back = ndl * sqrt(1.0 + tan_max * tan_max) <= 1.0;
+    float tan_t = back ? tan_max : min(sqrt(max(1.0 - ndl * ndl, 0.0)) / ndl, tan_max);
+    float bias = bias_const + bias_slope * tan_t;
     float test_depth = pd - bias;
 
-    uint taps = max(pc.samples, 1u);
-    float phi = taps > 1u ? TWO_PI * hash01(i) : 0.0;
+    uint taps = max(g.shadow_u.x, 1u);
+    float phi = taps > 1u ? TWO_PI * hash01(pixel) : 0.0;
     int last = int(size) - 1;
     float lit = 0.0;
     for (uint k = 0u; k < taps; ++k) {
         vec2 off = vec2(0.0);
         if (taps > 1u) {
-            float r = pc.radius * sqrt((float(k) + 0.5) / float(taps));
+            float r = radius * sqrt((float(k) + 0.5) / float(taps));
             float a = float(k) * GOLDEN_ANGLE + phi;
             off = r * vec2(cos(a), sin(a));
         }
         ivec2 t = clamp(ivec2(round(uv + off)), ivec2(0), ivec2(last));
-        uint64_t m = map[uint(t.y) * uint(size) + uint(t.x)];
-        if (m == VIS_EMPTY || (back && uint(m & 0xFFFFFFFFul) == self_id)) {
+        uvec2 m = texelFetch(mapTex, t.y * int(size) + t.x).xy;
+        if (m.x == NO_SPHERE || (back && m.x == s.id)) {
             lit += 1.0;
             continue;
         }
-        float d = uintBitsToFloat(uint(m >> 32));
+        float d = uintBitsToFloat(m.y);
         lit += test_depth <= d ? 1.0 : 0.0;
     }
-    shadow[i] = lit / float(taps);
+    return lit / float(taps);
 }

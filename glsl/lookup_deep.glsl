@@ -1,0 +1,58 @@
+// Deep shadow lists lookup (seed 002): the texel of the light map containing
+// P's projection lists every sphere whose disk overlaps that texel, hence
+// every sphere the ray from P toward the key light can cross. Walk the list
+// front to back (sorted by depth from the light) and test the ray exactly
+// against each entry except the receiver: visibility = product of
+// (1 - alpha) over the spheres crossed with their far intersection ahead of
+// P. Entries starting beyond P's own depth cannot be crossed ahead of P,
+// which ends the walk early, as does zero visibility.
+// Parameters: shadow_u.x = entry capacity.
+#include "deep.glsl"
+
+layout(set = 0, binding = 16) readonly buffer Texels { DeepTexel texels[]; };
+layout(set = 0, binding = 17) readonly buffer Tiles { DeepTile tiles[]; };
+layout(set = 0, binding = 18) readonly buffer Depth { float e_depth[]; };
+layout(set = 0, binding = 19) readonly buffer Alpha { float e_alpha[]; };
+layout(set = 0, binding = 20) readonly buffer Ids { uint e_id[]; };
+layout(set = 0, binding = 21) readonly buffer Next { uint e_next[]; };
+
+float key_visibility(Surface s, uint pixel) {
+    vec3 p = s.p;
+    View L = g.light;
+    vec3 dl = -L.dir.xyz; // toward the light
+    vec3 q = p - L.center.xyz;
+    float n = L.right.w, hh = L.up.w;
+    vec2 u = light_uv(L, p);
+    // The texel containing P (clamped: the light view encloses every sphere).
+    ivec2 t = clamp(ivec2(floor(u)), ivec2(0), ivec2(int(n) - 1, int(hh) - 1));
+    uint map_w = L.dims.x;
+    // An overflowed tile: this frame is discarded and rendered again with a
+    // larger pool.
+    if ((tiles[deep_tile_of(t, map_w)].flags & DEEP_TILE_OVERFLOWED) != 0u) return 1.0;
+    DeepTexel tx = texels[uint(t.y) * map_w + uint(t.x)];
+    uint cnt = min(tx.count, tx.fill);
+    float pd = dot(q, L.dir.xyz) + L.depth.x;
+    float limit = pd + 1e-3 + 1e-5 * abs(pd);
+    float v = 1.0;
+    uint addr = tx.head;
+    uint capacity = g.shadow_u.x;
+    for (uint k = 0u; k < cnt && addr < capacity; ++k) {
+        if (e_depth[addr] > limit) break;
+        uint id = e_id[addr];
+        if (id != s.id && id < g.counts.x) {
+            vec4 sp = texelFetch(sphereTex, int(id));
+            vec3 oc = sp.xyz - p;
+            float kk = dot(oc, dl);
+            vec3 perp = oc - kk * dl;
+            float d2 = dot(perp, perp);
+            float r2 = sp.w * sp.w;
+            // Crossed with the far intersection ahead of P (toward the light).
+            if (d2 < r2 && kk + sqrt(r2 - d2) > 0.0) {
+                v *= 1.0 - e_alpha[addr];
+                if (v <= 0.0) break;
+            }
+        }
+        addr = e_next[addr];
+    }
+    return v;
+}

@@ -1,0 +1,80 @@
+// Implicit Sphere Shadow Map lookup (seed 000). The light ray from P toward
+// the key light is tested exactly against the spheres stored in the
+// (2t+1)^2 texel patch of the ISSM (nearest sphere id per light texel)
+// around P's light texel. A sphere never shadows itself (identity check).
+//
+// Soft shadows (specialization constant SOFT), as derived from the garbled
+// seed text (docs/SEEDS-NOTES.md): with k = distance along the light ray to
+// the occluder's closest approach and dist = distance of the ray to the
+// occluder centre r away,
+//   s_eff = s * (1 - exp(-k^2 / (2 b^2)))     penumbra widens with distance k
+//   s'    = dist - r                          gap between ray and occluder
+//   shadow strength = (1 - s'/s_eff)^x for s' < s_eff, full inside (dist < r)
+// and the illumination is the minimum over the patch. s -> 0 gives the hard
+// result exactly. Hard mode compiles without the soft math.
+//
+// Parameters: shadow_u.x = t, shadow_u.y = stride (texel step outside the
+// dense 3x3 core), shadow_f0.xyz = (s, x, b).
+layout(set = 0, binding = 16) uniform usamplerBuffer issmTex; // R32UI view: even texels = sphere ids
+
+float occluder_visibility(vec3 p, vec3 dl, vec4 s) {
+    vec3 oc = s.xyz - p;
+    float k = dot(oc, dl);
+    float d2 = max(dot(oc, oc) - k * k, 0.0);
+    if (d2 < s.w * s.w) {
+        // The ray crosses the sphere; it occludes if the far hit is ahead.
+        return k + sqrt(s.w * s.w - d2) > 0.0 ? 0.0 : 1.0;
+    }
+    if (!SOFT) return 1.0;
+    float soft_s = g.shadow_f0.x, soft_x = g.shadow_f0.y, soft_b = g.shadow_f0.z;
+    if (soft_s <= 0.0 || k <= 0.0) return 1.0;
+    float se = soft_s * (1.0 - exp(-k * k / (2.0 * soft_b * soft_b)));
+    float gap = sqrt(d2) - s.w;
+    if (gap >= se) return 1.0;
+    return 1.0 - pow(1.0 - gap / se, soft_x);
+}
+
+// Sphere id stored at light texel t (NO_SPHERE outside or empty): the low
+// word of the 64-bit depth|id key, read as 32 bits.
+uint texel_id(ivec2 t, int size) {
+    if (any(lessThan(t, ivec2(0))) || any(greaterThanEqual(t, ivec2(size)))) return NO_SPHERE;
+    return texelFetch(issmTex, 2 * (t.y * size + t.x)).x;
+}
+
+float key_visibility(Surface s, uint pixel) {
+    View L = g.light;
+    vec3 p = s.p;
+    vec3 dl = -L.dir.xyz; // toward the light
+    ivec2 c = ivec2(round(light_uv(L, p) - 0.5));
+    int size = int(L.dims.x);
+    int t = int(g.shadow_u.x), stride = int(max(g.shadow_u.y, 1u));
+    float v = 1.0;
+    // Neighbouring texels mostly hold the same sphere: remember the last two
+    // ids tested and skip repeats (a min over the same occluder is a no-op).
+    uint last0 = NO_SPHERE, last1 = NO_SPHERE;
+    // Dense core: the spheres nearest the light around P's own texel.
+    for (int dy = -1; dy <= 1 && v > 0.0; ++dy) {
+        for (int dx = -1; dx <= 1; ++dx) {
+            uint id = texel_id(c + ivec2(dx, dy), size);
+            if (id == NO_SPHERE || id == s.id || id == last0 || id == last1) continue;
+            last1 = last0;
+            last0 = id;
+            v = min(v, occluder_visibility(p, dl, texelFetch(sphereTex, int(id))));
+        }
+    }
+    // The rest of the (2t+1)^2 patch, every `stride` texels: the stride is at
+    // most the smallest sphere radius in texels, so every sphere whose disk
+    // is visible from the light lands on at least one sample.
+    int lim = (t / stride) * stride;
+    for (int dy = -lim; dy <= lim && v > 0.0; dy += stride) {
+        for (int dx = -lim; dx <= lim; dx += stride) {
+            if (abs(dx) <= 1 && abs(dy) <= 1) continue;
+            uint id = texel_id(c + ivec2(dx, dy), size);
+            if (id == NO_SPHERE || id == s.id || id == last0 || id == last1) continue;
+            last1 = last0;
+            last0 = id;
+            v = min(v, occluder_visibility(p, dl, texelFetch(sphereTex, int(id))));
+        }
+    }
+    return v;
+}

@@ -1,0 +1,100 @@
+#version 460
+// variants: SHADOW_NONE SHADOW_ISSM SHADOW_DEEP SHADOW_SM SHADOW_OSM SHADOW_SCREEN SHADOW_BUFFER
+// The one full-resolution pass over the frame after the rasterizer: the
+// visible surface rebuilt from (pixel ray, sphere id), the key-light lookup
+// of the active technique (compiled in per variant), the pixel's SSDO
+// result, and three-point lighting with a tone map into the colour buffer. The shadow and ao AOVs (unorm16 each) go to a
+// second buffer. Background pixels only write the background.
+//
+// Shadow rule of the ISSM paper: shadowed areas keep ambient and a fraction
+// of the key's diffuse term, and lose its specular term.
+#include "shared.glsl"
+
+layout(local_size_x_id = 0) in;
+layout(constant_id = 1) const bool SOFT = false;
+layout(constant_id = 2) const bool AO = false;       // SSDO ran: upsample its result
+layout(constant_id = 3) const bool SWAP_RB = false;  // write BGRA (swapchains that want it)
+layout(constant_id = 4) const bool USE_SHADOW = false;
+
+layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
+layout(set = 0, binding = 1) uniform usamplerBuffer visTex;
+layout(set = 0, binding = 2) uniform samplerBuffer sphereTex;
+layout(set = 0, binding = 3) uniform usamplerBuffer attrTex;
+layout(set = 0, binding = 5) uniform usamplerBuffer aoTex;  // per pixel, pack_ao
+layout(set = 0, binding = 6) writeonly buffer Color { uint color[]; };
+layout(set = 0, binding = 7) writeonly buffer Aov { uint aov[]; };
+
+layout(push_constant) uniform Push {
+    float shadow_diffuse; // fraction of key diffuse kept in full shadow
+    float pad2;
+    float pad0, pad1;
+} pc;
+
+#include "lookup.glsl"
+#include "ssdo_common.glsl"
+#include "tiles.glsl"
+
+vec3 linear_to_srgb(vec3 c) { return pow(clamp(c, 0.0, 1.0), vec3(1.0 / 2.2)); }
+
+void main() {
+    uint w = g.cam.dims.x, h = g.cam.dims.y;
+    uvec2 px;
+    if (!tile_pixel(w, h, px)) return;
+    uint i = px.y * w + px.x;
+    Surface s;
+    if (!surface_of(i, s)) {
+        // Vertical gradient keeps silhouettes readable against the background.
+        float t = float(px.y) / float(h);
+        vec3 bg = mix(g.background.rgb * 1.25, g.background.rgb * 0.6, t);
+        color[i] = pack_rgba8(vec4(SWAP_RB ? bg.bgr : bg, 1.0));
+        aov[i] = 0xFFFFFFFFu;
+        return;
+    }
+    vec3 albedo = albedo_of(s.id);
+    vec3 n = s.n;
+    vec3 o, vdir;
+    view_ray(g.cam, vec2(px), o, vdir);
+    vec3 v = -vdir;
+
+    vec3 l_key = -normalize(g.light_dir.xyz);
+    // Fill: from the camera's side opposite the key, softer. Rim: from behind.
+    vec3 l_fill = normalize(-l_key + 2.0 * v);
+    vec3 l_rim = normalize(-v + 0.5 * g.cam.up.xyz);
+
+    vec4 amb = vec4(1.0, 0.0, 0.0, 0.0);
+    float screen_vis = 1.0;
+    if (AO) {
+        vec2 v;
+        vec3 bounce;
+        unpack_ao(texelFetch(aoTex, int(i)).x, v, bounce, screen_vis);
+        amb = vec4(v.x * v.y, bounce);
+    }
+#if defined(SHADOW_SCREEN)
+    float vis_key = screen_vis;
+#else
+    float vis_key = USE_SHADOW ? key_visibility(s, i) : 1.0;
+#endif
+
+    float nk = max(dot(n, l_key), 0.0);
+    vec3 hk = normalize(l_key + v);
+    float spec = pow(max(dot(n, hk), 0.0), 48.0) * step(0.0, dot(n, l_key));
+    // Weights chosen so a fully shadowed surface keeps about a third of its
+    // lit brightness after gamma: shadows read clearly without going black.
+    float key_diffuse = nk * mix(pc.shadow_diffuse, 1.0, vis_key);
+    float fill = 0.14 * max(dot(n, l_fill), 0.0);
+    float rim = 0.22 * pow(1.0 - max(dot(n, v), 0.0), 3.0) * max(dot(n, l_rim) + 0.3, 0.0);
+    // Ambient carries the occlusion: it must weigh enough for AO to read.
+    float ambient_term = (AO ? 0.5 : 0.16) * amb.x;
+    float key_weight = AO ? 0.85 : 1.1;
+
+    // (the bounce is the SSDO's incoming light, times the receiver albedo
+    // twice as a0b2d65 did: once in SSDO, once here)
+    vec3 c = albedo * (key_weight * key_diffuse + fill + ambient_term) + albedo * albedo * amb.yzw
+           + vec3(0.3 * spec * vis_key) + vec3(rim);
+    // Exponential tone map: saturated CPK colours would otherwise clip in
+    // the light and lose the shading that shows shape.
+    c = vec3(1.0) - exp(-1.5 * c);
+    vec3 outc = linear_to_srgb(c);
+    color[i] = pack_rgba8(vec4(SWAP_RB ? outc.bgr : outc, 1.0));
+    aov[i] = uint(clamp(vis_key, 0.0, 1.0) * 65535.0 + 0.5) | (uint(clamp(amb.x, 0.0, 1.0) * 65535.0 + 0.5) << 16);
+}

@@ -1,0 +1,71 @@
+#version 460
+// variants: SHADOW_NONE SHADOW_ISSM SHADOW_DEEP SHADOW_SM SHADOW_OSM SHADOW_SCREEN SHADOW_BUFFER
+// SSDO at half resolution, pass 1: for every 2x2 block, one representative
+// covered pixel (its position in the block rotates from block to block so
+// no corner is favoured) and its record (glsl/ssdo_record.glsl): view
+// distance, normal, region hashes, and the direct key light it reflects for
+// the bounce, with the key-light visibility of the active technique.
+#include "shared.glsl"
+
+layout(local_size_x_id = 0) in;
+layout(constant_id = 1) const bool SOFT = false;
+
+layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
+layout(set = 0, binding = 1) uniform usamplerBuffer visTex;
+layout(set = 0, binding = 2) uniform samplerBuffer sphereTex;
+layout(set = 0, binding = 3) uniform usamplerBuffer attrTex;
+layout(set = 0, binding = 4) writeonly buffer Records { uvec4 records[]; };
+
+layout(push_constant) uniform Push {
+    uint level_a;
+    uint level_b;
+    uint pad0, pad1;
+} pc;
+
+#include "lookup.glsl"
+#include "ssdo_record.glsl"
+#include "tiles.glsl"
+
+void main() {
+    uint hw = g.counts.y, hh = g.counts.z;
+    uvec2 b;
+    if (!tile_pixel(hw, hh, b)) return;
+    uint w = g.cam.dims.x, h = g.cam.dims.y;
+    Record r;
+    r.covered = false;
+    Surface s;
+    const uint N = SSDO_BLOCK * SSDO_BLOCK;
+    uint first = (b.x + SSDO_BLOCK * b.y) % N;
+    uint pixel = 0u;
+    for (uint k = 0u; k < N && !r.covered; ++k) {
+        uint c = (first + k) % N;
+        uvec2 sub = uvec2(c % SSDO_BLOCK, c / SSDO_BLOCK);
+        uvec2 px = SSDO_BLOCK * b + sub;
+        if (px.x >= w || px.y >= h) continue;
+        pixel = px.y * w + px.x;
+        if (surface_of(pixel, s)) {
+            r.covered = true;
+            r.sub = sub;
+        }
+    }
+    uint out_index = b.y * hw + b.x;
+    if (!r.covered) {
+        records[out_index] = uvec4(floatBitsToUint(RECORD_BACKGROUND), 0u, 0u, 0u);
+        return;
+    }
+    r.z = view_z(g.cam, s.p);
+    r.n = s.n;
+    if (g.counts.w != 0u) {
+        // No hierarchy: every sphere is its own region.
+        r.region_a = region_hash(s.id);
+        r.region_b = r.region_a;
+    } else {
+        uvec4 regions = texelFetch(attrTex, int(2u * s.id));
+        r.region_a = region_hash(regions[pc.level_a]);
+        r.region_b = region_hash(regions[pc.level_b]);
+    }
+    r.visibility = key_visibility(s, pixel);
+    vec3 l_key = -normalize(g.light_dir.xyz);
+    r.radiance = albedo_of(s.id) * max(dot(s.n, l_key), 0.0) * r.visibility;
+    records[out_index] = pack_record(r);
+}

@@ -1,0 +1,44 @@
+// Visibility-buffer shading: the visible surface of a pixel, rebuilt
+// exactly from its (pixel ray, sphere id) instead of a stored G-buffer.
+// Needs, before inclusion: `Globals g`, the visibility buffer as a uniform
+// texel buffer `visTex` (RG32UI: x = sphere id, y = depth key bits; both
+// ~0 = background) and the spheres as `sphereTex` (RGBA32F: centre, radius).
+// Texel fetches are vector gathers on lavapipe (docs/LAVAPIPE.md).
+#ifndef SURFACE_GLSL
+#define SURFACE_GLSL
+#include "shared.glsl"
+
+struct Surface {
+    vec3 p;     // world position
+    vec3 n;     // unit normal
+    uint id;    // sphere index
+    float key;  // depth key of the visibility buffer
+};
+
+bool covered(uint i) { return texelFetch(visTex, int(i)).x != NO_SPHERE; }
+
+// Surface of full-resolution pixel i (false for background).
+bool surface_of(uint i, out Surface s) {
+    uvec2 v = texelFetch(visTex, int(i)).xy;
+    if (v.x == NO_SPHERE) return false;
+    s.id = v.x;
+    s.key = uintBitsToFloat(v.y);
+    vec4 sp = texelFetch(sphereTex, int(s.id));
+    uint w = g.cam.dims.x;
+    vec3 o, d;
+    view_ray(g.cam, vec2(i % w, i / w), o, d);
+    // Exact hit recomputed relative to the sphere centre for precision.
+    vec3 oc = o - sp.xyz;
+    float b = dot(oc, d);
+    float disc = max(b * b - (dot(oc, oc) - sp.w * sp.w), 0.0);
+    float t = -b - sqrt(disc);
+    s.p = o + t * d;
+    s.n = normalize(s.p - sp.xyz);
+    return true;
+}
+
+// Linear albedo of a sphere from the attribute texels (2 per sphere: the
+// region ids, then colour, flags).
+vec3 srgb_to_linear(vec3 c) { return pow(c, vec3(2.2)); }
+vec3 albedo_of(uint id) { return srgb_to_linear(unpack_rgba8(texelFetch(attrTex, int(2u * id + 1u)).x).rgb); }
+#endif

@@ -1,0 +1,219 @@
+//! `shade`: the one full-resolution pass after the rasterizer (see
+//! glsl/shade.comp): visible surface from (pixel ray, sphere id), the active
+//! technique's key-light lookup, the SSDO result upsampled, three-point
+//! lighting into the colour buffer, shadow and ao AOVs. One shader compiled
+//! per technique (the lookup's bindings differ), mode switches as
+//! specialization constants; pipelines are made the first time a
+//! combination is used and kept.
+
+use super::shadows::{Lookup, LookupKind};
+use super::{LOCAL_SIZE, spirv};
+use crate::error::Result;
+use crate::vk::pipeline::{Binding, PipelineDesc, Shader, texel, uniform, wo};
+use crate::vk::{Buffer, ComputePipeline, Context, Grid, Recorder};
+use ash::vk::Format;
+use bytemuck::{Pod, Zeroable};
+use std::collections::HashMap;
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct ShadePush {
+    /// Fraction of the key light's diffuse term kept in full shadow.
+    pub shadow_diffuse: f32,
+    pub pad: [f32; 3],
+}
+
+/// The frame's screen-space inputs of `shade` and `ssdo_prep`.
+pub struct ScreenInputs<'a> {
+    pub globals: &'a Buffer,
+    pub vis: &'a Buffer,
+    pub spheres: &'a Buffer,
+    pub attrs: &'a Buffer,
+}
+
+/// The bindings every variant of shade.comp and ssdo_prep.comp starts with.
+pub const SURFACE_BINDINGS: [Binding; 4] = [
+    uniform("GlobalsBlock"),
+    texel("visTex", Format::R32G32_UINT),
+    texel("sphereTex", Format::R32G32B32A32_SFLOAT),
+    texel("attrTex", Format::R32G32B32A32_UINT),
+];
+
+/// Which compiled variant of a per-technique shader.
+pub fn variant(kind: LookupKind, shade: bool) -> Shader {
+    use LookupKind::*;
+    match (kind, shade) {
+        (None, true) => spirv::SHADE_COMP_SHADOW_NONE,
+        (Issm, true) => spirv::SHADE_COMP_SHADOW_ISSM,
+        (Deep, true) => spirv::SHADE_COMP_SHADOW_DEEP,
+        (ShadowMap, true) => spirv::SHADE_COMP_SHADOW_SM,
+        (Opacity, true) => spirv::SHADE_COMP_SHADOW_OSM,
+        (Screen, true) => spirv::SHADE_COMP_SHADOW_SCREEN,
+        (Buffer, true) => spirv::SHADE_COMP_SHADOW_BUFFER,
+        (None, false) => spirv::SSDO_PREP_COMP_SHADOW_NONE,
+        (Issm, false) => spirv::SSDO_PREP_COMP_SHADOW_ISSM,
+        (Deep, false) => spirv::SSDO_PREP_COMP_SHADOW_DEEP,
+        (ShadowMap, false) => spirv::SSDO_PREP_COMP_SHADOW_SM,
+        (Opacity, false) => spirv::SSDO_PREP_COMP_SHADOW_OSM,
+        (Screen, false) => spirv::SSDO_PREP_COMP_SHADOW_SCREEN,
+        (Buffer, false) => spirv::SSDO_PREP_COMP_SHADOW_BUFFER,
+    }
+}
+
+/// Groups for an image in 8x8 tiles (glsl/tiles.glsl), folded into y.
+pub fn tile_grid(w: u32, h: u32) -> Grid<'static> {
+    Grid::Invocations(w.div_ceil(8) as u64 * h.div_ceil(8) as u64 * LOCAL_SIZE as u64)
+}
+
+/// Pipelines made on first use, by (variant, constants). A variant is
+/// keyed by the address of its embedded SPIR-V (one static per variant).
+#[derive(Default)]
+pub struct Variants {
+    made: HashMap<(usize, Vec<u32>), ComputePipeline>,
+}
+
+fn key(shader: Shader, constants: &[u32]) -> (usize, Vec<u32>) {
+    (shader.spirv.as_ptr() as usize, constants.to_vec())
+}
+
+impl Variants {
+    /// The pipeline for `shader` with these bindings, push size and
+    /// specialization constants (ids 1, 2, ...), made if new.
+    pub fn ensure(
+        &mut self,
+        ctx: &Context,
+        name: &'static str,
+        shader: Shader,
+        bindings: &[Binding],
+        push_size: u32,
+        constants: &[u32],
+    ) -> Result<()> {
+        let key = key(shader, constants);
+        if self.made.contains_key(&key) {
+            return Ok(());
+        }
+        let pipe = ComputePipeline::new(
+            ctx,
+            &PipelineDesc {
+                name,
+                shader,
+                bindings,
+                push_size,
+                local_size: LOCAL_SIZE,
+                constants,
+            },
+        )?;
+        self.made.insert(key, pipe);
+        Ok(())
+    }
+
+    pub fn get(&self, shader: Shader, constants: &[u32]) -> Option<&ComputePipeline> {
+        self.made.get(&key(shader, constants))
+    }
+
+    pub fn destroy(&mut self, ctx: &Context) {
+        for (_, mut p) in self.made.drain() {
+            p.destroy(ctx);
+        }
+    }
+}
+
+pub struct ShadePass {
+    variants: Variants,
+}
+
+/// Everything that picks a shade pipeline.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ShadeMode {
+    pub kind: LookupKind,
+    pub soft: bool,
+    pub ao: bool,
+    pub swap_rb: bool,
+}
+
+impl ShadeMode {
+    fn constants(&self) -> [u32; 4] {
+        let use_shadow = !matches!(self.kind, LookupKind::None | LookupKind::Screen);
+        [
+            self.soft as u32,
+            self.ao as u32,
+            self.swap_rb as u32,
+            use_shadow as u32,
+        ]
+    }
+}
+
+const SHADE_OUTPUTS: [Binding; 3] = [texel("aoTex", Format::R32_UINT), wo("Color"), wo("Aov")];
+
+impl ShadePass {
+    pub const NAME: &'static str = "shade";
+
+    pub fn new() -> Self {
+        ShadePass {
+            variants: Variants::default(),
+        }
+    }
+
+    fn bindings(lookup: &Lookup) -> Vec<Binding> {
+        let mut b: Vec<Binding> = SURFACE_BINDINGS.to_vec();
+        b.extend_from_slice(&SHADE_OUTPUTS);
+        b.extend_from_slice(lookup.bindings);
+        b
+    }
+
+    /// Makes the pipeline of `mode` if this is its first use.
+    pub fn prepare(&mut self, ctx: &Context, mode: ShadeMode, lookup: &Lookup) -> Result<()> {
+        self.variants.ensure(
+            ctx,
+            Self::NAME,
+            variant(mode.kind, true),
+            &Self::bindings(lookup),
+            std::mem::size_of::<ShadePush>() as u32,
+            &mode.constants(),
+        )
+    }
+
+    /// `shade` into `color` and `aov`, reading the SSDO result `ao` (bound
+    /// even without SSDO; unread then).
+    #[allow(clippy::too_many_arguments)]
+    pub fn record(
+        &self,
+        rec: &mut Recorder,
+        io: &ScreenInputs,
+        lookup: &Lookup,
+        mode: ShadeMode,
+        ao: &Buffer,
+        (color, aov): (&Buffer, &Buffer),
+        push: &ShadePush,
+        (w, h): (u32, u32),
+    ) -> Result<()> {
+        let pipe = self
+            .variants
+            .get(variant(mode.kind, true), &mode.constants())
+            .ok_or_else(|| crate::Error::Internal("shade: pipeline not prepared".into()))?;
+        let mut bufs = vec![
+            ("GlobalsBlock", io.globals),
+            ("visTex", io.vis),
+            ("sphereTex", io.spheres),
+            ("attrTex", io.attrs),
+            ("aoTex", ao),
+            ("Color", color),
+            ("Aov", aov),
+        ];
+        bufs.extend(lookup.buffers.iter().copied());
+        rec.pass(Self::NAME, |p| {
+            p.dispatch(pipe, push, tile_grid(w, h), &bufs);
+            Ok(())
+        })
+    }
+
+    pub fn destroy(&mut self, ctx: &Context) {
+        self.variants.destroy(ctx);
+    }
+}
+
+impl Default for ShadePass {
+    fn default() -> Self {
+        Self::new()
+    }
+}
