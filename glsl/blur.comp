@@ -3,12 +3,11 @@
 // visibility, bounce, screen-space key-light visibility; pack_ao), which
 // also recombines its 2x2 interleaved direction sets. AXIS (specialization
 // constant 1) picks the direction: one shader, two pipelines. Weights:
-// Gaussian in pixels x Gaussian in view depth (each pixel's own, from its
-// depth key) x normal agreement^8 x (semantic) same region at the active
-// level (normals and regions from the pixels' half-resolution records), so
-// edges between spheres stay sharp. The centre tap has weight 1.
+// Gaussian in pixels x Gaussian in view depth x normal agreement^8 x
+// (semantic) same region at the active level, all exact per pixel (depth
+// key, sphere, attributes), so edges between spheres stay sharp even when
+// spheres are only a few pixels wide. The centre tap has weight 1.
 #include "ssdo_common.glsl"
-#include "ssdo_record.glsl"
 #include "tiles.glsl"
 
 layout(local_size_x_id = 0) in;
@@ -16,21 +15,26 @@ layout(constant_id = 1) const uint AXIS = 0;
 layout(constant_id = 2) const bool SEMANTIC = true;
 
 layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
-layout(set = 0, binding = 1) uniform usamplerBuffer recordTex;
 layout(set = 0, binding = 2) uniform usamplerBuffer inTex;
 layout(set = 0, binding = 3) writeonly buffer Out { uint outv[]; };
 layout(set = 0, binding = 4) uniform usamplerBuffer visTex;
+layout(set = 0, binding = 5) uniform samplerBuffer sphereTex;
+layout(set = 0, binding = 6) uniform usamplerBuffer attrTex;
 
 layout(push_constant) uniform Push {
     int radius;      // taps on each side, in pixels
     float sigma_z;   // depth tolerance (world units)
-    uint level_b;    // 1: edges at level b, 0: level a
+    uint level;      // hierarchy level of the region test
     uint pad;
 } pc;
 
-Record record_of(uvec2 px) {
-    uvec2 b = px / SSDO_BLOCK;
-    return unpack_record(texelFetch(recordTex, int(b.y * g.counts.y + b.x)));
+// The surface at pixel j with key texel v: view distance, normal, region.
+void surface_at(uint j, uvec2 v, out float z, out vec3 n, out uint region) {
+    uint w = g.cam.dims.x;
+    z = key_view_z(g.cam, j, uintBitsToFloat(v.y));
+    vec4 sp = texelFetch(sphereTex, int(v.x));
+    n = normalize(point_at(g.cam, vec2(j % w, j / w), z) - sp.xyz);
+    region = g.counts.w != 0u ? v.x : (SEMANTIC ? texelFetch(attrTex, int(2u * v.x))[pc.level] : 0u);
 }
 
 void main() {
@@ -44,9 +48,10 @@ void main() {
         outv[i] = centre;
         return;
     }
-    float z0 = key_view_z(g.cam, i, uintBitsToFloat(v0.y));
-    Record r = record_of(px);
-    uint r0 = pc.level_b != 0u ? r.region_b : r.region_a;
+    float z0;
+    vec3 n0;
+    uint r0;
+    surface_at(i, v0, z0, n0, r0);
     ivec2 step = AXIS == 0u ? ivec2(1, 0) : ivec2(0, 1);
     float sigma_px = max(float(pc.radius) * 0.5, 0.5);
     vec2 acc_v = vec2(0.0);
@@ -58,11 +63,14 @@ void main() {
         uint j = uint(t.y) * w + uint(t.x);
         uvec2 vj = texelFetch(visTex, int(j)).xy;
         if (vj.x == NO_SPHERE) continue;
-        Record q = record_of(uvec2(t));
-        if (SEMANTIC && (pc.level_b != 0u ? q.region_b : q.region_a) != r0) continue;
-        float dz = (key_view_z(g.cam, j, uintBitsToFloat(vj.y)) - z0) / pc.sigma_z;
+        float zj;
+        vec3 nj;
+        uint rj;
+        surface_at(j, vj, zj, nj, rj);
+        if (SEMANTIC && rj != r0) continue;
+        float dz = (zj - z0) / pc.sigma_z;
         float wk = exp(-0.5 * float(k * k) / (sigma_px * sigma_px)) * exp(-0.5 * dz * dz)
-                 * pow(max(dot(r.n, q.n), 0.0), 8.0);
+                 * pow(max(dot(n0, nj), 0.0), 8.0);
         if (k == 0) wk = 1.0;
         vec2 vv;
         float sv;

@@ -22,13 +22,21 @@ layout(push_constant) uniform Push {
     uint sphere_count;
 } pc;
 
+// Perspective camera (specialization constant 2; the light view is
+// always orthographic): a branch on the view's data would run both sides.
+layout(constant_id = 2) const bool PERSP = false;
+
 // The view is loaded once per sphere (or band) and travels with the
 // footprint: loading it per pixel doubled the pass's cost on lavapipe.
+// Orthographic footprints also carry their plane coordinates per pixel,
+// so a pixel costs two multiply-adds, not pixel_plane's divisions.
 struct Footprint {
     View v;
     vec3 cv;
     float r;
     ivec4 rect;
+    vec2 origin; // plane coordinates of pixel (0, 0) relative to the centre
+    float step;  // world units per pixel
 };
 
 Footprint band_footprint(uint id) {
@@ -38,12 +46,30 @@ Footprint band_footprint(uint id) {
     f.cv = view_space(f.v, s.xyz);
     f.r = s.w;
     f.rect = sphere_rect(f.v, f.cv, s.w);
+    f.step = 1.0 / f.v.center.w;
+    f.origin = vec2(0.5 - 0.5 * f.v.right.w, 0.5 * f.v.up.w - 0.5) * vec2(f.step, f.step) - f.cv.xy;
     return f;
 }
 
 void visit(uint id, Footprint f, ivec2 t) {
-    float d = hit_depth(f.v, f.cv, f.r, vec2(t));
-    if (d >= 0.0) atomicMin(vis[uint(t.y) * f.v.dims.x + uint(t.x)], vis_key(d, id));
+    float d;
+    if (PERSP) {
+        d = hit_depth(f.v, f.cv, f.r, vec2(t));
+    } else {
+        vec2 dxy = f.origin + vec2(t.x, -t.y) * f.step;
+        float disc = f.r * f.r - dot(dxy, dxy);
+        d = disc < 0.0 ? -1.0 : max(f.cv.z - sqrt(disc) + f.v.depth.x, 0.0);
+    }
+    if (d < 0.0) return;
+    // Early depth (as Schuetz et al.): a plain load first, and the 64-bit
+    // atomic only where this sphere is nearer (measured on lavapipe: the
+    // scattered atomics are most of the pass; the 1M capsid's raster went
+    // from 147 to 107 ms at 1080p).
+    uint k = uint(t.y) * f.v.dims.x + uint(t.x);
+    uint64_t key = vis_key(d, id);
+    // (depth bits of positive floats order as unsigned integers; the empty
+    // key is all ones; ties go to the atomic, which keeps the smaller id)
+    if (uint(vis[k] >> 32) >= floatBitsToUint(d)) atomicMin(vis[k], key);
 }
 
 bool band_queue() { return true; }

@@ -68,19 +68,18 @@ float region_weight(uint ra, uint rb, Record q) {
 }
 
 // The surface seen at world point s (false when off screen or background):
-// its view distance and position exactly from the pixel's depth key, its
-// sphere, and the record of its block (regions, normal, reflected light).
-bool block_at(vec3 s, out uvec2 b, out Record q, out vec3 qp) {
+// its pixel, view distance and position, exactly from the pixel's depth
+// key (one 8-byte fetch; the block's record is fetched only for occluders).
+bool surface_seen(vec3 s, out uvec2 q, out float qz, out vec3 qp) {
     vec2 px = round(project_px(g.cam, s));
     uint w = g.cam.dims.x, h = g.cam.dims.y;
     if (px.x < 0.0 || px.y < 0.0 || px.x >= float(w) || px.y >= float(h)) return false;
     uint j = uint(px.y) * w + uint(px.x);
     uvec2 v = texelFetch(visTex, int(j)).xy;
     if (v.x == NO_SPHERE) return false;
-    b = uvec2(px);
-    q = record_at(b / SSDO_BLOCK);
-    q.z = key_view_z(g.cam, j, uintBitsToFloat(v.y));
-    qp = point_at(g.cam, px, q.z);
+    q = uvec2(px);
+    qz = key_view_z(g.cam, j, uintBitsToFloat(v.y));
+    qp = point_at(g.cam, px, qz);
     return true;
 }
 
@@ -110,7 +109,10 @@ void main() {
         rb = region_hash(regions[pc.level_b]);
     }
     vec3 x = s.p, n = s.n;
-    float rot = (BAYER4[(own.y & 3u) * 4u + (own.x & 3u)] + 0.5) / 16.0;
+    // Interleaved: one rotation per block (its 4 pixels split the set);
+    // else one per pixel.
+    uvec2 cell = INTERLEAVE ? own : px;
+    float rot = (BAYER4[(cell.y & 3u) * 4u + (cell.x & 3u)] + 0.5) / 16.0;
     uint slot = INTERLEAVE ? (px.x & 1u) + 2u * (px.y & 1u) : 0u;
     mat3 frame = tangent_frame(n);
     const uint MINE = INTERLEAVE ? DIRS / 4u : DIRS;
@@ -124,19 +126,22 @@ void main() {
         // near: one sample at a Halton-distributed distance
         float lam = fract(t.w + rot) * 0.8 + 0.2;
         vec3 sn = x + n * 1e-3 + lam * pc.r_near * dir;
-        uvec2 qb;
-        Record q;
+        uvec2 qpx;
+        float qz;
         vec3 qp;
-        if (block_at(sn, qb, q, qp) && qb != px) {
-            if (q.z < view_z(g.cam, sn) && distance(qp, x) < pc.r_near) occ_near += region_weight(ra, rb, q);
+        if (surface_seen(sn, qpx, qz, qp) && qpx != px) {
+            if (qz < view_z(g.cam, sn) && distance(qp, x) < pc.r_near) {
+                occ_near += SEMANTIC ? region_weight(ra, rb, record_at(qpx / SSDO_BLOCK)) : 1.0;
+            }
         }
         // far: fixed-step search for the first occluder
         for (uint j = 1u; j <= STEPS; ++j) {
             float tt = (float(j) - 0.5 + 0.5 * rot) / float(STEPS);
             vec3 sf = x + n * 1e-3 + tt * pc.r_far * dir;
-            if (!block_at(sf, qb, q, qp) || qb == px) continue;
+            if (!surface_seen(sf, qpx, qz, qp) || qpx == px) continue;
             float d = distance(qp, x);
-            if (q.z < view_z(g.cam, sf) && d < pc.r_far) {
+            if (qz < view_z(g.cam, sf) && d < pc.r_far) {
+                Record q = record_at(qpx / SSDO_BLOCK);
                 float wgt = region_weight(ra, rb, q);
                 occ_far += wgt;
                 // Light bounced off the occluder's directly lit surface.

@@ -53,7 +53,12 @@ fn plain_ssdo_ranks_like_ray_traced_ao() {
 #[ignore]
 fn ao_png_correlation() {
     let mut scene = load_data("1tii.pdb");
-    scene.spheres.truncate(2500);
+    let atoms: usize = std::env::var("AO_ATOMS").map_or(2500, |s| s.parse().unwrap());
+    scene.spheres.truncate(atoms);
+    if let Ok(r) = std::env::var("AO_REPLICATE") {
+        let n: u32 = r.parse().unwrap();
+        scene = scene.replicate([n, n, n]);
+    }
     if let Ok(path) = std::env::var("AO_XYZR") {
         let text: String = scene
             .spheres

@@ -11,7 +11,6 @@ use sphereshade::camera::Camera;
 use sphereshade::gpu::Globals;
 use sphereshade::passes::blur::{Axis, BlurIo, BlurPass, BlurPush};
 use sphereshade::passes::spirv;
-use sphereshade::passes::ssdo::Record;
 use sphereshade::render::{Renderer, level_choice};
 use sphereshade::scene::{self, Scene, Sphere};
 use sphereshade::settings::{ShadowMode, SsdoMode};
@@ -235,8 +234,7 @@ fn flat_layer_is_open_crevice_is_occluded_and_semantic_ignores_own_region() {
 fn bilateral_blur_keeps_depth_edges_and_smooths_flat_areas() {
     // A 64x32 frame: the left half a flat layer at view distance 0 with
     // noisy ambient visibility around 0.2, the right half 50 units behind
-    // with visibility around 0.9 (depth keys in the visibility buffer, the
-    // normals and regions in the half-resolution records).
+    // with visibility around 0.9 (depth keys in the visibility buffer).
     let ctx = validated_context();
     let (w, h) = (64u32, 32u32);
     let n = (w * h) as usize;
@@ -258,18 +256,6 @@ fn bilateral_blur_keeps_depth_edges_and_smooths_flat_areas() {
     };
     let (hw, hh) = (w / 2, h / 2);
     globals.counts = [1, hw, hh, 0];
-    let record = Record {
-        z: 0.0,
-        normal: [0.0, 0.0, 1.0],
-        region_a: 0,
-        region_b: 0,
-        sub: [0, 0],
-        radiance: [0.0; 3],
-        visibility: 1.0,
-        covered: true,
-    }
-    .pack();
-    let records = vec![record; (hw * hh) as usize];
     let mut vis = vec![0u64; n + 64];
     let mut amb = vec![0.0f32; n];
     let mut ao_in = vec![0u32; n];
@@ -309,30 +295,38 @@ fn bilateral_blur_keeps_depth_edges_and_smooths_flat_areas() {
             bytemuck::bytes_of(&globals),
             ash::vk::BufferUsageFlags::UNIFORM_BUFFER,
         ),
-        up("records", bytemuck::cast_slice(&records), st),
         up("ao in", bytemuck::cast_slice(&ao_in), st),
         up("ao tmp", &vec![0u8; n * 4], st),
         up("ao out", &vec![0u8; n * 4], st),
         up("vis", bytemuck::cast_slice(&vis), st),
+        // Sphere 0, far behind the layers along the view axis: every normal
+        // the blur rebuilds from it faces the camera (a flat layer).
+        up(
+            "spheres",
+            bytemuck::cast_slice(&[0.0f32, 0.0, -1e5, 1.0]),
+            st,
+        ),
+        up("attrs", &[0u8; 32], st),
     ];
     let mut blur = BlurPass::new();
     blur.prepare(&ctx, false).expect("pipelines");
     let push = BlurPush {
         radius: 4,
         sigma_z: 1.0,
-        level_b: 0,
+        level: 0,
         pad: 0,
     };
     ctx.one_shot_passes("blur", |rec| {
         let b = &bufs;
         for (axis, input, output) in [
-            (Axis::Horizontal, &b[2], &b[3]),
-            (Axis::Vertical, &b[3], &b[4]),
+            (Axis::Horizontal, &b[1], &b[2]),
+            (Axis::Vertical, &b[2], &b[3]),
         ] {
             let io = BlurIo {
                 globals: &b[0],
-                vis: &b[5],
-                records: &b[1],
+                vis: &b[4],
+                spheres: &b[5],
+                attrs: &b[6],
                 input,
                 output,
             };
@@ -341,7 +335,7 @@ fn bilateral_blur_keeps_depth_edges_and_smooths_flat_areas() {
         Ok(())
     })
     .expect("run");
-    let raw: Vec<u32> = bufs[4].download_pod(&ctx, 0, n as u64).expect("read");
+    let raw: Vec<u32> = bufs[3].download_pod(&ctx, 0, n as u64).expect("read");
     let out: Vec<f32> = raw
         .iter()
         .map(|v| (v & 0xFF) as f32 / 255.0 * ((v >> 8) & 0xFF) as f32 / 255.0)

@@ -18,8 +18,8 @@ pub struct BlurPush {
     pub radius: i32,
     /// Depth tolerance (world units).
     pub sigma_z: f32,
-    /// 1: region edges at level b, 0: at level a.
-    pub level_b: u32,
+    /// Hierarchy level of the region test.
+    pub level: u32,
     pub pad: u32,
 }
 
@@ -39,12 +39,13 @@ impl Axis {
     }
 }
 
-const BINDINGS: [Binding; 5] = [
+const BINDINGS: [Binding; 6] = [
     uniform("GlobalsBlock"),
-    texel("recordTex", Format::R32G32B32A32_UINT),
     texel("inTex", Format::R32_UINT),
     wo("Out"),
     texel("visTex", Format::R32G32_UINT),
+    texel("sphereTex", Format::R32G32B32A32_SFLOAT),
+    texel("attrTex", Format::R32G32B32A32_UINT),
 ];
 
 #[derive(Default)]
@@ -56,7 +57,8 @@ pub struct BlurPass {
 pub struct BlurIo<'a> {
     pub globals: &'a Buffer,
     pub vis: &'a Buffer,
-    pub records: &'a Buffer,
+    pub spheres: &'a Buffer,
+    pub attrs: &'a Buffer,
     pub input: &'a Buffer,
     pub output: &'a Buffer,
 }
@@ -105,10 +107,11 @@ impl BlurPass {
                 tile_grid(size.0, size.1),
                 &[
                     ("GlobalsBlock", io.globals),
-                    ("recordTex", io.records),
                     ("inTex", io.input),
                     ("Out", io.output),
                     ("visTex", io.vis),
+                    ("sphereTex", io.spheres),
+                    ("attrTex", io.attrs),
                 ],
             );
             Ok(())

@@ -50,7 +50,8 @@ pub enum ViewIndex {
 }
 
 pub struct RasterPass {
-    pipes: BandPipelines,
+    /// Orthographic and perspective views (specialization constant 2).
+    pipes: [BandPipelines; 2],
     args: BandArgs,
     jobs: Buffer,
     big_area: u32,
@@ -70,24 +71,22 @@ impl RasterPass {
     pub const NAME: &'static str = "raster";
 
     pub fn new(ctx: &Context) -> Result<Self> {
-        let pipes = ctx.guard(BandPipelines::new(
-            ctx,
-            &PipelineDesc {
-                name: "raster spheres",
-                shader: spirv::RASTER_COMP,
-                bindings: &[
-                    uniform("GlobalsBlock"),
-                    ro("Spheres"),
-                    rw("Vis"),
-                    rw("Jobs"),
-                    rw("Counters"),
-                ],
-                push_size: std::mem::size_of::<RasterPush>() as u32,
-                local_size: LOCAL_SIZE,
-                constants: &[],
-            },
-            &[],
-        )?);
+        let desc = PipelineDesc {
+            name: "raster spheres",
+            shader: spirv::RASTER_COMP,
+            bindings: &[
+                uniform("GlobalsBlock"),
+                ro("Spheres"),
+                rw("Vis"),
+                rw("Jobs"),
+                rw("Counters"),
+            ],
+            push_size: std::mem::size_of::<RasterPush>() as u32,
+            local_size: LOCAL_SIZE,
+            constants: &[],
+        };
+        let ortho = ctx.guard(BandPipelines::new(ctx, &desc, &[0])?);
+        let persp = ctx.guard(BandPipelines::new(ctx, &desc, &[1])?);
         let args = ctx.guard(BandArgs::new(ctx, "raster band args")?);
         let jobs = ctx.guard(Buffer::storage(
             ctx,
@@ -96,7 +95,7 @@ impl RasterPass {
         )?);
         let counters = super::bands::counters_buffer(ctx, "raster counters", 32)?;
         Ok(RasterPass {
-            pipes: pipes.keep(),
+            pipes: [ortho.keep(), persp.keep()],
             args: args.keep(),
             jobs: jobs.keep(),
             big_area: big_area(ctx),
@@ -120,6 +119,7 @@ impl RasterPass {
         vis: &'b Buffer,
         pixels: u64,
         view: ViewIndex,
+        perspective: bool,
     ) {
         p.fill(vis, pixels * 8, u32::MAX);
         p.fill(&self.counters, 32, 0);
@@ -131,7 +131,7 @@ impl RasterPass {
         };
         self.args.steps(
             p,
-            &self.pipes,
+            &self.pipes[perspective as usize],
             &push,
             &[
                 ("GlobalsBlock", globals),
@@ -165,13 +165,16 @@ impl RasterPass {
                 map,
                 texels,
                 ViewIndex::Light,
+                false,
             );
             Ok(())
         })
     }
 
     pub fn destroy(&mut self, ctx: &Context) {
-        self.pipes.destroy(ctx);
+        for p in &mut self.pipes {
+            p.destroy(ctx);
+        }
         self.args.destroy(ctx);
         self.jobs.destroy(ctx);
         self.counters.destroy(ctx);

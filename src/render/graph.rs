@@ -124,6 +124,7 @@ impl Resources {
                     &t.vis,
                     pixels,
                     ViewIndex::Camera,
+                    cam.fov_deg.is_some(),
                 ),
             }
             Ok(())
@@ -172,7 +173,8 @@ impl Resources {
                     let io = BlurIo {
                         globals,
                         vis: &t.vis,
-                        records: &t.records,
+                        spheres: &self.spheres,
+                        attrs: &self.attrs,
                         input,
                         output,
                     };

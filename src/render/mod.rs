@@ -219,11 +219,22 @@ impl Resources {
         let r = self.typical_radius;
         let px = 1.0 / cam.pixels_per_unit();
         let choice = self.level_choice(cam);
-        let taps = if r / px < SSDO_SMALL_RADIUS_PX {
+        let mut taps = if r / px < SSDO_SMALL_RADIUS_PX {
             SSDO_TAPS_SMALL
         } else {
             SSDO_TAPS_LARGE
         };
+        if let Ok(v) = std::env::var("EXP_TAPS") {
+            let p: Vec<i32> = v.split(',').map(|x| x.parse().unwrap()).collect();
+            taps = (
+                Taps {
+                    dirs: p[0] as u32,
+                    steps: p[1] as u32,
+                    interleave: p[2] != 0,
+                },
+                p[3],
+            );
+        }
         SsdoParams {
             prep: PrepPush {
                 level_a: choice.level_a,
@@ -243,7 +254,11 @@ impl Resources {
             blur: BlurPush {
                 radius: taps.1,
                 sigma_z: (0.5 * r).max(px) as f32,
-                level_b: (choice.blend >= 0.5) as u32,
+                level: if choice.blend >= 0.5 {
+                    choice.level_b
+                } else {
+                    choice.level_a
+                },
                 pad: 0,
             },
             screen: ShadowParams {
