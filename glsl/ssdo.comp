@@ -33,6 +33,10 @@ layout(constant_id = 3) const uint STEPS = 4;
 // directions (large spheres on screen); else every pixel takes all of them
 // (small spheres: the AO changes from pixel to pixel, measured in notes).
 layout(constant_id = 4) const bool INTERLEAVE = true;
+// Perspective camera: the taps work in world space. Orthographic (the
+// default): in view space, where a tap's projection and the occluder's
+// position are two multiply-adds each instead of dot products and divides.
+layout(constant_id = 5) const bool PERSP = false;
 
 layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
 layout(set = 0, binding = 1) uniform usamplerBuffer recordTex;
@@ -67,19 +71,37 @@ float region_weight(uint ra, uint rb, Record q) {
     return mix(da, db, pc.blend);
 }
 
-// The surface seen at world point s (false when off screen or background):
-// its pixel, view distance and position, exactly from the pixel's depth
-// key (one 8-byte fetch; the block's record is fetched only for occluders).
+// Tap space: view coordinates (right, up, depth from the centre plane)
+// for orthographic cameras, world coordinates for perspective ones.
+vec3 to_space(vec3 p) {
+    if (PERSP) return p;
+    vec3 q = p - g.cam.center.xyz;
+    return vec3(dot(q, g.cam.right.xyz), dot(q, g.cam.up.xyz), dot(q, g.cam.dir.xyz));
+}
+vec3 dir_to_space(vec3 d) {
+    if (PERSP) return d;
+    return vec3(dot(d, g.cam.right.xyz), dot(d, g.cam.up.xyz), dot(d, g.cam.dir.xyz));
+}
+// Distance from the viewer, comparable with the occluder's.
+float depth_of(vec3 s) { return PERSP ? view_z(g.cam, s) : s.z; }
+
+// The surface seen at tap-space point s (false when off screen or
+// background): its pixel, view distance and tap-space position, exactly
+// from the pixel's depth key (one 8-byte fetch; the block's record is
+// fetched only for occluders).
 bool surface_seen(vec3 s, out uvec2 q, out float qz, out vec3 qp) {
-    vec2 px = round(project_px(g.cam, s));
     uint w = g.cam.dims.x, h = g.cam.dims.y;
+    float ppu = g.cam.center.w;
+    vec2 px = PERSP ? round(project_px(g.cam, s))
+                    : round(vec2(s.x * ppu + 0.5 * float(w) - 0.5, 0.5 * float(h) - s.y * ppu - 0.5));
     if (px.x < 0.0 || px.y < 0.0 || px.x >= float(w) || px.y >= float(h)) return false;
     uint j = uint(px.y) * w + uint(px.x);
     uvec2 v = texelFetch(visTex, int(j)).xy;
     if (v.x == NO_SPHERE) return false;
     q = uvec2(px);
     qz = key_view_z(g.cam, j, uintBitsToFloat(v.y));
-    qp = point_at(g.cam, px, qz);
+    qp = PERSP ? point_at(g.cam, px, qz)
+               : vec3((px.x + 0.5 - 0.5 * float(w)) / ppu, (0.5 * float(h) - 0.5 - px.y) / ppu, qz);
     return true;
 }
 
@@ -108,7 +130,7 @@ void main() {
         ra = region_hash(regions[pc.level_a]);
         rb = region_hash(regions[pc.level_b]);
     }
-    vec3 x = s.p, n = s.n;
+    vec3 x = to_space(s.p), n = dir_to_space(s.n);
     // Interleaved: one rotation per block (its 4 pixels split the set);
     // else one per pixel.
     uvec2 cell = INTERLEAVE ? own : px;
@@ -130,7 +152,7 @@ void main() {
         float qz;
         vec3 qp;
         if (surface_seen(sn, qpx, qz, qp) && qpx != px) {
-            if (qz < view_z(g.cam, sn) && distance(qp, x) < pc.r_near) {
+            if (qz < depth_of(sn) && distance(qp, x) < pc.r_near) {
                 occ_near += SEMANTIC ? region_weight(ra, rb, record_at(qpx / SSDO_BLOCK)) : 1.0;
             }
         }
@@ -140,13 +162,13 @@ void main() {
             vec3 sf = x + n * 1e-3 + tt * pc.r_far * dir;
             if (!surface_seen(sf, qpx, qz, qp) || qpx == px) continue;
             float d = distance(qp, x);
-            if (qz < view_z(g.cam, sf) && d < pc.r_far) {
+            if (qz < depth_of(sf) && d < pc.r_far) {
                 Record q = record_at(qpx / SSDO_BLOCK);
                 float wgt = region_weight(ra, rb, q);
                 occ_far += wgt;
                 // Light bounced off the occluder's directly lit surface.
                 vec3 to_x = (x - qp) / max(d, 1e-4);
-                float cs = max(dot(q.n, to_x), 0.0), cr = max(dot(n, -to_x), 0.0);
+                float cs = max(dot(dir_to_space(q.n), to_x), 0.0), cr = max(dot(n, -to_x), 0.0);
                 float d2 = max(d * d, 0.25 * pc.r_near * pc.r_near);
                 bounce += wgt * q.radiance * (area * cs * cr / d2) / 3.14159265;
                 break;

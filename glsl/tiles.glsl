@@ -5,16 +5,24 @@
 #ifndef TILES_GLSL
 #define TILES_GLSL
 
-// The pixel this invocation shades in a w x h image, or false past the edge.
-bool tile_pixel(uint w, uint h, out uvec2 px) {
+// The top-left pixel of this workgroup's tile (false: no tile, the whole
+// workgroup has nothing to do).
+bool tile_origin(uint w, uint h, out uvec2 origin) {
     uint tiles_x = (w + 7u) / 8u, tiles_y = (h + 7u) / 8u;
     uint tiles = tiles_x * tiles_y;
     uint wg = gl_WorkGroupID.x + gl_WorkGroupID.y * gl_NumWorkGroups.x;
     if (wg >= tiles) return false;
     uint first = (tiles + 1u) / 2u;
     uint tile = wg < first ? 2u * wg : 2u * (wg - first) + 1u;
-    px = uvec2(tile % tiles_x, tile / tiles_x) * 8u
-       + uvec2(gl_LocalInvocationID.x & 7u, gl_LocalInvocationID.x >> 3);
+    origin = uvec2(tile % tiles_x, tile / tiles_x) * 8u;
+    return true;
+}
+
+// The pixel this invocation shades in a w x h image, or false past the edge.
+bool tile_pixel(uint w, uint h, out uvec2 px) {
+    uvec2 origin;
+    if (!tile_origin(w, h, origin)) return false;
+    px = origin + uvec2(gl_LocalInvocationID.x & 7u, gl_LocalInvocationID.x >> 3);
     return px.x < w && px.y < h;
 }
 #endif

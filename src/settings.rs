@@ -94,7 +94,11 @@ impl Default for IssmParams {
     fn default() -> Self {
         IssmParams {
             size: 512,
-            t: None,
+            // The paper's 3x3 patch: on the 1M capsid (tests/agreement_1m.rs)
+            // the hard mask agrees with exact shadow rays on 98.84 % of pixels
+            // with t = 1 and 98.96 % with the automatic t (4 there), at a
+            // third of the lookup's cost.
+            t: Some(1),
             soft_s: 2.0,
             soft_x: 2.0,
             soft_b: 20.0,

@@ -20,14 +20,18 @@ fn agreement_of_every_technique_at_one_million_spheres() {
     let cam = camera(&s, 256, 200, None);
     let light = settings(cam, ShadowMode::None).light;
     let (refs, img) = reference::shadow_image(&s.spheres, &cam, light, 1.0);
-    for mode in [
-        ShadowMode::Issm,
-        ShadowMode::IssmSoft,
-        ShadowMode::Deep,
-        ShadowMode::SmPcf,
-        ShadowMode::Osm,
+    for (mode, t) in [
+        (ShadowMode::Issm, Some(1)),
+        (ShadowMode::Issm, None),
+        (ShadowMode::IssmSoft, Some(1)),
+        (ShadowMode::IssmSoft, None),
+        (ShadowMode::Deep, None),
+        (ShadowMode::SmPcf, None),
+        (ShadowMode::Osm, None),
     ] {
-        let mut r = Renderer::new(&ctx, &s, settings(cam, mode)).expect("renderer");
+        let mut st = settings(cam, mode);
+        st.issm.t = t;
+        let mut r = Renderer::new(&ctx, &s, st).expect("renderer");
         r.render_frame().expect("frame");
         let ids = ids_from_vis(&r.read_vis().expect("vis"));
         let shadow = r.read_shadow().expect("shadow");
@@ -41,8 +45,9 @@ fn agreement_of_every_technique_at_one_million_spheres() {
             agree += ((shadow[i] < 0.5) == (rv < 0.5)) as usize;
         }
         eprintln!(
-            "1M capsid {:<10} hard-mask agreement {:.3}% of {n} pixels",
+            "1M capsid {:<10} t {:<4} hard-mask agreement {:.3}% of {n} pixels",
             mode.name(),
+            t.map_or("auto".to_string(), |t| t.to_string()),
             100.0 * agree as f64 / n as f64
         );
         assert!(n > 10_000);

@@ -47,15 +47,19 @@ pub struct Taps {
     pub dirs: u32,
     pub steps: u32,
     pub interleave: bool,
+    /// Perspective camera: taps step along the pixel rays; orthographic
+    /// ones step in view space, which needs no division per tap.
+    pub perspective: bool,
 }
 
 impl Taps {
-    fn constants(&self, semantic: bool) -> [u32; 4] {
+    fn constants(&self, semantic: bool) -> [u32; 5] {
         [
             semantic as u32,
             self.dirs,
             self.steps,
             self.interleave as u32,
+            self.perspective as u32,
         ]
     }
 }

@@ -98,6 +98,7 @@ pub const SSDO_TAPS_LARGE: (Taps, i32) = (
         dirs: 12,
         steps: 4,
         interleave: true,
+        perspective: false,
     },
     4,
 );
@@ -109,6 +110,7 @@ pub const SSDO_TAPS_SMALL: (Taps, i32) = (
         dirs: 8,
         steps: 5,
         interleave: false,
+        perspective: false,
     },
     2,
 );
@@ -219,22 +221,11 @@ impl Resources {
         let r = self.typical_radius;
         let px = 1.0 / cam.pixels_per_unit();
         let choice = self.level_choice(cam);
-        let mut taps = if r / px < SSDO_SMALL_RADIUS_PX {
+        let taps = if r / px < SSDO_SMALL_RADIUS_PX {
             SSDO_TAPS_SMALL
         } else {
             SSDO_TAPS_LARGE
         };
-        if let Ok(v) = std::env::var("EXP_TAPS") {
-            let p: Vec<i32> = v.split(',').map(|x| x.parse().unwrap()).collect();
-            taps = (
-                Taps {
-                    dirs: p[0] as u32,
-                    steps: p[1] as u32,
-                    interleave: p[2] != 0,
-                },
-                p[3],
-            );
-        }
         SsdoParams {
             prep: PrepPush {
                 level_a: choice.level_a,
@@ -250,7 +241,10 @@ impl Resources {
                 level_b: choice.level_b,
                 pad: [0; 2],
             },
-            taps: taps.0,
+            taps: Taps {
+                perspective: cam.fov_deg.is_some(),
+                ..taps.0
+            },
             blur: BlurPush {
                 radius: taps.1,
                 sigma_z: (0.5 * r).max(px) as f32,
