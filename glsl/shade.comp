@@ -4,7 +4,7 @@
 // visible surface rebuilt from (pixel ray, sphere id), the key-light lookup
 // of the active technique (compiled in per variant), the pixel's SSDO
 // result, and three-point lighting with a tone map into the colour buffer. The shadow and ao AOVs (unorm16 each) go to a
-// second buffer. Background pixels only write the background.
+// second buffer when AOVS is set. Background pixels only write the background.
 //
 // Shadow rule of the ISSM paper: shadowed areas keep ambient and a fraction
 // of the key's diffuse term, and lose its specular term.
@@ -15,6 +15,9 @@ layout(constant_id = 1) const bool SOFT = false;
 layout(constant_id = 2) const bool AO = false;       // SSDO ran: upsample its result
 layout(constant_id = 3) const bool SWAP_RB = false;  // write BGRA (swapchains that want it)
 layout(constant_id = 4) const bool USE_SHADOW = false;
+// The shadow and ao AOVs are written only when asked for (read_shadow,
+// read_ambient, --aov shadow|ao): 4 B/px less traffic and memory.
+layout(constant_id = 5) const bool AOVS = false;
 
 layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
 layout(set = 0, binding = 1) uniform usamplerBuffer visTex;
@@ -47,7 +50,7 @@ void main() {
         float t = float(px.y) / float(h);
         vec3 bg = mix(g.background.rgb * 1.25, g.background.rgb * 0.6, t);
         color[i] = pack_rgba8(vec4(SWAP_RB ? bg.bgr : bg, 1.0));
-        aov[i] = 0xFFFFFFFFu;
+        if (AOVS) aov[i] = 0xFFFFFFFFu;
         return;
     }
     vec3 albedo = albedo_of(s.id);
@@ -96,5 +99,5 @@ void main() {
     c = vec3(1.0) - exp(-1.5 * c);
     vec3 outc = linear_to_srgb(c);
     color[i] = pack_rgba8(vec4(SWAP_RB ? outc.bgr : outc, 1.0));
-    aov[i] = uint(clamp(vis_key, 0.0, 1.0) * 65535.0 + 0.5) | (uint(clamp(amb.x, 0.0, 1.0) * 65535.0 + 0.5) << 16);
+    if (AOVS) aov[i] = uint(clamp(vis_key, 0.0, 1.0) * 65535.0 + 0.5) | (uint(clamp(amb.x, 0.0, 1.0) * 65535.0 + 0.5) << 16);
 }

@@ -45,6 +45,9 @@ layout(set = 0, binding = 3) writeonly buffer Ao { uint ao[]; };
 layout(set = 0, binding = 4) uniform usamplerBuffer visTex;
 layout(set = 0, binding = 5) uniform samplerBuffer sphereTex;
 layout(set = 0, binding = 6) uniform usamplerBuffer attrTex;
+// The visibility buffer as 32-bit words: a tap reads only the depth half
+// of a key (a one-component gather; background keys are all ones).
+layout(set = 0, binding = 7) uniform usamplerBuffer visWordTex;
 
 layout(push_constant) uniform Push {
     float r_near;
@@ -87,7 +90,7 @@ float depth_of(vec3 s) { return PERSP ? view_z(g.cam, s) : s.z; }
 
 // The surface seen at tap-space point s (false when off screen or
 // background): its pixel, view distance and tap-space position, exactly
-// from the pixel's depth key (one 8-byte fetch; the block's record is
+// from the pixel's depth key (one 4-byte fetch; the block's record is
 // fetched only for occluders).
 bool surface_seen(vec3 s, out uvec2 q, out float qz, out vec3 qp) {
     uint w = g.cam.dims.x, h = g.cam.dims.y;
@@ -96,10 +99,10 @@ bool surface_seen(vec3 s, out uvec2 q, out float qz, out vec3 qp) {
                     : round(vec2(s.x * ppu + 0.5 * float(w) - 0.5, 0.5 * float(h) - s.y * ppu - 0.5));
     if (px.x < 0.0 || px.y < 0.0 || px.x >= float(w) || px.y >= float(h)) return false;
     uint j = uint(px.y) * w + uint(px.x);
-    uvec2 v = texelFetch(visTex, int(j)).xy;
-    if (v.x == NO_SPHERE) return false;
+    uint depth_bits = texelFetch(visWordTex, int(2u * j + 1u)).x;
+    if (depth_bits == 0xFFFFFFFFu) return false;
     q = uvec2(px);
-    qz = key_view_z(g.cam, j, uintBitsToFloat(v.y));
+    qz = key_view_z(g.cam, j, uintBitsToFloat(depth_bits));
     qp = PERSP ? point_at(g.cam, px, qz)
                : vec3((px.x + 0.5 - 0.5 * float(w)) / ppu, (0.5 * float(h) - 0.5 - px.y) / ppu, qz);
     return true;
@@ -156,23 +159,34 @@ void main() {
                 occ_near += SEMANTIC ? region_weight(ra, rb, record_at(qpx / SSDO_BLOCK)) : 1.0;
             }
         }
-        // far: fixed-step search for the first occluder
+        // far: fixed-step search for the first occluder. Only its pixel is
+        // kept in the march; its record and bounce are evaluated once per
+        // direction after it (on lavapipe both sides of an `if` run, so
+        // work inside the march would be paid on every step).
+        bool found = false;
+        uvec2 fpx = uvec2(0u);
+        vec3 fp = vec3(0.0);
         for (uint j = 1u; j <= STEPS; ++j) {
             float tt = (float(j) - 0.5 + 0.5 * rot) / float(STEPS);
             vec3 sf = x + n * 1e-3 + tt * pc.r_far * dir;
-            if (!surface_seen(sf, qpx, qz, qp) || qpx == px) continue;
-            float d = distance(qp, x);
-            if (qz < depth_of(sf) && d < pc.r_far) {
-                Record q = record_at(qpx / SSDO_BLOCK);
-                float wgt = region_weight(ra, rb, q);
-                occ_far += wgt;
-                // Light bounced off the occluder's directly lit surface.
-                vec3 to_x = (x - qp) / max(d, 1e-4);
-                float cs = max(dot(dir_to_space(q.n), to_x), 0.0), cr = max(dot(n, -to_x), 0.0);
-                float d2 = max(d * d, 0.25 * pc.r_near * pc.r_near);
-                bounce += wgt * q.radiance * (area * cs * cr / d2) / 3.14159265;
-                break;
+            bool hit = !found && surface_seen(sf, qpx, qz, qp) && qpx != px
+                    && qz < depth_of(sf) && distance(qp, x) < pc.r_far;
+            if (hit) {
+                found = true;
+                fpx = qpx;
+                fp = qp;
             }
+        }
+        if (found) {
+            Record q = record_at(fpx / SSDO_BLOCK);
+            float wgt = region_weight(ra, rb, q);
+            occ_far += wgt;
+            // Light bounced off the occluder's directly lit surface.
+            float d = distance(fp, x);
+            vec3 to_x = (x - fp) / max(d, 1e-4);
+            float cs = max(dot(dir_to_space(q.n), to_x), 0.0), cr = max(dot(n, -to_x), 0.0);
+            float d2 = max(d * d, 0.25 * pc.r_near * pc.r_near);
+            bounce += wgt * q.radiance * (area * cs * cr / d2) / 3.14159265;
         }
     }
     vec2 v = vec2(1.0 - occ_near / float(MINE), 1.0 - occ_far / float(MINE));

@@ -279,6 +279,8 @@ pub fn render_run_with(
     load_ms: f64,
     before: &mut dyn FnMut(&mut Renderer, u32) -> Result<()>,
 ) -> Result<RunOutcome> {
+    let mut settings = settings;
+    settings.aovs |= matches!(aov, Aov::Shadow | Aov::Ao);
     let mut r = Renderer::new(ctx, scene, settings)?;
     let times = run_frames_with(&mut r, warmup, frames, before)?;
     let image = aov_image(&r, aov)?;

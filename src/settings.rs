@@ -162,6 +162,9 @@ pub struct RenderSettings {
     /// Zoom thresholds (visible height in world units, descending) where the
     /// next finer region level takes over; None = relative to scene size.
     pub semantic_levels: Option<Vec<f64>>,
+    /// Keep the shadow and ao AOVs (4 B/px more) for `read_shadow` and
+    /// `read_ambient`; off, frames write colour only.
+    pub aovs: bool,
 }
 
 impl RenderSettings {
@@ -493,6 +496,7 @@ impl Options {
             blur: self.blur.on(),
             raster: axes.raster,
             deep_pool_chunks: self.deep_pool_chunks,
+            aovs: false,
             semantic_levels: self.semantic_levels.as_ref().map(|l| l.0.clone()),
         })
     }

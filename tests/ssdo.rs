@@ -311,10 +311,9 @@ fn bilateral_blur_keeps_depth_edges_and_smooths_flat_areas() {
     let mut blur = BlurPass::new();
     blur.prepare(&ctx, false).expect("pipelines");
     let push = BlurPush {
-        radius: 4,
         sigma_z: 1.0,
         level: 0,
-        pad: 0,
+        pad: [0; 2],
     };
     ctx.one_shot_passes("blur", |rec| {
         let b = &bufs;
@@ -330,7 +329,7 @@ fn bilateral_blur_keeps_depth_edges_and_smooths_flat_areas() {
                 input,
                 output,
             };
-            blur.record(rec, axis, false, &io, &push, (w, h))?;
+            blur.record(rec, axis, false, 4, &io, &push, (w, h))?;
         }
         Ok(())
     })

@@ -14,14 +14,16 @@ use bytemuck::{Pod, Zeroable};
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct BlurPush {
-    /// Taps on each side, in pixels.
-    pub radius: i32,
     /// Depth tolerance (world units).
     pub sigma_z: f32,
     /// Hierarchy level of the region test.
     pub level: u32,
-    pub pad: u32,
+    pub pad: [u32; 2],
 }
+
+/// The blur radii (taps on each side) the SSDO tap sets use; one pipeline
+/// pair per radius, made up front so zooming never compiles.
+pub const BLUR_RADII: [i32; 2] = [2, 4];
 
 /// Which axis a blur dispatch runs along.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -68,37 +70,45 @@ impl BlurPass {
         Self::default()
     }
 
-    fn constants(axis: Axis, semantic: bool) -> [u32; 2] {
-        [(axis == Axis::Vertical) as u32, semantic as u32]
+    fn constants(axis: Axis, semantic: bool, radius: i32) -> [u32; 3] {
+        [
+            (axis == Axis::Vertical) as u32,
+            semantic as u32,
+            radius as u32,
+        ]
     }
 
     pub fn prepare(&mut self, ctx: &Context, semantic: bool) -> Result<()> {
-        for axis in [Axis::Horizontal, Axis::Vertical] {
-            self.variants.ensure(
-                ctx,
-                axis.name(),
-                spirv::BLUR_COMP,
-                &BINDINGS,
-                std::mem::size_of::<BlurPush>() as u32,
-                &Self::constants(axis, semantic),
-            )?;
+        for radius in BLUR_RADII {
+            for axis in [Axis::Horizontal, Axis::Vertical] {
+                self.variants.ensure(
+                    ctx,
+                    axis.name(),
+                    spirv::BLUR_COMP,
+                    &BINDINGS,
+                    std::mem::size_of::<BlurPush>() as u32,
+                    &Self::constants(axis, semantic, radius),
+                )?;
+            }
         }
         Ok(())
     }
 
     /// Blurs `input` into `output` along `axis`, as the pass `axis.name()`.
+    #[allow(clippy::too_many_arguments)]
     pub fn record(
         &self,
         rec: &mut Recorder,
         axis: Axis,
         semantic: bool,
+        radius: i32,
         io: &BlurIo,
         push: &BlurPush,
         size: (u32, u32),
     ) -> Result<()> {
         let pipe = self
             .variants
-            .get(spirv::BLUR_COMP, &Self::constants(axis, semantic))
+            .get(spirv::BLUR_COMP, &Self::constants(axis, semantic, radius))
             .ok_or_else(|| Error::Internal("blur: pipeline not prepared".into()))?;
         rec.pass(axis.name(), |p| {
             p.dispatch(

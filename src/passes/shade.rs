@@ -129,16 +129,19 @@ pub struct ShadeMode {
     pub soft: bool,
     pub ao: bool,
     pub swap_rb: bool,
+    /// Write the shadow and ao AOVs.
+    pub aovs: bool,
 }
 
 impl ShadeMode {
-    fn constants(&self) -> [u32; 4] {
+    fn constants(&self) -> [u32; 5] {
         let use_shadow = !matches!(self.kind, LookupKind::None | LookupKind::Screen);
         [
             self.soft as u32,
             self.ao as u32,
             self.swap_rb as u32,
             use_shadow as u32,
+            self.aovs as u32,
         ]
     }
 }

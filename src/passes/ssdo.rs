@@ -108,7 +108,7 @@ pub struct SsdoPass {
 }
 
 const PREP_OUTPUT: Binding = wo("Records");
-const SSDO_BINDINGS: [Binding; 7] = [
+const SSDO_BINDINGS: [Binding; 8] = [
     uniform("GlobalsBlock"),
     texel("recordTex", Format::R32G32B32A32_UINT),
     uniform("SampleTable"),
@@ -116,6 +116,7 @@ const SSDO_BINDINGS: [Binding; 7] = [
     texel("visTex", Format::R32G32_UINT),
     texel("sphereTex", Format::R32G32B32A32_SFLOAT),
     texel("attrTex", Format::R32G32B32A32_UINT),
+    texel("visWordTex", Format::R32_UINT),
 ];
 
 impl SsdoPass {
@@ -241,6 +242,7 @@ impl SsdoPass {
                     ("visTex", io.vis),
                     ("sphereTex", io.spheres),
                     ("attrTex", io.attrs),
+                    ("visWordTex", io.vis),
                 ],
             );
             Ok(())

@@ -167,8 +167,9 @@ impl Resources {
             )?;
             if settings.blur {
                 for (axis, input, output) in [
-                    (Axis::Horizontal, &t.ao, &t.ao_tmp),
-                    (Axis::Vertical, &t.ao_tmp, &t.ao),
+                    // colour is free until shade: the blur's scratch
+                    (Axis::Horizontal, &t.ao, &t.color),
+                    (Axis::Vertical, &t.color, &t.ao),
                 ] {
                     let io = BlurIo {
                         globals,
@@ -178,7 +179,8 @@ impl Resources {
                         input,
                         output,
                     };
-                    st.blur.record(rec, axis, semantic, &io, &p.blur, size)?;
+                    st.blur
+                        .record(rec, axis, semantic, p.blur_radius, &io, &p.blur, size)?;
                 }
             }
         }

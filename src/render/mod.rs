@@ -85,6 +85,8 @@ pub(crate) struct SsdoParams {
     pub prep: PrepPush,
     pub ssdo: SsdoPush,
     pub taps: Taps,
+    /// Blur taps on each side (one of [`BLUR_RADII`]).
+    pub blur_radius: i32,
     pub blur: BlurPush,
     /// The screen-space key-light march (`--shadows none` with SSDO).
     pub screen: ShadowParams,
@@ -245,15 +247,15 @@ impl Resources {
                 perspective: cam.fov_deg.is_some(),
                 ..taps.0
             },
+            blur_radius: taps.1,
             blur: BlurPush {
-                radius: taps.1,
                 sigma_z: (0.5 * r).max(px) as f32,
                 level: if choice.blend >= 0.5 {
                     choice.level_b
                 } else {
                     choice.level_a
                 },
-                pad: 0,
+                pad: [0; 2],
             },
             screen: ShadowParams {
                 f0: [
@@ -285,6 +287,7 @@ impl Resources {
             soft: lookup.soft,
             ao: settings.ssdo_on(),
             swap_rb: self.bgra,
+            aovs: settings.aovs,
         }
     }
 
@@ -363,7 +366,7 @@ impl<'c> Renderer<'c> {
             (attrs.len() * 32) as u64,
         )?);
         attr_buf.upload(ctx, 0, bytemuck::cast_slice(&attrs))?;
-        let targets = ctx.guard(Targets::new(ctx, cam.width, cam.height)?);
+        let targets = ctx.guard(Targets::new(ctx, cam.width, cam.height, settings.aovs)?);
         let raster_graphics = ctx.guard(match settings.raster {
             RasterMode::Graphics => Some(GraphicsRasterPass::new(ctx)?),
             RasterMode::Compute => None,
@@ -471,7 +474,7 @@ impl<'c> Renderer<'c> {
     /// A new image size: reallocates the screen targets only.
     pub fn resize(&mut self, cam: Camera) -> Result<()> {
         self.wait_idle()?;
-        let targets = Targets::new(self.ctx, cam.width, cam.height)?;
+        let targets = Targets::new(self.ctx, cam.width, cam.height, self.settings.aovs)?;
         let mut old = std::mem::replace(&mut self.res.targets, targets);
         old.destroy(self.ctx);
         self.settings.camera = cam;
@@ -849,8 +852,25 @@ impl<'c> Renderer<'c> {
             .collect())
     }
 
+    /// Keep (or stop keeping) the shadow and ao AOVs: reallocates the
+    /// screen targets; the next frame writes them.
+    pub fn set_aovs(&mut self, on: bool) -> Result<()> {
+        if self.settings.aovs == on {
+            return Ok(());
+        }
+        self.settings.aovs = on;
+        self.resize(self.settings.camera)
+    }
+
     /// The shadow and ao AOVs as shade wrote them (unorm16 each).
     fn read_aov(&self) -> Result<Vec<u32>> {
+        if !self.res.targets.aovs {
+            return Err(Error::Input(
+                "the shadow and ao AOVs are off: set RenderSettings::aovs or call set_aovs(true) \
+                 before rendering"
+                    .into(),
+            ));
+        }
         self.res
             .targets
             .aov
@@ -973,5 +993,20 @@ impl Drop for Renderer<'_> {
         r.targets.destroy(ctx);
         r.spheres.destroy(ctx);
         r.attrs.destroy(ctx);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::passes::blur::BLUR_RADII;
+
+    /// The blur pipelines are made for a fixed set of radii: every tap
+    /// set's radius must be one of them.
+    #[test]
+    fn tap_sets_blur_with_a_prepared_radius() {
+        for (_, radius) in [SSDO_TAPS_LARGE, SSDO_TAPS_SMALL] {
+            assert!(BLUR_RADII.contains(&radius), "radius {radius}");
+        }
     }
 }

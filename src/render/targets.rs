@@ -1,8 +1,9 @@
 //! The screen-sized buffers of a frame, allocated for one image size and
 //! reallocated (nothing else) when it changes. Full resolution: the
-//! visibility buffer (8 B/px), colour (4 B/px), the SSDO result and the
-//! blur's ping-pong (4 + 4 B/px), the shadow|ao AOVs (4 B/px); the SSDO
-//! records at half resolution (16 B per 2x2 block = 4 B/px): 28 B/px.
+//! visibility buffer (8 B/px), colour (4 B/px, also the blur's scratch:
+//! SSDO and blur run before shade writes colour), the SSDO result
+//! (4 B/px); the SSDO records at half resolution (16 B per 2x2 block =
+//! 4 B/px): 20 B/px; the shadow|ao AOVs when asked for (4 B/px more).
 
 use crate::error::Result;
 use crate::passes::raster;
@@ -17,12 +18,13 @@ pub struct Targets {
     /// RGBA8 (or BGRA8) colour.
     pub color: Buffer,
     /// Key-light visibility (low 16 bits) and ambient visibility (high 16
-    /// bits), unorm, per pixel: the shadow and ao AOVs.
+    /// bits), unorm, per pixel: the shadow and ao AOVs; one word (never
+    /// written) when they are off.
     pub aov: Buffer,
-    /// SSDO records (half resolution), result and blur ping-pong (full).
+    pub aovs: bool,
+    /// SSDO records (half resolution) and result (full).
     pub records: Buffer,
     pub ao: Buffer,
-    pub ao_tmp: Buffer,
 }
 
 /// Half-resolution size (one block per 2x2 pixels).
@@ -32,7 +34,7 @@ pub fn half(w: u32, h: u32) -> (u32, u32) {
 }
 
 impl Targets {
-    pub fn new(ctx: &Context, width: u32, height: u32) -> Result<Self> {
+    pub fn new(ctx: &Context, width: u32, height: u32, aovs: bool) -> Result<Self> {
         let pixels = width as u64 * height as u64;
         let (hw, hh) = half(width, height);
         let blocks = hw as u64 * hh as u64;
@@ -43,10 +45,9 @@ impl Targets {
         };
         let vis = ctx.guard(raster::vis_buffer(ctx, "visibility", pixels)?);
         let color = storage("colour", pixels * 4)?;
-        let aov = storage("shadow and ao", pixels * 4)?;
+        let aov = storage("shadow and ao", if aovs { pixels * 4 } else { 4 })?;
         let records = storage("ssdo records", blocks * 16)?;
         let ao = storage("ssdo ao", pixels * 4)?;
-        let ao_tmp = storage("ssdo ao blur", pixels * 4)?;
         Ok(Targets {
             width,
             height,
@@ -54,9 +55,9 @@ impl Targets {
             vis: vis.keep(),
             color: color.keep(),
             aov: aov.keep(),
+            aovs,
             records: records.keep(),
             ao: ao.keep(),
-            ao_tmp: ao_tmp.keep(),
         })
     }
 
@@ -69,7 +70,7 @@ impl Targets {
         (
             self.vis.size,
             self.color.size + self.aov.size,
-            self.records.size + self.ao.size + self.ao_tmp.size,
+            self.records.size + self.ao.size,
         )
     }
 
@@ -80,7 +81,6 @@ impl Targets {
             &mut self.aov,
             &mut self.records,
             &mut self.ao,
-            &mut self.ao_tmp,
         ] {
             b.destroy(ctx);
         }

@@ -124,6 +124,20 @@ impl Buffer {
         if let Some((_, v)) = views.iter().find(|(f, _)| *f == format) {
             return Ok(*v);
         }
+        let texel_bytes = match format {
+            vk::Format::R32_UINT | vk::Format::R32_SFLOAT => 4,
+            vk::Format::R32G32_UINT | vk::Format::R32G32_SFLOAT => 8,
+            _ => 16,
+        };
+        let elements = self.size / texel_bytes;
+        let max = ctx.props.limits.max_texel_buffer_elements as u64;
+        if elements > max {
+            return Err(Error::DeviceLimit(format!(
+                "'{}' holds {elements} texels of {format:?}, more than this device's \
+                 {max} per texel buffer (maxTexelBufferElements)",
+                self.name
+            )));
+        }
         let info = vk::BufferViewCreateInfo::default()
             .buffer(self.raw)
             .format(format)

@@ -86,6 +86,7 @@ pub fn settings(camera: Camera, shadows: ShadowMode) -> RenderSettings {
         raster: RasterMode::Compute,
         deep_pool_chunks: None,
         semantic_levels: None,
+        aovs: true,
     }
 }
 

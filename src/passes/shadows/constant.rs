@@ -109,6 +109,11 @@ mod tests {
         let mut r = Renderer::new(&ctx, &scene, settings).expect("renderer");
         let times = r.render_frame().expect("frame");
         assert!(times.iter().any(|(n, _)| *n == super::NAME), "{times:?}");
+        // AOVs are off by default (colour-only frames): reading them says so.
+        let err = r.read_shadow().expect_err("AOVs are off").to_string();
+        assert!(err.contains("AOVs are off"), "{err}");
+        r.set_aovs(true).unwrap();
+        r.render_frame().expect("frame");
         let vis = r.read_vis().unwrap();
         let shadow = r.read_shadow().unwrap();
         let covered = vis.iter().filter(|&&k| k != crate::gpu::VIS_EMPTY).count();
