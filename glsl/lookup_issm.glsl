@@ -14,7 +14,10 @@
 // result exactly. Hard mode compiles without the soft math.
 //
 // Parameters: shadow_u.x = t, shadow_u.y = stride (texel step outside the
-// dense 3x3 core), shadow_f0.xyz = (s, x, b).
+// dense 3x3 core), shadow_f0.xyz = (s, x, b). ISSM_CORE_ONLY (a
+// specialization constant of the including shader, set when t <= 1)
+// compiles the outer patch loop out: on lavapipe its empty iterations
+// would still run for every pixel.
 layout(set = 0, binding = 16) uniform usamplerBuffer issmTex; // R32UI view: even texels = sphere ids
 
 float occluder_visibility(vec3 p, vec3 dl, vec4 s) {
@@ -65,8 +68,8 @@ float key_visibility(Surface s, uint pixel) {
     // The rest of the (2t+1)^2 patch, every `stride` texels: the stride is at
     // most the smallest sphere radius in texels, so every sphere whose disk
     // is visible from the light lands on at least one sample.
-    int lim = (t / stride) * stride;
-    for (int dy = -lim; dy <= lim && v > 0.0; dy += stride) {
+    int lim = ISSM_CORE_ONLY ? 0 : (t / stride) * stride;
+    for (int dy = -lim; !ISSM_CORE_ONLY && dy <= lim && v > 0.0; dy += stride) {
         for (int dx = -lim; dx <= lim; dx += stride) {
             if (abs(dx) <= 1 && abs(dy) <= 1) continue;
             uint id = texel_id(c + ivec2(dx, dy), size);

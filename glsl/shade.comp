@@ -18,6 +18,7 @@ layout(constant_id = 4) const bool USE_SHADOW = false;
 // The shadow and ao AOVs are written only when asked for (read_shadow,
 // read_ambient, --aov shadow|ao): 4 B/px less traffic and memory.
 layout(constant_id = 5) const bool AOVS = false;
+layout(constant_id = 6) const bool ISSM_CORE_ONLY = false;  // lookup_issm.glsl
 
 layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
 layout(set = 0, binding = 1) uniform usamplerBuffer visTex;

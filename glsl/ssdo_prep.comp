@@ -9,6 +9,7 @@
 
 layout(local_size_x_id = 0) in;
 layout(constant_id = 1) const bool SOFT = false;
+layout(constant_id = 2) const bool ISSM_CORE_ONLY = false;  // lookup_issm.glsl
 
 layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
 layout(set = 0, binding = 1) uniform usamplerBuffer visTex;

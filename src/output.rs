@@ -145,6 +145,14 @@ pub struct TotalStats {
     pub max: f64,
 }
 
+/// Frames that reused the light-space structure (only the camera's passes
+/// ran): per-pass medians and the frame total, as in the run object.
+#[derive(Clone, Debug, Serialize, serde::Deserialize, PartialEq)]
+pub struct CachedStats {
+    pub passes: Vec<PassStats>,
+    pub total_ms: TotalStats,
+}
+
 /// One run, exactly the DESIGN.md JSON object.
 #[derive(Clone, Debug, Serialize, serde::Deserialize, PartialEq)]
 pub struct RunStats {
@@ -169,6 +177,11 @@ pub struct RunStats {
     pub validation_messages: u32,
     pub deep: Option<DeepStats>,
     pub image_sha256: String,
+    /// With a light-space technique, `bench` also measures frames that
+    /// reuse its map/lists (camera moving, light fixed): an addition to
+    /// DESIGN.md's object; null otherwise.
+    #[serde(default)]
+    pub light_cached: Option<CachedStats>,
 }
 
 fn median(v: &mut [f64]) -> f64 {

@@ -7,7 +7,7 @@ use crate::error::{Error, Result};
 use crate::output::{self, RunStats};
 use crate::render::Renderer;
 use crate::scene::{self, ColorBy, LoadOptions, ModelSelect, Scene};
-use crate::settings::{Aov, Options, RenderSettings, SsdoMode};
+use crate::settings::{Aov, Options, RenderSettings, ShadowMode, SsdoMode};
 use crate::vk::{Context, ContextOptions, PassTimes};
 use clap::Args;
 use std::path::PathBuf;
@@ -262,11 +262,14 @@ pub fn render_run(
         warmup,
         frames,
         load_ms,
+        false,
         &mut |_, _| Ok(()),
     )
 }
 
-/// `render_run` with a hook before each measured frame (see `run_frames_with`).
+/// `render_run` with a hook before each measured frame (see
+/// `run_frames_with`); with `cached`, and a light-space shadow technique,
+/// the same frames again reusing its structure (`RunStats::light_cached`).
 #[allow(clippy::too_many_arguments)]
 pub fn render_run_with(
     ctx: &Context,
@@ -277,6 +280,7 @@ pub fn render_run_with(
     warmup: u32,
     frames: u32,
     load_ms: f64,
+    cached: bool,
     before: &mut dyn FnMut(&mut Renderer, u32) -> Result<()>,
 ) -> Result<RunOutcome> {
     let mut settings = settings;
@@ -285,6 +289,17 @@ pub fn render_run_with(
     let times = run_frames_with(&mut r, warmup, frames, before)?;
     let image = aov_image(&r, aov)?;
     let (passes, total_ms) = output::summarize(&times);
+    let light_cached = if cached && r.settings().shadows != ShadowMode::None {
+        r.set_light_cache(true);
+        // builds the structure the measured frames reuse
+        r.render_frame()?;
+        let times = run_frames_with(&mut r, 0, frames, before)?;
+        r.set_light_cache(false);
+        let (passes, total_ms) = output::summarize(&times);
+        Some(output::CachedStats { passes, total_ms })
+    } else {
+        None
+    };
     let gpu_memory = r.memory_by_class();
     let s = r.settings();
     let stats = RunStats {
@@ -307,6 +322,7 @@ pub fn render_run_with(
         validation_messages: ctx.validation_messages(),
         deep: r.deep_stats(),
         image_sha256: image.sha256(),
+        light_cached,
     };
     Ok(RunOutcome { stats, image })
 }

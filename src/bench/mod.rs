@@ -490,6 +490,7 @@ fn bench_one(
         a.warmup,
         frames,
         set.load_ms,
+        true,
         &mut |r, k| {
             if orbit {
                 r.set_camera(orbit_camera(&base, k, frames)?)
@@ -555,6 +556,16 @@ pub fn ratios(runs: &[RunStats]) -> BTreeMap<String, f64> {
         let deep = find(r, "deep", "off", "compute", 1.0);
         if let Some(h) = hard {
             out.insert(format!("issm_overhead[{tag}]"), frame(h) / frame(r));
+            if let Some(c) = &h.light_cached {
+                out.insert(
+                    format!("issm_cached_overhead[{tag}]"),
+                    c.total_ms.median / frame(r),
+                );
+            }
+        }
+        // The full default frame against local lighting.
+        if let Some(f) = find(r, "issm-soft", "semantic", "compute", 1.0) {
+            out.insert(format!("full_over_local[{tag}]"), frame(f) / frame(r));
         }
         if let Some(s) = soft {
             out.insert(format!("issm_soft_overhead[{tag}]"), frame(s) / frame(r));
@@ -639,6 +650,18 @@ pub fn table(report: &BenchReport) -> String {
             .map(|p| format!("{} {:.2}", p.name, p.median_ms))
             .collect();
         s += &format!("    {}\n", passes.join(" | "));
+        if let Some(c) = &r.light_cached {
+            let passes: Vec<String> = c
+                .passes
+                .iter()
+                .map(|p| format!("{} {:.2}", p.name, p.median_ms))
+                .collect();
+            s += &format!(
+                "    light map cached: total {:.2} ms: {}\n",
+                c.total_ms.median,
+                passes.join(" | ")
+            );
+        }
         let mem: Vec<String> = r
             .gpu_memory
             .iter()
@@ -871,15 +894,28 @@ mod tests {
             validation_messages: 0,
             deep: None,
             image_sha256: String::new(),
+            light_cached: None,
         }
     }
 
     #[test]
     fn ratios_divide_matching_runs() {
+        let mut hard = run("issm", 1.0, 11.0);
+        hard.light_cached = Some(crate::output::CachedStats {
+            passes: vec![],
+            total_ms: TotalStats {
+                median: 10.5,
+                min: 10.5,
+                max: 10.5,
+            },
+        });
+        let mut full = run("issm-soft", 1.0, 20.0);
+        full.ssdo = "semantic".into();
         let runs = vec![
             run("none", 1.0, 10.0),
-            run("issm", 1.0, 11.0),
+            hard,
             run("issm-soft", 1.0, 13.2),
+            full,
         ];
         let r = ratios(&runs);
         let get = |p: &str| {
@@ -892,6 +928,8 @@ mod tests {
         assert!((get("issm_soft_overhead") - 1.32).abs() < 1e-12);
         assert!((get("soft_over_hard") - 1.2).abs() < 1e-12);
         assert!((get("ms_per_million_spheres") - 5.0).abs() < 1e-12);
+        assert!((get("issm_cached_overhead") - 1.05).abs() < 1e-12);
+        assert!((get("full_over_local") - 2.0).abs() < 1e-12);
     }
 
     #[test]

@@ -131,10 +131,12 @@ pub struct ShadeMode {
     pub swap_rb: bool,
     /// Write the shadow and ao AOVs.
     pub aovs: bool,
+    /// ISSM reads only its 3x3 core ([`Lookup::core_only`]).
+    pub core_only: bool,
 }
 
 impl ShadeMode {
-    fn constants(&self) -> [u32; 5] {
+    fn constants(&self) -> [u32; 6] {
         let use_shadow = !matches!(self.kind, LookupKind::None | LookupKind::Screen);
         [
             self.soft as u32,
@@ -142,6 +144,7 @@ impl ShadeMode {
             self.swap_rb as u32,
             use_shadow as u32,
             self.aovs as u32,
+            self.core_only as u32,
         ]
     }
 }

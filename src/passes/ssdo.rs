@@ -172,7 +172,7 @@ impl SsdoPass {
             variant(lookup.kind, false),
             &Self::prep_bindings(lookup),
             std::mem::size_of::<PrepPush>() as u32,
-            &[lookup.soft as u32],
+            &[lookup.soft as u32, lookup.core_only() as u32],
         )?;
         self.ssdo.ensure(
             ctx,
@@ -196,7 +196,10 @@ impl SsdoPass {
     ) -> Result<()> {
         let pipe = self
             .prep
-            .get(variant(lookup.kind, false), &[lookup.soft as u32])
+            .get(
+                variant(lookup.kind, false),
+                &[lookup.soft as u32, lookup.core_only() as u32],
+            )
             .ok_or_else(|| Error::Internal("ssdo_prep: pipeline not prepared".into()))?;
         let mut bufs = vec![
             ("GlobalsBlock", io.globals),

@@ -288,6 +288,7 @@ impl Resources {
             ao: settings.ssdo_on(),
             swap_rb: self.bgra,
             aovs: settings.aovs,
+            core_only: lookup.core_only(),
         }
     }
 

@@ -92,6 +92,14 @@ pub struct Lookup<'a> {
     pub params: ShadowParams,
 }
 
+impl Lookup<'_> {
+    /// ISSM with t <= 1: only the dense 3x3 core is read (a
+    /// specialization constant of the lookup, `ISSM_CORE_ONLY`).
+    pub fn core_only(&self) -> bool {
+        self.kind == LookupKind::Issm && self.params.u[0] <= 1
+    }
+}
+
 impl Lookup<'static> {
     /// No technique (or the screen-space march, which needs nothing bound).
     pub fn plain(kind: LookupKind, params: ShadowParams) -> Self {
