@@ -43,8 +43,14 @@ layout(set = 0, binding = 4) buffer Ids { uint e_id[]; };
 layout(set = 0, binding = 5) writeonly buffer Next { uint e_next[]; };
 layout(set = 0, binding = 6) writeonly buffer Trans { float e_trans[]; };
 layout(set = 0, binding = 7) buffer Counters { uint counters[]; };
-layout(set = 0, binding = 8) writeonly buffer NodeDepth { float n_depth[]; };
-layout(set = 0, binding = 9) writeonly buffer NodeVis { float n_vis[]; };
+// Node slot s lives in the array of its parity at s / 2: each array then
+// holds one word per entry slot, so the node arrays stay within
+// maxStorageBufferRange as long as the entry arrays do (4M spheres on
+// lavapipe need more than 128 MiB of node slots).
+layout(set = 0, binding = 8) writeonly buffer NodeDepthEven { float n_depth0[]; };
+layout(set = 0, binding = 9) writeonly buffer NodeVisEven { float n_vis0[]; };
+layout(set = 0, binding = 10) writeonly buffer NodeDepthOdd { float n_depth1[]; };
+layout(set = 0, binding = 11) writeonly buffer NodeVisOdd { float n_vis1[]; };
 
 layout(push_constant) uniform Push {
     float eps;           // compression tolerance on V
@@ -135,8 +141,14 @@ uint node_base, node_cap; // the texel's node slots: [node_base, node_base + nod
 
 void emit(float z, float v) {
     if (nodes < node_cap) {
-        n_depth[node_base + nodes] = z;
-        n_vis[node_base + nodes] = v;
+        uint s = node_base + nodes;
+        if ((s & 1u) == 0u) {
+            n_depth0[s >> 1] = z;
+            n_vis0[s >> 1] = v;
+        } else {
+            n_depth1[s >> 1] = z;
+            n_vis1[s >> 1] = v;
+        }
     }
     nodes++;
 }

@@ -261,6 +261,9 @@ impl<'c> App<'c> {
             if let Some(sc) = &self.swapchain {
                 r.set_bgra(sc.is_bgra());
             }
+            // Orbiting and zooming move only the camera: keep the light
+            // map / lists until the light, opacity or mode changes.
+            r.set_light_cache(true);
             eprintln!(
                 "view: renderer ready in {:.0} ms ({} spheres)",
                 started.elapsed().as_secs_f64() * 1e3,

@@ -178,15 +178,17 @@ const MODE_COUNT: u32 = 0;
 const MODE_FILL: u32 = 1;
 
 /// The entry arrays (structure of arrays), `capacity` chunks of 64 each, and
-/// the visibility node arrays, [`NODES_PER_ENTRY`] slots per entry slot.
+/// the visibility node arrays, [`NODES_PER_ENTRY`] slots per entry slot,
+/// split by slot parity (slot s at s / 2 of array s % 2) so that no array
+/// is longer than an entry array.
 struct Lists {
     depth: Buffer,
     alpha: Buffer,
     ids: Buffer,
     next: Buffer,
     trans: Buffer,
-    node_depth: Buffer,
-    node_vis: Buffer,
+    node_depth: [Buffer; 2],
+    node_vis: [Buffer; 2],
 }
 
 impl Lists {
@@ -199,8 +201,10 @@ impl Lists {
             ("deep sphere id", n),
             ("deep next", n),
             ("deep transmittance", n),
-            ("deep node depth", n * NODES_PER_ENTRY),
-            ("deep node visibility", n * NODES_PER_ENTRY),
+            ("deep node depth even", n),
+            ("deep node visibility even", n),
+            ("deep node depth odd", n),
+            ("deep node visibility odd", n),
         ] {
             made.push(guarded(
                 ctx,
@@ -210,15 +214,17 @@ impl Lists {
             )?);
         }
         let mut it = made.keep().into_iter();
-        let mut take = || it.next().expect("seven buffers");
+        let mut take = || it.next().expect("nine buffers");
+        let (depth, alpha, ids, next, trans) = (take(), take(), take(), take(), take());
+        let (d0, v0, d1, v1) = (take(), take(), take(), take());
         Ok(Lists {
-            depth: take(),
-            alpha: take(),
-            ids: take(),
-            next: take(),
-            trans: take(),
-            node_depth: take(),
-            node_vis: take(),
+            depth,
+            alpha,
+            ids,
+            next,
+            trans,
+            node_depth: [d0, d1],
+            node_vis: [v0, v1],
         })
     }
 
@@ -227,9 +233,25 @@ impl Lists {
         [&self.depth, &self.alpha, &self.ids, &self.next, &self.trans]
     }
 
-    /// The node arrays ([`NODES_PER_ENTRY`] words per entry slot).
-    fn nodes(&self) -> [&Buffer; 2] {
-        [&self.node_depth, &self.node_vis]
+    /// The node arrays (together [`NODES_PER_ENTRY`] words per entry slot).
+    fn nodes(&self) -> [&Buffer; 4] {
+        [
+            &self.node_depth[0],
+            &self.node_vis[0],
+            &self.node_depth[1],
+            &self.node_vis[1],
+        ]
+    }
+
+    /// One node quantity (slots in order) from its two parity arrays.
+    fn download_nodes(ctx: &Context, arrays: &[Buffer; 2], entries: u64) -> Result<Vec<f32>> {
+        let even: Vec<f32> = arrays[0].download_pod(ctx, 0, entries)?;
+        let odd: Vec<f32> = arrays[1].download_pod(ctx, 0, entries)?;
+        Ok(even
+            .into_iter()
+            .zip(odd)
+            .flat_map(|(a, b)| [a, b])
+            .collect())
     }
 
     fn destroy(&mut self, ctx: &Context) {
@@ -239,9 +261,11 @@ impl Lists {
             &mut self.ids,
             &mut self.next,
             &mut self.trans,
-            &mut self.node_depth,
-            &mut self.node_vis,
-        ] {
+        ]
+        .into_iter()
+        .chain(self.node_depth.iter_mut())
+        .chain(self.node_vis.iter_mut())
+        {
             b.destroy(ctx);
         }
     }
@@ -500,8 +524,10 @@ impl DeepShadows {
                 wo("Next"),
                 wo("Trans"),
                 rw("Counters"),
-                wo("NodeDepth"),
-                wo("NodeVis"),
+                wo("NodeDepthEven"),
+                wo("NodeVisEven"),
+                wo("NodeDepthOdd"),
+                wo("NodeVisOdd"),
             ],
             std::mem::size_of::<SortPush>(),
             64,
@@ -532,13 +558,13 @@ impl DeepShadows {
     }
 
     /// Clamps (estimates) or rejects (explicit sizes) a pool the device
-    /// cannot address: each entry array and each node array (twice as long)
-    /// must fit in maxStorageBufferRange and links must stay below the
-    /// terminator. (The range bound also keeps node indices, 2 x entry, in u32.)
+    /// cannot address: each entry array and each node parity array (one
+    /// word per entry slot) must fit in maxStorageBufferRange and links
+    /// must stay below the terminator (which also keeps node slots, 2 x
+    /// entry, in u32).
     fn check_capacity(ctx: &Context, chunks: u64, clamp: bool) -> Result<u32> {
         let range = ctx.props.limits.max_storage_buffer_range as u64;
-        let by_range =
-            (range.saturating_sub(GUARD_WORDS * 4) / (4 * NODES_PER_ENTRY)) / CHUNK as u64;
+        let by_range = (range.saturating_sub(GUARD_WORDS * 4) / 4) / CHUNK as u64;
         let max = by_range.min(max_chunks_hard() as u64).max(1);
         if chunks <= max {
             Ok(chunks as u32)
@@ -547,7 +573,7 @@ impl DeepShadows {
         } else {
             Err(Error::DeviceLimit(format!(
                 "deep shadow lists: a pool of {chunks} chunks ({} entries) exceeds what the device can address \
-                 ({max} chunks: maxStorageBufferRange {range} bytes per node array); lower --issm-size",
+                 ({max} chunks: maxStorageBufferRange {range} bytes per list array); lower --issm-size",
                 chunks * CHUNK as u64
             )))
         }
@@ -677,8 +703,10 @@ impl DeepShadows {
                     ("Next", &l.next),
                     ("Trans", &l.trans),
                     ("Counters", &self.counters),
-                    ("NodeDepth", &l.node_depth),
-                    ("NodeVis", &l.node_vis),
+                    ("NodeDepthEven", &l.node_depth[0]),
+                    ("NodeVisEven", &l.node_vis[0]),
+                    ("NodeDepthOdd", &l.node_depth[1]),
+                    ("NodeVisOdd", &l.node_vis[1]),
                 ],
             );
             Ok(())
@@ -735,8 +763,8 @@ impl DeepShadows {
             ids: l.ids.download_pod(ctx, 0, used)?,
             next: l.next.download_pod(ctx, 0, used)?,
             trans: l.trans.download_pod(ctx, 0, used)?,
-            node_depth: l.node_depth.download_pod(ctx, 0, used * NODES_PER_ENTRY)?,
-            node_vis: l.node_vis.download_pod(ctx, 0, used * NODES_PER_ENTRY)?,
+            node_depth: Lists::download_nodes(ctx, &l.node_depth, used)?,
+            node_vis: Lists::download_nodes(ctx, &l.node_vis, used)?,
             counters,
         })
     }
@@ -785,12 +813,13 @@ impl DeepShadows {
                 (self.sphere_count as u64).div_ceil(32).max(1),
             ),
         ];
-        v.extend(self.lists.entries().into_iter().map(|b| (b, entries)));
+        // (each node parity array holds one word per entry slot)
         v.extend(
             self.lists
-                .nodes()
+                .entries()
                 .into_iter()
-                .map(|b| (b, entries * NODES_PER_ENTRY)),
+                .chain(self.lists.nodes())
+                .map(|b| (b, entries)),
         );
         v
     }
@@ -818,7 +847,7 @@ impl DeepShadows {
         if needed_chunks > max {
             return Err(Error::DeviceLimit(format!(
                 "deep shadow lists need {needed_chunks} chunks of {CHUNK} entries, more than the device can \
-                 address ({max} chunks: maxStorageBufferRange per node array); lower --issm-size"
+                 address ({max} chunks: maxStorageBufferRange per list array); lower --issm-size"
             )));
         }
         let capacity = want.min(max) as u32;
