@@ -59,23 +59,28 @@ void main() {
     vec2 acc_v = vec2(0.0);
     float acc_s = 0.0, wsum = 0.0;
     vec3 acc_b = vec3(0.0);
+    // Straight-line taps (a clamped fetch and a zero weight instead of
+    // `continue`): lavapipe would run every skipped path anyway.
     for (int k = -RADIUS; k <= RADIUS; ++k) {
         ivec2 t = ivec2(px) + k * step;
-        if (t.x < 0 || t.y < 0 || t.x >= int(w) || t.y >= int(h)) continue;
+        bool inside = t.x >= 0 && t.y >= 0 && t.x < int(w) && t.y < int(h);
+        t = clamp(t, ivec2(0), ivec2(int(w) - 1, int(h) - 1));
         uint j = uint(t.y) * w + uint(t.x);
         uvec2 vj = texelFetch(visTex, int(j)).xy;
-        if (vj.x == NO_SPHERE) continue;
+        bool ok = inside && vj.x != NO_SPHERE;
+        vj.x = ok ? vj.x : v0.x;  // (a valid sphere for the fetches below)
         float zj;
         vec3 nj;
         uint rj;
         surface_at(j, vj, zj, nj, rj);
-        if (SEMANTIC && rj != r0) continue;
+        ok = ok && (!SEMANTIC || rj == r0);
         float dz = (zj - z0) / pc.sigma_z;
         float c = max(dot(n0, nj), 0.0);
         c *= c;
         c *= c;
         float wk = exp(-0.5 * float(k * k) / (sigma_px * sigma_px) - 0.5 * dz * dz) * c * c;
         if (k == 0) wk = 1.0;  // folds: k is a constant after unrolling
+        wk = ok ? wk : 0.0;
         vec2 vv;
         float sv;
         vec3 bb;

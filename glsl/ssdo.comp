@@ -88,25 +88,29 @@ vec3 dir_to_space(vec3 d) {
 // Distance from the viewer, comparable with the occluder's.
 float depth_of(vec3 s) { return PERSP ? view_z(g.cam, s) : s.z; }
 
-// The surface seen at tap-space point s (false when off screen or
-// background): its pixel, view distance and tap-space position, exactly
-// from the pixel's depth key (one 4-byte fetch; the block's record is
-// fetched only for occluders).
+// The surface seen at tap-space point s: its pixel, view distance and
+// tap-space position, exactly from the pixel's depth key (one 4-byte
+// fetch; the block's record is fetched only for occluders). Straight-line
+// code: the fetch always happens (at a clamped pixel) and `valid` says
+// whether it counts (on screen, not background), so the march has no
+// branches for lavapipe to run both sides of.
 bool surface_seen(vec3 s, out uvec2 q, out float qz, out vec3 qp) {
     uint w = g.cam.dims.x, h = g.cam.dims.y;
     float ppu = g.cam.center.w;
     vec2 px = PERSP ? round(project_px(g.cam, s))
                     : round(vec2(s.x * ppu + 0.5 * float(w) - 0.5, 0.5 * float(h) - s.y * ppu - 0.5));
-    if (px.x < 0.0 || px.y < 0.0 || px.x >= float(w) || px.y >= float(h)) return false;
-    uint j = uint(px.y) * w + uint(px.x);
+    bool inside = px.x >= 0.0 && px.y >= 0.0 && px.x < float(w) && px.y < float(h);
+    q = uvec2(clamp(px, vec2(0.0), vec2(float(w) - 1.0, float(h) - 1.0)));
+    uint j = q.y * w + q.x;
     uint depth_bits = texelFetch(visWordTex, int(2u * j + 1u)).x;
-    if (depth_bits == 0xFFFFFFFFu) return false;
-    q = uvec2(px);
     qz = key_view_z(g.cam, j, uintBitsToFloat(depth_bits));
-    qp = PERSP ? point_at(g.cam, px, qz)
-               : vec3((px.x + 0.5 - 0.5 * float(w)) / ppu, (0.5 * float(h) - 0.5 - px.y) / ppu, qz);
-    return true;
+    vec2 pc2 = vec2(q);
+    qp = PERSP ? point_at(g.cam, pc2, qz)
+               : vec3((pc2.x + 0.5 - 0.5 * float(w)) / ppu, (0.5 * float(h) - 0.5 - pc2.y) / ppu, qz);
+    return inside && depth_bits != 0xFFFFFFFFu;
 }
+
+float dist2(vec3 a, vec3 b) { vec3 d = a - b; return dot(d, d); }
 
 const float BAYER4[16] = float[](0.0, 8.0, 2.0, 10.0, 12.0, 4.0, 14.0, 6.0,
                                  3.0, 11.0, 1.0, 9.0, 15.0, 7.0, 13.0, 5.0);
@@ -154,10 +158,9 @@ void main() {
         uvec2 qpx;
         float qz;
         vec3 qp;
-        if (surface_seen(sn, qpx, qz, qp) && qpx != px) {
-            if (qz < depth_of(sn) && distance(qp, x) < pc.r_near) {
-                occ_near += SEMANTIC ? region_weight(ra, rb, record_at(qpx / SSDO_BLOCK)) : 1.0;
-            }
+        bool seen = surface_seen(sn, qpx, qz, qp);
+        if (seen && qpx != px && qz < depth_of(sn) && dist2(qp, x) < pc.r_near * pc.r_near) {
+            occ_near += SEMANTIC ? region_weight(ra, rb, record_at(qpx / SSDO_BLOCK)) : 1.0;
         }
         // far: fixed-step search for the first occluder. Only its pixel is
         // kept in the march; its record and bounce are evaluated once per
@@ -169,8 +172,9 @@ void main() {
         for (uint j = 1u; j <= STEPS; ++j) {
             float tt = (float(j) - 0.5 + 0.5 * rot) / float(STEPS);
             vec3 sf = x + n * 1e-3 + tt * pc.r_far * dir;
-            bool hit = !found && surface_seen(sf, qpx, qz, qp) && qpx != px
-                    && qz < depth_of(sf) && distance(qp, x) < pc.r_far;
+            bool seen = surface_seen(sf, qpx, qz, qp);
+            bool hit = seen && !found && qpx != px && qz < depth_of(sf)
+                    && dist2(qp, x) < pc.r_far * pc.r_far;
             if (hit) {
                 found = true;
                 fpx = qpx;
