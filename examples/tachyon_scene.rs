@@ -41,10 +41,7 @@ fn main() -> anyhow::Result<()> {
     let (scene, _) = load_scene(&cmd.scene)?;
     let s = cmd.options.resolve(&cmd.axes, &scene)?;
     let c = &s.camera;
-    anyhow::ensure!(
-        c.fov_deg.is_none(),
-        "only orthographic cameras are written"
-    );
+    anyhow::ensure!(c.fov_deg.is_none(), "only orthographic cameras are written");
     let m = |v: glam::DVec3| glam::DVec3::new(-v.x, v.y, v.z);
     let mut f = std::io::BufWriter::new(std::fs::File::create(&cmd.out)?);
     // The eye sits outside the scene on the view axis (orthographic: only

@@ -33,27 +33,32 @@ void main() {
     if (!tile_pixel(hw, hh, b)) return;
     uint w = g.cam.dims.x, h = g.cam.dims.y;
     Record r;
-    r.covered = false;
-    Surface s;
+    // The representative: the first covered pixel from a rotating start,
+    // found from the ids alone (straight-line; lavapipe would run every
+    // iteration's surface rebuild), then rebuilt once.
     const uint N = SSDO_BLOCK * SSDO_BLOCK;
     uint first = (b.x + SSDO_BLOCK * b.y) % N;
     uint pixel = 0u;
-    for (uint k = 0u; k < N && !r.covered; ++k) {
+    bool found = false;
+    r.sub = uvec2(0u);
+    for (uint k = 0u; k < N; ++k) {
         uint c = (first + k) % N;
         uvec2 sub = uvec2(c % SSDO_BLOCK, c / SSDO_BLOCK);
         uvec2 px = SSDO_BLOCK * b + sub;
-        if (px.x >= w || px.y >= h) continue;
-        pixel = px.y * w + px.x;
-        if (surface_of(pixel, s)) {
-            r.covered = true;
-            r.sub = sub;
-        }
+        bool inside = px.x < w && px.y < h;
+        uint j = min(px.y, h - 1u) * w + min(px.x, w - 1u);
+        bool take = !found && inside && texelFetch(visTex, int(j)).x != NO_SPHERE;
+        pixel = take ? j : pixel;
+        r.sub = take ? sub : r.sub;
+        found = found || take;
     }
     uint out_index = b.y * hw + b.x;
-    if (!r.covered) {
+    Surface s;
+    if (!found || !surface_of(pixel, s)) {
         records[out_index] = uvec4(floatBitsToUint(RECORD_BACKGROUND), 0u, 0u, 0u);
         return;
     }
+    r.covered = true;
     r.z = view_z(g.cam, s.p);
     r.n = s.n;
     if (g.counts.w != 0u) {
