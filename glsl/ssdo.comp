@@ -143,7 +143,7 @@ void main() {
     uvec2 cell = INTERLEAVE ? own : px;
     float rot = (BAYER4[(cell.y & 3u) * 4u + (cell.x & 3u)] + 0.5) / 16.0;
     uint slot = INTERLEAVE ? (px.x & 1u) + 2u * (px.y & 1u) : 0u;
-    mat3 frame = tangent_frame(n);
+    mat3 frame = rotated_frame(tangent_frame(n), rot);
     const uint MINE = INTERLEAVE ? DIRS / 4u : DIRS;
     const uint STRIDE = INTERLEAVE ? 4u : 1u;
     float occ_near = 0.0, occ_far = 0.0;
@@ -151,7 +151,7 @@ void main() {
     float area = 3.14159265 * pc.r_far * pc.r_far / float(DIRS);
     for (uint kk = 0u; kk < MINE; ++kk) {
         vec4 t = samples[STRIDE * kk + slot];
-        vec3 dir = table_sample(t, frame, rot);
+        vec3 dir = frame * t.xyz;
         // near: one sample at a Halton-distributed distance
         float lam = fract(t.w + rot) * 0.8 + 0.2;
         vec3 sn = x + n * 1e-3 + lam * pc.r_near * dir;

@@ -51,9 +51,13 @@ vec3 hemisphere_sample(uint i, vec3 n, float rot) {
 // A direction of the sample table (tangent space xyz: Halton + Malley,
 // made on the CPU by src/passes/ssdo.rs) rotated about the normal by
 // rot (0..1 of a turn) into the frame of the normal.
-vec3 table_sample(vec4 t, mat3 frame, float rot) {
+// rotated_frame() folds the rotation into the frame once per pixel.
+mat3 rotated_frame(mat3 frame, float rot) {
     float ca = cos(6.2831853 * rot), sa = sin(6.2831853 * rot);
-    return frame * vec3(ca * t.x - sa * t.y, sa * t.x + ca * t.y, t.z);
+    return frame * mat3(ca, sa, 0.0, -sa, ca, 0.0, 0.0, 0.0, 1.0);
+}
+vec3 table_sample(vec4 t, mat3 frame, float rot) {
+    return rotated_frame(frame, rot) * t.xyz;
 }
 
 // The per-pixel SSDO result in 32 bits: the near and far visibilities
