@@ -20,7 +20,7 @@ pub const SHADOW_DIFFUSE: f32 = 0.12;
 pub const PASSES: &[(&str, &str)] = &[
     (
         "raster",
-        "one invocation per sphere: exact ray-sphere test per covered pixel, 64-bit `atomicMin(depth<<32 \\| id)`; footprints above 1024 px (CPU) / 256 px (GPU) are split into 8-row bands that whole workgroups process (indirect dispatch); `--raster graphics`: the vertex/fragment impostor baseline, same output",
+        "one invocation per sphere: exact ray-sphere test per covered pixel (per-row spans of the disk; orthographic/perspective a specialization constant), a plain depth load first and the 64-bit `atomicMin(depth<<32 \\| id)` only where nearer; footprints above 1024 px (CPU) / 256 px (GPU) are split into 8-row bands that whole workgroups process (indirect dispatch); `--raster graphics`: the vertex/fragment impostor baseline, same output",
     ),
     (
         "issm_raster",
@@ -56,20 +56,20 @@ pub const PASSES: &[(&str, &str)] = &[
     ),
     (
         "ssdo_prep",
-        "half resolution: per 2x2 block one representative covered pixel, its surface rebuilt from (pixel ray, sphere id), key-light visibility by the technique's lookup, packed into a 16-byte record (view depth, octahedral normal, region hashes, reflected key light)",
+        "half resolution: per 2x2 block one representative covered pixel (found from the ids), its surface rebuilt from (pixel ray, sphere id), key-light visibility by the technique's lookup, packed into a 16-byte record (view depth, octahedral normal, region hashes, reflected key light)",
     ),
     (
         "ssdo",
-        "half resolution, one record fetch per tap: directions from a sample table (Halton + Malley) rotated by a 4x4 interleaved pattern, near sample × far fixed-step search (visibilities multiplied), occluder = closer to the viewer and (semantic) in another region at the active hierarchy level, blended between two levels by zoom; one bounce (Ritschel et al.)",
+        "every covered pixel (the receiver rebuilt exactly); directions from a sample table in a uniform buffer (Halton + Malley), rotated per pixel; a near sample and a far fixed-step search per direction (visibilities multiplied); a tap reads the 4-byte depth word of the visibility key (exact occluder depth) and only the first occluder's block record (regions, normal, reflected light for the bounce); occluder = closer to the viewer and (semantic) in another region at the active hierarchy level, blended between two levels by zoom. Spheres under 16 px: 8 directions × (1 + 5) for every pixel; larger: 12 interleaved over 2x2 blocks (3 per pixel); the choice and counts measured against a ray-traced AO",
     ),
     (
         "blur_h",
-        "separable bilateral blur (depth, normal and region aware) of occlusion + bounce (and screen-space shadows) at half resolution, horizontal",
+        "separable bilateral blur at full resolution of the packed 4-byte SSDO result (near/far visibility, bounce, screen-space shadow), weights from each tap's exact depth, normal and region; recombines the interleaved sets; horizontal, into the colour buffer (free until `shade`)",
     ),
-    ("blur_v", "the same, vertical"),
+    ("blur_v", "the same, vertical, back into the SSDO result"),
     (
         "shade",
-        "full resolution: surface from (pixel ray, sphere id); key-light lookup compiled in per technique (ISSM: exact light-ray tests against the spheres of the (2t+1)² patch, soft `(1 - s'/s_eff)^x`; deep: exact transmittance walk of the texel's list; sm-pcf: biased PCF; osm: interpolated optical depth; none+SSDO: screen-space march); SSDO upsampled edge-aware; key (shadowed: ambient + fill + rim only), fill and rim lights, ambient × occlusion + bounce, tone map",
+        "full resolution, covered pixels: surface from (pixel ray, sphere id); key-light lookup compiled in per technique (ISSM: exact light-ray tests against the spheres of the 3x3 patch (t = 1) or (2t+1)², soft `(1 - s'/s_eff)^x`; deep: exact transmittance walk of the texel's list; sm-pcf: biased PCF; osm: interpolated optical depth; none+SSDO: screen-space march); the pixel's SSDO result; key (shadowed: ambient + fill + rim only), fill and rim lights, ambient × occlusion + bounce, tone map into the colour buffer; the shadow and ao AOVs (unorm16) only when asked for",
     ),
 ];
 
