@@ -34,10 +34,10 @@ impl Camera {
         width: u32,
         height: u32,
     ) -> Result<Self> {
-        if !(view_dir.length() > 0.0) || !view_dir.is_finite() {
-            return Err(Error::Input("--view-dir must be a non-zero vector".into()));
-        }
-        let dir = view_dir.normalize();
+        let dir = unit(view_dir)
+            .ok_or_else(|| Error::Input("--view-dir must be a finite non-zero vector".into()))?;
+        let up_hint = unit(up_hint)
+            .ok_or_else(|| Error::Input("--up must be a finite non-zero vector".into()))?;
         let r = dir.cross(up_hint);
         if !(r.length() > 1e-9) {
             return Err(Error::Input(
@@ -136,10 +136,8 @@ pub fn light_view(
     light_dir: DVec3,
     size: u32,
 ) -> Result<Camera> {
-    if !(light_dir.length() > 0.0) || !light_dir.is_finite() {
-        return Err(Error::Input("--light must be a non-zero direction".into()));
-    }
-    let d = light_dir.normalize();
+    let d = unit(light_dir)
+        .ok_or_else(|| Error::Input("--light must be a finite non-zero direction".into()))?;
     // Any up not parallel to d.
     let hint = if d.y.abs() < 0.9 { DVec3::Y } else { DVec3::X };
     let right = d.cross(hint).normalize();
@@ -159,7 +157,20 @@ pub fn light_view(
     let center = mid.x * right + mid.y * up + mid.z * d;
     // Square texels; a hair of margin keeps border spheres off the edge.
     let extent = (hi.x - lo.x).max(hi.y - lo.y).max(1e-3) * 1.001;
+    // (the direction is valid and the extent finite: the scene's
+    // coordinates are bounded, so an error here is ours, not an option's)
     Camera::new(center, d, up, extent, None, size, size)
+        .map_err(|e| Error::Internal(format!("light view: {e}")))
+}
+
+/// The unit vector along v, for any finite non-zero v (scaled first, so
+/// 1e300 components do not overflow); None otherwise.
+pub fn unit(v: DVec3) -> Option<DVec3> {
+    let m = v.abs().max_element();
+    if !(m > 0.0 && m.is_finite()) {
+        return None;
+    }
+    Some((v / m).normalize())
 }
 
 /// Builds the DESIGN.md default camera for a scene, overridable per field.

@@ -6,7 +6,7 @@ use crate::run::{self, SceneArgs};
 use crate::settings::{Aov, Axes, Options};
 use crate::vk::{Context, ContextOptions};
 use clap::{Args, Parser, Subcommand};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 #[derive(Parser, Debug)]
 #[command(
@@ -23,6 +23,7 @@ pub struct Cli {
 pub enum Command {
     /// List Vulkan devices, the chosen device, limits and features.
     Info {
+        /// Device index to try (as listed), instead of the preference order.
         #[arg(long)]
         device: Option<usize>,
     },
@@ -45,13 +46,16 @@ pub struct RenderArgs {
     /// What --out holds.
     #[arg(long, value_enum, default_value = "color")]
     pub aov: Aov,
+    /// The PNG to write (written atomically: never a partial file).
     #[arg(long)]
     pub out: PathBuf,
+    /// Also write the run's stats (per-pass ms, memory, image hash) as JSON.
     #[arg(long)]
     pub json: Option<PathBuf>,
     /// Measured frames (timings are median/min/max over them).
     #[arg(long, default_value_t = 1)]
     pub frames: u32,
+    /// Frames rendered (and not measured) before the measured ones.
     #[arg(long, default_value_t = 0)]
     pub warmup: u32,
 }
@@ -105,7 +109,21 @@ fn info(device: Option<usize>) -> Result<Exit> {
 }
 
 fn render(args: RenderArgs) -> Result<Exit> {
-    check_out_path(&args.out)?;
+    // Every output checked before any work (and none aliasing another).
+    let mut outs = vec![output::OutFile {
+        flag: "--out",
+        path: &args.out,
+        extensions: &["png"],
+    }];
+    if let Some(j) = &args.json {
+        outs.push(output::OutFile {
+            flag: "--json",
+            path: j,
+            extensions: &["json"],
+        });
+    }
+    output::check_outputs(&outs)?;
+    run::check_frames(args.frames)?;
     let (scene, load_ms) = run::load_scene(&args.scene)?;
     let settings = args.options.resolve(&args.axes, &scene)?;
     let ctx = run::context_for(&args.options)?;
@@ -136,34 +154,11 @@ fn render(args: RenderArgs) -> Result<Exit> {
         stats.height,
         stats.total_ms.median,
         stats.frames,
-        args.out.display()
+        output::shown(&args.out)
     );
     Ok(if n > 0 {
         Exit::ValidationMessages(n)
     } else {
         Exit::Ok
     })
-}
-
-fn check_out_path(p: &Path) -> Result<()> {
-    let ext = p
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(|e| e.to_ascii_lowercase());
-    if ext.as_deref() != Some("png") {
-        return Err(Error::Input(format!(
-            "--out {}: expected a .png file name",
-            p.display()
-        )));
-    }
-    if let Some(dir) = p.parent().filter(|d| !d.as_os_str().is_empty())
-        && !dir.is_dir()
-    {
-        return Err(Error::Input(format!(
-            "--out {}: directory {} does not exist",
-            p.display(),
-            dir.display()
-        )));
-    }
-    Ok(())
 }

@@ -12,11 +12,9 @@ pub enum Error {
     NoDevice,
     #[error("--device {index}: only {count} Vulkan device(s) present (see `sphereshade info`)")]
     BadDeviceIndex { index: usize, count: usize },
-    #[error("device '{device}' lacks required Vulkan feature {feature}")]
-    MissingFeature {
-        device: String,
-        feature: &'static str,
-    },
+    /// Every feature the device lacks, comma-separated.
+    #[error("device '{device}' lacks required Vulkan feature(s): {feature}")]
+    MissingFeature { device: String, feature: String },
     #[error(
         "--validate needs VK_LAYER_KHRONOS_validation (apt-get install vulkan-validationlayers)"
     )]

@@ -6,6 +6,7 @@ use anyhow::Context as _;
 use clap::Parser;
 
 use sphereshade::cli::{Cli, Exit, run};
+use sphereshade::output::printable;
 
 fn main() {
     env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("warn")).init();
@@ -20,7 +21,7 @@ fn main() {
             // Usage errors follow the error contract too: one line, exit 1.
             let text = e.render().to_string();
             let line = text.lines().next().unwrap_or("invalid command line");
-            eprintln!("sphereshade: {line}");
+            eprintln!("sphereshade: {}", printable(line));
             std::process::exit(1);
         }
     };
@@ -32,8 +33,10 @@ fn main() {
             std::process::exit(3);
         }
         Err(e) => {
-            // `{:#}` joins the context and the error on one line.
-            eprintln!("{e:#}");
+            // `{:#}` joins the context and the error on one line; quoted
+            // input (file contents, names) cannot break it or reach the
+            // terminal as control sequences.
+            eprintln!("{}", printable(&format!("{e:#}")));
             std::process::exit(1);
         }
     }

@@ -29,30 +29,132 @@ impl AovImage {
         format!("{:x}", h.finalize())
     }
 
-    /// Writes a PNG to a temporary name and renames it into place.
+    /// Writes a PNG atomically ([`write_atomic`]).
     pub fn save_png(&self, path: &Path) -> Result<()> {
-        let io_err = |e: std::io::Error| Error::Io {
-            path: path.display().to_string(),
-            source: e,
+        write_atomic(path, |tmp| {
+            let saved = match self {
+                AovImage::Rgba8(i) => i.save_with_format(tmp, image::ImageFormat::Png),
+                AovImage::Gray16(i) => i.save_with_format(tmp, image::ImageFormat::Png),
+                AovImage::Gray8(i) => i.save_with_format(tmp, image::ImageFormat::Png),
+            };
+            saved.map_err(|e| Error::Input(format!("{}: cannot write PNG: {e}", shown(path))))
+        })
+    }
+}
+
+/// A path or any text quoted from input, safe to print on one line:
+/// control characters (ESC, BEL, newlines...) and other non-printable
+/// characters are escaped (`\x1b`, `\n`, `\u{200b}`), so neither a hostile
+/// file nor a file name can inject terminal sequences or split a line.
+pub fn printable(s: &str) -> String {
+    let mut out = String::with_capacity(s.len());
+    for c in s.chars() {
+        match c {
+            '\n' => out.push_str("\\n"),
+            '\r' => out.push_str("\\r"),
+            '\t' => out.push_str("\\t"),
+            c if (c as u32) < 0x20 || c == '\x7f' => out.push_str(&format!("\\x{:02x}", c as u32)),
+            c if c.is_control()
+                || matches!(c as u32, 0x200b..=0x200f | 0x2028..=0x202e | 0x2066..=0x2069 | 0xfeff) =>
+            {
+                out.push_str(&format!("\\u{{{:x}}}", c as u32))
+            }
+            c => out.push(c),
+        }
+    }
+    out
+}
+
+/// A path for a message (see [`printable`]).
+pub fn shown(p: &Path) -> String {
+    printable(&p.display().to_string())
+}
+
+/// One file a command will write: the option naming it, its path and
+/// the extensions it may have.
+pub struct OutFile<'a> {
+    pub flag: &'static str,
+    pub path: &'a Path,
+    pub extensions: &'static [&'static str],
+}
+
+/// Checks every output of a command before any work is done: the
+/// extension, an existing writable directory (a probe file is created and
+/// removed), not a directory itself, and no two outputs naming one file.
+pub fn check_outputs(files: &[OutFile]) -> Result<()> {
+    let mut seen: Vec<(std::path::PathBuf, &str)> = Vec::new();
+    for f in files {
+        let p = f.path;
+        let bad = |why: String| Error::Input(format!("{} {}: {why}", f.flag, shown(p)));
+        let ext = p
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(|e| e.to_ascii_lowercase());
+        if !f
+            .extensions
+            .iter()
+            .any(|want| ext.as_deref() == Some(*want))
+        {
+            let want: Vec<String> = f.extensions.iter().map(|e| format!(".{e}")).collect();
+            return Err(bad(format!("expected a {} file name", want.join(" or "))));
+        }
+        if p.file_name().is_none() || p.is_dir() {
+            return Err(bad("is a directory, not a file name".into()));
+        }
+        let dir = match p.parent().filter(|d| !d.as_os_str().is_empty()) {
+            Some(d) => d.to_path_buf(),
+            None => std::path::PathBuf::from("."),
         };
-        let file_name = path
-            .file_name()
-            .ok_or_else(|| Error::Input(format!("{}: not a file name", path.display())))?;
-        let tmp = path.with_file_name(format!(".{}.tmp", file_name.to_string_lossy()));
-        let saved = match self {
-            AovImage::Rgba8(i) => i.save_with_format(&tmp, image::ImageFormat::Png),
-            AovImage::Gray16(i) => i.save_with_format(&tmp, image::ImageFormat::Png),
-            AovImage::Gray8(i) => i.save_with_format(&tmp, image::ImageFormat::Png),
-        };
-        if let Err(e) = saved {
-            let _ = std::fs::remove_file(&tmp);
-            return Err(Error::Input(format!(
-                "{}: cannot write PNG: {e}",
-                path.display()
+        if !dir.is_dir() {
+            return Err(bad(format!("directory {} does not exist", shown(&dir))));
+        }
+        let probe = dir.join(format!(".sphereshade-probe-{}", std::process::id()));
+        match std::fs::File::create(&probe) {
+            Ok(_) => {
+                let _ = std::fs::remove_file(&probe);
+            }
+            Err(e) => {
+                return Err(bad(format!("cannot write in {}: {e}", shown(&dir))));
+            }
+        }
+        // The same file under two names: compare canonical directories
+        // and the file names.
+        let canon = std::fs::canonicalize(&dir)
+            .unwrap_or(dir)
+            .join(p.file_name().unwrap_or_default());
+        let canon = std::fs::canonicalize(&canon).unwrap_or(canon);
+        if let Some((_, other)) = seen.iter().find(|(c, _)| *c == canon) {
+            return Err(bad(format!(
+                "is also the {other} file; give each output its own file"
             )));
         }
-        std::fs::rename(&tmp, path).map_err(io_err)
+        seen.push((canon, f.flag));
     }
+    Ok(())
+}
+
+/// Writes `path` through a temporary file in the same directory, renamed
+/// into place when `write` succeeds: a reader never sees a partial file,
+/// and the temporary file is removed on every error path.
+pub fn write_atomic(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
+    let file_name = path
+        .file_name()
+        .ok_or_else(|| Error::Input(format!("{}: not a file name", shown(path))))?;
+    let tmp = path.with_file_name(format!(
+        ".{}.{}.tmp",
+        file_name.to_string_lossy(),
+        std::process::id()
+    ));
+    let done = write(&tmp).and_then(|()| {
+        std::fs::rename(&tmp, path).map_err(|e| Error::Io {
+            path: shown(path),
+            source: e,
+        })
+    });
+    if done.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    done
 }
 
 /// `color`: RGBA8 from the composite buffer.
@@ -238,15 +340,14 @@ pub fn summarize(frames: &[PassTimes]) -> (Vec<PassStats>, TotalStats) {
     (passes, total)
 }
 
-/// Writes JSON to a temporary file and renames it into place.
+/// Writes JSON atomically ([`write_atomic`]).
 pub fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<()> {
     let text =
         serde_json::to_string_pretty(value).map_err(|e| Error::Internal(format!("JSON: {e}")))?;
-    let tmp = path.with_extension("json.tmp");
-    let io_err = |e: std::io::Error| Error::Io {
-        path: path.display().to_string(),
-        source: e,
-    };
-    std::fs::write(&tmp, text + "\n").map_err(io_err)?;
-    std::fs::rename(&tmp, path).map_err(io_err)
+    write_atomic(path, |tmp| {
+        std::fs::write(tmp, text + "\n").map_err(|e| Error::Io {
+            path: shown(path),
+            source: e,
+        })
+    })
 }

@@ -10,6 +10,7 @@ use crate::scene::{self, ColorBy, LoadOptions, ModelSelect, Scene};
 use crate::settings::{Aov, Options, RenderSettings, ShadowMode, SsdoMode};
 use crate::vk::{Context, ContextOptions, PassTimes};
 use clap::Args;
+use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -109,24 +110,35 @@ pub fn load_scene_with_progress(
                     ColorBy::Element
                 },
             };
+            // Progress for files that take a while (raw bytes: a .gz
+            // reports its compressed share): updated in place on a
+            // terminal, every 25 % as lines in a log.
             let size = std::fs::metadata(path).map(|m| m.len()).unwrap_or(0);
-            let show = size > 8 << 20;
+            let gz = scene::format_of(path).is_some_and(|(_, gz)| gz);
+            let show = size > if gz { 2 << 20 } else { 8 << 20 };
+            let tty = std::io::stderr().is_terminal();
+            let step = if tty { 5 } else { 25 };
             let mut last = 0u64;
+            let shown = crate::output::printable(&path.display().to_string());
             let mut progress = |done: u64, total: u64| {
                 report(done, total);
                 let pct = (done * 100).checked_div(total).unwrap_or(0);
-                if show && pct >= last + 5 {
+                if show && pct >= last + step && pct < 100 {
                     last = pct;
-                    eprint!("\rloading {}: {pct:3}%", path.display());
+                    if tty {
+                        eprint!("\rloading {shown}: {pct:3}%");
+                    } else {
+                        eprintln!("loading {shown}: {pct}%");
+                    }
                 }
             };
-            let s = scene::load(path, &opts, &mut progress)?;
+            let s = scene::load(path, &opts, &mut progress);
+            if show && tty && last > 0 {
+                eprint!("\r\x1b[K");
+            }
+            let s = s?;
             if show {
-                eprintln!(
-                    "\rloading {}: done, {} spheres",
-                    path.display(),
-                    s.spheres.len()
-                );
+                eprintln!("loading {shown}: done, {} spheres", s.spheres.len());
             }
             s
         }
@@ -138,8 +150,11 @@ pub fn load_scene_with_progress(
             }
             let name = name.as_deref().unwrap_or(scene::DEFAULT_SCENE);
             let atoms = args.atoms.unwrap_or(scene::DEFAULT_ATOMS);
-            if atoms == 0 {
-                return Err(Error::Input("--atoms must be at least 1".into()));
+            if atoms == 0 || atoms > scene::MAX_SPHERES {
+                return Err(Error::Input(format!(
+                    "--atoms {atoms}: must be between 1 and {}, the most sphereshade renders",
+                    scene::MAX_SPHERES
+                )));
             }
             scene::procedural(name, atoms, 1)?
         }
@@ -151,11 +166,15 @@ pub fn load_scene_with_progress(
     }
     if let Some(n) = args.replicate {
         // Refuse before allocating: sphere ids are 24-bit in the id AOV.
-        let total = scene.spheres.len() as u64 * n.iter().map(|&k| k as u64).product::<u64>();
-        if total >= 1 << 24 {
+        let total =
+            scene.spheres.len() as u128 * n.iter().map(|&k| k.max(1) as u128).product::<u128>();
+        if total > scene::MAX_SPHERES as u128 {
             return Err(Error::Input(format!(
-                "--replicate {}x{}x{}: {total} spheres; at most 16,777,215 are supported",
-                n[0], n[1], n[2]
+                "--replicate {}x{}x{}: {total} spheres, more than {}, the most sphereshade renders",
+                n[0],
+                n[1],
+                n[2],
+                scene::MAX_SPHERES
             )));
         }
         scene = scene.replicate(n);
@@ -165,6 +184,15 @@ pub fn load_scene_with_progress(
     }
     if args.radius_scale != 1.0 {
         scene.scale_radii(args.radius_scale);
+        if scene.max_radius() > scene::MAX_COORDINATE {
+            return Err(Error::Input(format!(
+                "--radius-scale {}: the largest radius becomes {:e}, above {:e}, the range \
+                 sphereshade renders in f32",
+                args.radius_scale,
+                scene.max_radius(),
+                scene::MAX_COORDINATE
+            )));
+        }
     }
     Ok((scene, t0.elapsed().as_secs_f64() * 1e3))
 }
@@ -176,6 +204,14 @@ pub fn context_for(o: &Options) -> Result<Context> {
         device_index: o.device,
         ..Default::default()
     })
+}
+
+/// `--frames` counts measured frames: zero would measure nothing.
+pub fn check_frames(frames: u32) -> Result<()> {
+    if frames == 0 {
+        return Err(Error::Input("--frames must be at least 1".into()));
+    }
+    Ok(())
 }
 
 /// Renders `frames` measured frames after `warmup` ones.

@@ -435,8 +435,8 @@ impl Options {
         if !(0.0..=1.0).contains(&axes.opacity) {
             return input("--opacity must be between 0 and 1".into());
         }
-        if !(self.light.0.length() > 0.0) {
-            return input("--light must be a non-zero direction".into());
+        if crate::camera::unit(self.light.0).is_none() {
+            return input("--light must be a finite non-zero direction".into());
         }
         if !(16..=8192).contains(&self.issm_size) {
             return input("--issm-size must be between 16 and 8192".into());

@@ -145,7 +145,22 @@ fn missing_device_feature_is_one_clear_line() {
     assert_eq!(o.status.code(), Some(1));
     let err = stderr(&o);
     assert!(
-        err.contains("lacks required Vulkan feature shaderBufferInt64Atomics"),
+        err.contains("lacks required Vulkan feature(s): shaderBufferInt64Atomics"),
+        "{err}"
+    );
+    // every missing feature is named, not only the first
+    let o = bin()
+        .env(
+            "SPHERESHADE_DENY_FEATURE",
+            "shaderInt64,shaderBufferInt64Atomics",
+        )
+        .args(["render", "--out", tmp("f.png").to_str().unwrap()])
+        .args(SMALL)
+        .output()
+        .unwrap();
+    let err = stderr(&o);
+    assert!(
+        err.contains("shaderInt64, shaderBufferInt64Atomics") && err.lines().count() == 1,
         "{err}"
     );
     let o = run(&[

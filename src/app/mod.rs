@@ -528,8 +528,30 @@ impl ApplicationHandler for App<'_> {
 /// Runs the viewer until the window closes or `--frames` are done.
 pub fn run(cmd: ViewCmd) -> Result<Exit> {
     let started = Instant::now();
-    let event_loop =
-        EventLoop::new().map_err(|e| Error::Input(format!("cannot connect to a display: {e}")))?;
+    // Everything the options can get wrong, before a window or device.
+    if let Some(p) = &cmd.screenshot {
+        crate::output::check_outputs(&[crate::output::OutFile {
+            flag: "--screenshot",
+            path: p,
+            extensions: &["png"],
+        }])?;
+    }
+    if cmd.frames == Some(0) {
+        return Err(Error::Input("--frames must be at least 1".into()));
+    }
+    let (w, h) = (cmd.axes.width, cmd.axes.height);
+    if w == 0 || h == 0 || w > 16384 || h > 16384 {
+        return Err(Error::Input(
+            "--width/--height must be between 1 and 16384".into(),
+        ));
+    }
+    let event_loop = EventLoop::new().map_err(|e| {
+        let e = e.to_string();
+        Error::Input(format!(
+            "cannot open a window: {} (is a display available? DISPLAY / WAYLAND_DISPLAY)",
+            e.lines().next().unwrap_or("no display")
+        ))
+    })?;
     event_loop.set_control_flow(ControlFlow::Poll);
     let dh = event_loop
         .display_handle()

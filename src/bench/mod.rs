@@ -45,15 +45,20 @@ pub struct BenchArgs {
     /// One image size instead of --size (both --width and --height).
     #[arg(long, requires = "height")]
     pub width: Option<u32>,
+    /// Image height with --width.
     #[arg(long, requires = "width")]
     pub height: Option<u32>,
+    /// Measured frames per run (medians, min and max over them).
     #[arg(long, default_value_t = 5)]
     pub frames: u32,
+    /// Unmeasured frames per run before the measured ones.
     #[arg(long, default_value_t = 1)]
     pub warmup: u32,
     /// Small matrix that finishes in about two minutes on lavapipe.
     #[arg(long)]
     pub quick: bool,
+    /// The JSON report (rewritten after every run; `"complete"` says whether
+    /// the matrix finished).
     #[arg(long)]
     pub json: PathBuf,
     /// Earlier bench JSON: print per-pass ratios new/old for matching runs.
@@ -820,6 +825,23 @@ fn write_chart(report: &BenchReport, path: &std::path::Path) -> Result<()> {
 
 /// The `bench` subcommand: run, print, write, compare.
 pub fn main(a: &BenchArgs) -> Result<u32> {
+    let mut outs = Vec::new();
+    if !a.summarize {
+        outs.push(output::OutFile {
+            flag: "--json",
+            path: &a.json,
+            extensions: &["json"],
+        });
+    }
+    if let Some(c) = &a.chart {
+        outs.push(output::OutFile {
+            flag: "--chart",
+            path: c,
+            extensions: &["png"],
+        });
+    }
+    output::check_outputs(&outs)?;
+    run::check_frames(a.frames)?;
     if a.summarize {
         let report = read_report(&a.json)?;
         print!("{}", table(&report));

@@ -174,7 +174,8 @@ fn typical_radius(scene: &Scene) -> f32 {
 pub use crate::camera::default_camera;
 
 fn normalized(v: DVec3) -> [f32; 4] {
-    let l = v.normalize();
+    // (validated directions; the fallback only keeps NaN off the GPU)
+    let l = crate::camera::unit(v).unwrap_or(DVec3::NEG_Z);
     [l.x as f32, l.y as f32, l.z as f32, 0.0]
 }
 
@@ -335,10 +336,11 @@ impl<'c> Renderer<'c> {
                 scene.source
             )));
         }
-        if scene.spheres.len() >= (1 << 24) {
+        if scene.spheres.len() > crate::scene::MAX_SPHERES {
             return Err(Error::Input(format!(
-                "{} spheres: at most 16,777,215 are supported (sphere ids are 24-bit in the id AOV)",
-                scene.spheres.len()
+                "{} spheres: at most {} are supported (sphere ids are 24-bit in the id AOV)",
+                scene.spheres.len(),
+                crate::scene::MAX_SPHERES
             )));
         }
         let cam = settings.camera;
@@ -487,8 +489,10 @@ impl<'c> Renderer<'c> {
     /// A new key-light direction: the active technique refits its light
     /// view now, the others when they are chosen again.
     pub fn set_light(&mut self, dir: DVec3) -> Result<()> {
-        if !(dir.length() > 0.0) || !dir.is_finite() {
-            return Err(Error::Input("--light must be a non-zero direction".into()));
+        if crate::camera::unit(dir).is_none() {
+            return Err(Error::Input(
+                "--light must be a finite non-zero direction".into(),
+            ));
         }
         self.settings.light = dir;
         self.res.light_cached = false;

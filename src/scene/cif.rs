@@ -6,8 +6,11 @@ use std::collections::HashMap;
 
 use super::elements::{self, Element};
 use super::molecule::{AsmGroup, Assembly, MolBuilder, find_assembly, key64};
-use super::text::{Lines, Progress, parse_f32, show};
-use super::{LoadOptions, ModelSelect, Scene, SceneError, parse_error};
+use super::text::{LineSource, parse_f32, show};
+use super::{
+    LoadOptions, MAX_SPHERES, ModelSelect, Scene, SceneError, check_coordinate, parse_error,
+    too_many, truncated,
+};
 
 /// Splits a CIF line into tokens: whitespace-separated, `'...'` / `"..."`
 /// quoted (a quote only closes when followed by whitespace or the line end,
@@ -222,9 +225,13 @@ impl AtomReader<'_> {
             (self.cols.z, "Cartn_z"),
         ]) {
             let tok = col.map_or(&b"?"[..], |i| toks[i]);
-            *slot = parse_f32(tok).ok_or_else(|| {
+            let v = parse_f32(tok).ok_or_else(|| {
                 parse_error(name, line_no, format!("bad {axis} value '{}'", show(tok)))
             })?;
+            *slot = check_coordinate(v, axis, name, line_no)?;
+        }
+        if builder.len() >= MAX_SPHERES {
+            return Err(too_many(name, line_no));
         }
         let comp = get(self.cols.label_comp)
             .or_else(|| get(self.cols.auth_comp))
@@ -258,12 +265,14 @@ impl AtomReader<'_> {
 }
 
 pub(crate) fn parse(
-    data: &[u8],
+    src: &mut LineSource,
     name: &str,
     opts: &LoadOptions,
-    progress: &mut Progress,
 ) -> Result<Scene, SceneError> {
-    let mut builder = MolBuilder::new(data.len() / 90 + 1, opts.assembly.is_some());
+    let mut builder = MolBuilder::new(
+        (src.raw_size() / 90 + 1).min(MAX_SPHERES),
+        opts.assembly.is_some(),
+    );
     let mut state = State::Outside;
     let mut items: Vec<String> = Vec::new();
     let mut loop_line = 0usize;
@@ -274,10 +283,10 @@ pub(crate) fn parse(
     let mut row: Vec<String> = Vec::new();
     let mut pending_key: Option<String> = None;
     let mut in_text_field = false;
-    let mut toks: Vec<&[u8]> = Vec::with_capacity(32);
 
-    for (line_no, end, line) in Lines::new(data) {
-        progress.tick(end);
+    while let Some((line_no, line, cut)) = src.next()? {
+        // (tokens borrow this line only)
+        let mut toks: Vec<&[u8]> = Vec::with_capacity(32);
         // Multi-line text fields (;...;) are single values we never use.
         if line.first() == Some(&b';') {
             in_text_field = !in_text_field;
@@ -296,6 +305,9 @@ pub(crate) fn parse(
                     Some(b'_') => {}
                     Some(_) if !line.starts_with(b"loop_") && !line.starts_with(b"data_") => {
                         tokenize(line, &mut toks).map_err(|m| parse_error(name, line_no, m))?;
+                        if cut {
+                            return Err(truncated(name, line_no));
+                        }
                         if let Some(reader) = atoms.as_mut() {
                             reader.row(&toks, line_no, name, &mut builder)?;
                         }
@@ -360,6 +372,9 @@ pub(crate) fn parse(
                         });
                         state = State::AtomRows;
                         // This whole line is the first row.
+                        if cut {
+                            return Err(truncated(name, line_no));
+                        }
                         if let Some(reader) = atoms.as_mut() {
                             reader.row(&toks, line_no, name, &mut builder)?;
                         }
@@ -367,9 +382,11 @@ pub(crate) fn parse(
                     }
                     state = State::LoopValues;
                     row.clear();
-                    loop_value(tok, &items, &mut row, &mut kept);
+                    loop_value(tok, &items, &mut row, &mut kept)
+                        .map_err(|m| parse_error(name, line_no, m))?;
                 }
-                State::LoopValues if !is_item => loop_value(tok, &items, &mut row, &mut kept),
+                State::LoopValues if !is_item => loop_value(tok, &items, &mut row, &mut kept)
+                    .map_err(|m| parse_error(name, line_no, m))?,
                 State::LoopValues | State::Outside => {
                     state = State::Outside;
                     if is_item {
@@ -385,18 +402,22 @@ pub(crate) fn parse(
     finish(builder, name, opts, atoms, &kept)
 }
 
+/// Rows kept per category (assembly generators and operators): far above
+/// any real entry, and what bounds the memory of a hostile file.
+const MAX_KEPT_ROWS: usize = 1 << 20;
+
 /// One value of an ordinary loop: rows of kept categories are stored.
 fn loop_value(
     tok: &[u8],
     items: &[String],
     row: &mut Vec<String>,
     kept: &mut HashMap<&'static str, Category>,
-) {
+) -> Result<(), String> {
     let Some(cat) = items
         .first()
         .and_then(|i| KEPT.iter().copied().find(|k| category_of(i) == *k))
     else {
-        return;
+        return Ok(());
     };
     row.push(String::from_utf8_lossy(unquote(tok)).into_owned());
     if row.len() == items.len() {
@@ -404,8 +425,12 @@ fn loop_value(
         if entry.items.is_empty() {
             entry.items = items.to_vec();
         }
+        if entry.rows.len() >= MAX_KEPT_ROWS {
+            return Err(format!("more than {MAX_KEPT_ROWS} rows of {cat}"));
+        }
         entry.rows.push(std::mem::take(row));
     }
+    Ok(())
 }
 
 /// A key-value pair (single-row category form).
@@ -441,7 +466,7 @@ fn finish(
         Some(id) => Some(find_assembly(name, &assemblies, id)?),
         None => None,
     };
-    Ok(builder.finish(name, opts.color_by, assembly))
+    builder.finish(name, opts.color_by, assembly)
 }
 
 type Op = [[f32; 4]; 3];
@@ -505,8 +530,7 @@ fn assemblies(
                 .map(|c| c.trim().as_bytes().to_vec())
                 .filter(|c| !c.is_empty())
                 .collect(),
-            ops: oper_expression(&r[e_col], &ops)
-                .ok_or_else(|| bad(format!("bad oper_expression '{}'", r[e_col])))?,
+            ops: oper_expression(&r[e_col], &ops).map_err(bad)?,
         };
         match list.iter_mut().find(|a| a.id == id) {
             Some(a) => a.groups.push(group),
@@ -520,8 +544,16 @@ fn assemblies(
 }
 
 /// Expands `1`, `1,2`, `(1-60)`, `(1-5)(6,7)` (a product: the right factor
-/// is applied first) into matrices.
-fn oper_expression(expr: &str, ops: &HashMap<String, Op>) -> Option<Vec<Op>> {
+/// is applied first) into matrices. The product's size is checked against
+/// [`MAX_SPHERES`] before it is built (every operator makes at least one
+/// sphere): `(1-10)` ten times over would be 10^10 matrices.
+fn oper_expression(expr: &str, ops: &HashMap<String, Op>) -> Result<Vec<Op>, String> {
+    let bad = || {
+        format!(
+            "bad oper_expression '{}'",
+            super::text::show(expr.as_bytes())
+        )
+    };
     let expr = expr.trim();
     let factors: Vec<&str> = if expr.contains('(') {
         expr.split(['(', ')'])
@@ -531,32 +563,48 @@ fn oper_expression(expr: &str, ops: &HashMap<String, Op>) -> Option<Vec<Op>> {
     } else {
         vec![expr]
     };
-    let mut result: Vec<Op> = vec![IDENTITY];
+    let mut lists: Vec<Vec<Op>> = Vec::new();
+    let mut total: u128 = 1;
     for factor in factors {
         let mut mats = Vec::new();
         for part in factor.split(',').map(str::trim).filter(|p| !p.is_empty()) {
             match part.split_once('-') {
                 Some((a, b)) => {
-                    let (a, b) = (a.trim().parse::<u32>().ok()?, b.trim().parse::<u32>().ok()?);
-                    if b < a || b - a > 100_000 {
-                        return None;
+                    let (a, b) = (
+                        a.trim().parse::<u32>().map_err(|_| bad())?,
+                        b.trim().parse::<u32>().map_err(|_| bad())?,
+                    );
+                    if b < a || (b - a) as usize >= MAX_SPHERES {
+                        return Err(bad());
                     }
                     for i in a..=b {
-                        mats.push(*ops.get(&i.to_string())?);
+                        mats.push(*ops.get(&i.to_string()).ok_or_else(bad)?);
                     }
                 }
-                None => mats.push(*ops.get(part)?),
+                None => mats.push(*ops.get(part).ok_or_else(bad)?),
             }
         }
         if mats.is_empty() {
-            return None;
+            return Err(bad());
         }
+        total = total.saturating_mul(mats.len() as u128);
+        if total > MAX_SPHERES as u128 {
+            return Err(format!(
+                "oper_expression '{}' makes more than {MAX_SPHERES} operators (each at least one \
+                 sphere; the most sphereshade renders)",
+                super::text::show(expr.as_bytes())
+            ));
+        }
+        lists.push(mats);
+    }
+    let mut result: Vec<Op> = vec![IDENTITY];
+    for mats in lists {
         result = result
             .iter()
             .flat_map(|l| mats.iter().map(move |r| compose(l, r)))
             .collect();
     }
-    Some(result)
+    Ok(result)
 }
 
 const IDENTITY: Op = [
@@ -729,12 +777,16 @@ _pdbx_struct_assembly_gen.asym_id_list      A,B
         assert_eq!(oper_expression("1", &ops).unwrap().len(), 1);
         assert_eq!(oper_expression("1,2,3", &ops).unwrap().len(), 3);
         assert_eq!(oper_expression("(1-5)", &ops).unwrap().len(), 5);
+        // 5^11 operators are refused before any is built
+        let bomb = "(1-5)".repeat(11);
+        let e = oper_expression(&bomb, &ops).unwrap_err();
+        assert!(e.contains("more than 16777215"), "{e}");
         let p = oper_expression("(1,2)(3-5)", &ops).unwrap();
         assert_eq!(p.len(), 6);
         assert_eq!(p[0][0][3], 4.0);
-        assert!(oper_expression("(9)", &ops).is_none());
-        assert!(oper_expression("(5-1)", &ops).is_none());
-        assert!(oper_expression("", &ops).is_none());
+        assert!(oper_expression("(9)", &ops).is_err());
+        assert!(oper_expression("(5-1)", &ops).is_err());
+        assert!(oper_expression("", &ops).is_err());
     }
 
     #[test]

@@ -4,26 +4,27 @@
 
 use super::elements;
 use super::molecule::{MolBuilder, key64};
-use super::text::{Lines, Progress, parse_f32, show};
-use super::{LoadOptions, ModelSelect, Scene, SceneError, parse_error};
+use super::text::{LineSource, parse_f32, show, split_ws};
+use super::{
+    LoadOptions, MAX_SPHERES, ModelSelect, Scene, SceneError, check_coordinate, parse_error,
+    too_many, truncated,
+};
 
 pub(crate) fn parse(
-    data: &[u8],
+    src: &mut LineSource,
     name: &str,
     opts: &LoadOptions,
-    progress: &mut Progress,
 ) -> Result<Scene, SceneError> {
-    let mut builder = MolBuilder::new(data.len() / 45 + 1, false);
-    let mut lines = Lines::new(data);
+    let mut builder = MolBuilder::new((src.raw_size() / 45 + 1).min(MAX_SPHERES), false);
     let mut frame = 0u32;
     // Title line; blank lines after the last frame are allowed.
-    while let Some((title_no, _, title)) = lines.next() {
+    while let Some((title_no, title, _)) = src.next()? {
         if title.iter().all(u8::is_ascii_whitespace) {
             continue;
         }
         frame += 1;
-        let (count_no, _, count_line) = lines
-            .next()
+        let (count_no, count_line, _) = src
+            .next()?
             .ok_or_else(|| parse_error(name, title_no + 1, "missing atom count line"))?;
         let mut last_line = count_no;
         let count: usize = std::str::from_utf8(count_line)
@@ -46,7 +47,7 @@ pub(crate) fn parse(
         // the first two decimal points gives it.
         let mut width = 0usize;
         for i in 0..count {
-            let (line_no, end, line) = lines.next().ok_or_else(|| {
+            let (line_no, line, cut) = src.next()?.ok_or_else(|| {
                 parse_error(
                     name,
                     last_line + 1,
@@ -54,7 +55,6 @@ pub(crate) fn parse(
                 )
             })?;
             last_line = line_no;
-            progress.tick(end);
             if !accept {
                 continue;
             }
@@ -75,21 +75,48 @@ pub(crate) fn parse(
             let mut center = [0.0f32; 3];
             for (k, (slot, axis)) in center.iter_mut().zip(["x", "y", "z"]).enumerate() {
                 let field = &line[20 + k * width..20 + (k + 1) * width];
-                *slot = parse_f32(field).map(|v| v * 10.0).ok_or_else(|| {
+                let v = parse_f32(field).map(|v| v * 10.0).ok_or_else(|| {
                     parse_error(
                         name,
                         line_no,
                         format!("bad {axis} coordinate '{}'", show(field)),
                     )
                 })?;
+                *slot = check_coordinate(v, axis, name, line_no)?;
             }
             let element = elements::guess_name(&line[10..15], &line[5..10]);
             // Residue number + name, as written (numbers wrap at 100,000).
             let residue = key64(&[&line[..10]]);
+            if cut {
+                return Err(truncated(name, line_no));
+            }
+            if builder.len() >= MAX_SPHERES {
+                return Err(too_many(name, line_no));
+            }
             builder.push(center, element, level0, 0, u128::from(residue), b"");
         }
-        // Box line (absent in some hand-written files).
-        if lines.next().is_none() || (opts.model == ModelSelect::First && frame == 1) {
+        // Box line (absent in some hand-written files): three or nine
+        // numbers. An atom line here means the count was too small.
+        match src.next()? {
+            None => break,
+            Some((box_no, line, _)) => {
+                let mut toks = Vec::new();
+                split_ws(line, &mut toks);
+                let numbers = toks.iter().all(|t| parse_f32(t).is_some());
+                if !(numbers && (toks.len() == 3 || toks.len() == 9)) && !toks.is_empty() {
+                    return Err(parse_error(
+                        name,
+                        box_no,
+                        format!(
+                            "expected the box line after the {count} atoms the count on line \
+                             {count_no} announced, found '{}' (does the count match the atom lines?)",
+                            show(line)
+                        ),
+                    ));
+                }
+            }
+        }
+        if opts.model == ModelSelect::First && frame == 1 {
             break;
         }
         if let ModelSelect::Index(n) = opts.model
@@ -105,7 +132,7 @@ pub(crate) fn parse(
             "{name}: frame {n} not found (the file has {frame})"
         )));
     }
-    Ok(builder.finish(name, opts.color_by, None))
+    builder.finish(name, opts.color_by, None)
 }
 
 /// Width of one coordinate field, from the spacing of decimal points.

@@ -17,7 +17,7 @@ mod procedural;
 mod text;
 mod xyz;
 
-use std::io::Read;
+use std::io::{BufRead, Read};
 use std::path::Path;
 
 use glam::Vec3;
@@ -26,6 +26,73 @@ pub use procedural::procedural;
 
 /// Number of region levels every sphere carries.
 pub const MAX_LEVELS: usize = 4;
+
+/// Most spheres a scene may hold: sphere ids are 24-bit in the id AOV and
+/// the visibility keys. Every way of making spheres (files, assemblies,
+/// `--replicate`, procedural `--atoms`) is checked against it before it
+/// allocates.
+pub const MAX_SPHERES: usize = (1 << 24) - 1;
+
+/// Largest coordinate magnitude and radius accepted (Å): squares and sums of
+/// squares of such values stay far from f32 overflow in every pass.
+pub const MAX_COORDINATE: f32 = 1e15;
+
+/// A coordinate checked against [`MAX_COORDINATE`].
+pub(crate) fn check_coordinate(
+    v: f32,
+    axis: &str,
+    name: &str,
+    line: usize,
+) -> Result<f32, SceneError> {
+    if v.abs() <= MAX_COORDINATE {
+        Ok(v)
+    } else {
+        Err(parse_error(
+            name,
+            line,
+            format!(
+                "{axis} coordinate {v:e} is outside ±{MAX_COORDINATE:e}, the range sphereshade renders in f32"
+            ),
+        ))
+    }
+}
+
+/// A radius checked against [`MAX_COORDINATE`].
+pub(crate) fn check_radius(r: f32, name: &str, line: usize) -> Result<f32, SceneError> {
+    if r <= MAX_COORDINATE {
+        Ok(r)
+    } else {
+        Err(parse_error(
+            name,
+            line,
+            format!(
+                "radius {r:e} is above {MAX_COORDINATE:e}, the range sphereshade renders in f32"
+            ),
+        ))
+    }
+}
+
+/// The error for a file with more than [`MAX_SPHERES`] spheres (at the line
+/// that would add one more).
+pub(crate) fn too_many(name: &str, line: usize) -> SceneError {
+    parse_error(
+        name,
+        line,
+        format!(
+            "more than {MAX_SPHERES} spheres, the most sphereshade renders (24-bit sphere ids)"
+        ),
+    )
+}
+
+/// The error for a data record that ends the file without a newline.
+pub(crate) fn truncated(name: &str, line: usize) -> SceneError {
+    parse_error(
+        name,
+        line,
+        "the file ends inside this record (no newline after it): it looks cut short; \
+         if it is complete, end it with a newline",
+    )
+}
 
 /// Procedural scene used when no input is given.
 pub const DEFAULT_SCENE: &str = "capsid";
@@ -266,7 +333,9 @@ fn has_gzip_magic(path: &Path) -> bool {
 }
 
 /// Loads a structure or particle file. `progress(bytes_done, bytes_total)`
-/// is called about every 1 % of the (decompressed) text while parsing.
+/// is called about every 1 % of the file's (raw, possibly compressed)
+/// bytes. The text is parsed as it streams in, a line at a time, so memory
+/// follows the spheres kept, not the file size.
 pub fn load(
     path: &Path,
     opts: &LoadOptions,
@@ -279,17 +348,43 @@ pub fn load(
         path: name.clone(),
         source,
     };
-    let raw = std::fs::read(path).map_err(io_err)?;
-    let data = if gz_ext || raw.starts_with(&[0x1f, 0x8b]) {
-        let mut out = Vec::with_capacity(raw.len().saturating_mul(4));
-        flate2::read::MultiGzDecoder::new(&raw[..])
-            .read_to_end(&mut out)
-            .map_err(|e| io_err(std::io::Error::new(e.kind(), format!("gzip: {e}"))))?;
-        out
+    let file = std::fs::File::open(path).map_err(io_err)?;
+    let meta = file.metadata().map_err(io_err)?;
+    if meta.is_dir() {
+        return Err(io_err(std::io::Error::other("is a directory")));
+    }
+    // (0 for pipes and devices: progress then only reports the end)
+    let total = meta.len();
+    let done = std::rc::Rc::new(std::cell::Cell::new(0u64));
+    let mut raw = std::io::BufReader::with_capacity(
+        1 << 16,
+        text::Counting {
+            inner: file,
+            done: done.clone(),
+        },
+    );
+    let gz = gz_ext || raw.fill_buf().map_err(io_err)?.starts_with(&[0x1f, 0x8b]);
+    let reader: Box<dyn BufRead> = if gz {
+        Box::new(std::io::BufReader::with_capacity(
+            1 << 16,
+            GzErrors(flate2::bufread::MultiGzDecoder::new(raw)),
+        ))
     } else {
-        raw
+        Box::new(raw)
     };
-    parse_bytes(&data, format, &name, opts, progress)
+    let mut src = text::LineSource::new(reader, &name, done, total, progress);
+    parse_source(&mut src, format, &name, opts)
+}
+
+/// Gzip decoding errors say so ("gzip: ...").
+struct GzErrors<R>(R);
+
+impl<R: Read> Read for GzErrors<R> {
+    fn read(&mut self, out: &mut [u8]) -> std::io::Result<usize> {
+        self.0
+            .read(out)
+            .map_err(|e| std::io::Error::new(e.kind(), format!("gzip: {e}")))
+    }
 }
 
 /// Parses text already in memory (tests, embedded data).
@@ -299,37 +394,44 @@ pub fn parse_str(
     name: &str,
     opts: &LoadOptions,
 ) -> Result<Scene, SceneError> {
-    parse_bytes(text.as_bytes(), format, name, opts, &mut |_, _| {})
+    parse_bytes(text.as_bytes(), format, name, opts)
 }
 
-fn parse_bytes(
+/// Parses bytes already in memory.
+pub fn parse_bytes(
     data: &[u8],
     format: Format,
     name: &str,
     opts: &LoadOptions,
-    progress: &mut dyn FnMut(u64, u64),
 ) -> Result<Scene, SceneError> {
-    // Text formats never contain NUL bytes; catching them here turns binary
-    // garbage into one clear message instead of a confusing parse error.
-    if let Some(pos) = text::find_byte(data, 0) {
-        let line = 1 + data[..pos].iter().filter(|&&b| b == b'\n').count();
-        return Err(SceneError::Invalid(format!(
-            "{name}:{line}: binary data (NUL byte), not a {format:?} text file"
-        )));
-    }
-    let mut progress = text::Progress::new(progress, data.len());
+    let mut cb = |_, _| {};
+    let mut src = text::LineSource::from_bytes(data, name, &mut cb);
+    parse_source(&mut src, format, name, opts)
+}
+
+fn parse_source(
+    src: &mut text::LineSource,
+    format: Format,
+    name: &str,
+    opts: &LoadOptions,
+) -> Result<Scene, SceneError> {
     let scene = match format {
-        Format::Pdb => pdb::parse(data, name, opts, &mut progress)?,
-        Format::Cif => cif::parse(data, name, opts, &mut progress)?,
-        Format::Gro => gro::parse(data, name, opts, &mut progress)?,
-        Format::Xyz => xyz::parse_xyz(data, name, opts, &mut progress)?,
-        Format::Xyzr => xyz::parse_xyzr(data, name, &mut progress)?,
+        Format::Pdb => pdb::parse(src, name, opts)?,
+        Format::Cif => cif::parse(src, name, opts)?,
+        Format::Gro => gro::parse(src, name, opts)?,
+        Format::Xyz => xyz::parse_xyz(src, name, opts)?,
+        Format::Xyzr => xyz::parse_xyzr(src, name)?,
     };
-    progress.finish();
     if scene.spheres.is_empty() {
         return Err(SceneError::Empty {
             path: name.to_string(),
         });
+    }
+    if scene.spheres.len() > MAX_SPHERES {
+        return Err(SceneError::Invalid(format!(
+            "{name}: {} spheres, more than {MAX_SPHERES}, the most sphereshade renders (24-bit sphere ids)",
+            scene.spheres.len()
+        )));
     }
     Ok(scene)
 }
@@ -486,7 +588,7 @@ HETATM    3  O   HOH     2      19.099   9.698 -13.097  1.00 32.87           O
         // Truncated stream.
         std::fs::write(&p3, &gz[..gz.len() / 2]).unwrap();
         let err = load(&p3, &LoadOptions::default(), &mut |_, _| {}).unwrap_err();
-        assert!(matches!(err, SceneError::Io { .. }), "{err}");
+        assert!(err.to_string().contains("gzip"), "{err}");
 
         for p in [p, p2, p3] {
             let _ = std::fs::remove_file(p);
@@ -525,7 +627,7 @@ HETATM    3  O   HOH     2      19.099   9.698 -13.097  1.00 32.87           O
                 &b"ATOM      1  N   GLY A   1      4\xff.053  -9.336  17.867  1.00\n"[..],
             ),
         ] {
-            let err = parse_bytes(text, fmt, "bin", &opts, &mut |_, _| {}).unwrap_err();
+            let err = parse_bytes(text, fmt, "bin", &opts).unwrap_err();
             assert!(matches!(err, SceneError::Parse { .. }), "{err}");
         }
     }
@@ -590,7 +692,7 @@ HETATM    3  O   HOH     2      19.099   9.698 -13.097  1.00 32.87           O
             let bytes = text.as_bytes();
             for o in &opts {
                 for cut in 0..bytes.len() {
-                    let _ = parse_bytes(&bytes[..cut], format, "f", o, &mut |_, _| {});
+                    let _ = parse_bytes(&bytes[..cut], format, "f", o);
                 }
                 for _ in 0..2000 {
                     let mut m = bytes.to_vec();
@@ -598,7 +700,7 @@ HETATM    3  O   HOH     2      19.099   9.698 -13.097  1.00 32.87           O
                         let i = (next() % m.len() as u64) as usize;
                         m[i] = alphabet[(next() % alphabet.len() as u64) as usize];
                     }
-                    let _ = parse_bytes(&m, format, "f", o, &mut |_, _| {});
+                    let _ = parse_bytes(&m, format, "f", o);
                 }
             }
         }

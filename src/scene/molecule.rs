@@ -4,7 +4,7 @@
 use std::collections::HashMap;
 
 use super::elements::Element;
-use super::{ColorBy, MAX_LEVELS, Scene, SceneError, Sphere};
+use super::{ColorBy, MAX_LEVELS, MAX_SPHERES, Scene, SceneError, Sphere};
 
 pub(crate) const LEVEL_NAMES: [&str; MAX_LEVELS] = ["model", "chain", "residue", "atom"];
 
@@ -129,6 +129,11 @@ impl MolBuilder {
         }
     }
 
+    /// Atoms added so far.
+    pub(crate) fn len(&self) -> usize {
+        self.spheres.len()
+    }
+
     /// Adds one atom. `chain` and `residue` are opaque keys; `asm_chain` is
     /// the chain name assembly lists refer to (ignored unless tracking).
     #[inline]
@@ -182,15 +187,29 @@ impl MolBuilder {
         });
     }
 
-    /// Applies the assembly (if any), colours and numbers atoms.
+    /// Applies the assembly (if any), colours and numbers atoms. An
+    /// assembly whose copies would exceed [`MAX_SPHERES`] is refused before
+    /// anything is allocated.
     pub(crate) fn finish(
         self,
         source: &str,
         color_by: ColorBy,
         assembly: Option<&Assembly>,
-    ) -> Scene {
+    ) -> Result<Scene, SceneError> {
         let mut spheres = match (assembly, &self.asm_chain) {
-            (Some(asm), Some(per_atom)) => expand(&self.spheres, per_atom, &self.asm_names, asm),
+            (Some(asm), Some(per_atom)) => {
+                let total = expanded_count(per_atom, &self.asm_names, asm);
+                if total > MAX_SPHERES as u128 {
+                    return Err(SceneError::Invalid(format!(
+                        "{source}: assembly {} makes {total} spheres ({} operators over {} atoms), \
+                         more than {MAX_SPHERES}, the most sphereshade renders",
+                        asm.id,
+                        asm.groups.iter().map(|g| g.ops.len()).sum::<usize>(),
+                        self.spheres.len()
+                    )));
+                }
+                expand(&self.spheres, per_atom, &self.asm_names, asm)
+            }
             _ => self.spheres,
         };
         for (i, s) in spheres.iter_mut().enumerate() {
@@ -199,12 +218,33 @@ impl MolBuilder {
                 s.color = palette_color(s.region[1]);
             }
         }
-        Scene {
+        Ok(Scene {
             spheres,
             level_names: LEVEL_NAMES.iter().map(|s| s.to_string()).collect(),
             source: source.to_string(),
-        }
+        })
     }
+}
+
+/// Spheres an assembly would make: per group, operators x the atoms of its
+/// chains (exact, in u128: no product can overflow).
+fn expanded_count(per_atom: &[u32], names: &[Vec<u8>], asm: &Assembly) -> u128 {
+    let mut per_name = vec![0u128; names.len()];
+    for &a in per_atom {
+        per_name[a as usize] += 1;
+    }
+    asm.groups
+        .iter()
+        .map(|g| {
+            let atoms: u128 = names
+                .iter()
+                .zip(&per_name)
+                .filter(|(n, _)| g.chains.is_empty() || g.chains.iter().any(|c| c == *n))
+                .map(|(_, k)| *k)
+                .sum();
+            atoms * g.ops.len() as u128
+        })
+        .sum()
 }
 
 /// Builds the copies of an assembly. Level 0 becomes the copy index
@@ -282,7 +322,7 @@ mod tests {
         b.push(p, Element::C, 0, 1, 11, b"A");
         b.push(p, Element::O, 0, 2, 11, b"B");
         b.push(p, Element::O, 0, 1, 10, b"A"); // chain A again: same chain id
-        let s = b.finish("t", ColorBy::Element, None);
+        let s = b.finish("t", ColorBy::Element, None).unwrap();
         let r: Vec<_> = s.spheres.iter().map(|s| s.region).collect();
         assert_eq!(
             r,
@@ -320,7 +360,7 @@ mod tests {
                 ops: vec![ident, shift],
             }],
         };
-        let s = b.finish("t", ColorBy::Chain, Some(&asm));
+        let s = b.finish("t", ColorBy::Chain, Some(&asm)).unwrap();
         let c: Vec<_> = s.spheres.iter().map(|s| s.center[0]).collect();
         assert_eq!(c, vec![1.0, 3.0, 11.0, 13.0]);
         let l0: Vec<_> = s.spheres.iter().map(|s| s.region[0]).collect();

@@ -8,8 +8,11 @@
 
 use super::elements::{self, Element, trim};
 use super::molecule::{AsmGroup, Assembly, MolBuilder, find_assembly};
-use super::text::{Lines, Progress, parse_f32, show};
-use super::{LoadOptions, ModelSelect, Scene, SceneError, parse_error};
+use super::text::{LineSource, parse_f32, show};
+use super::{
+    LoadOptions, MAX_SPHERES, ModelSelect, Scene, SceneError, check_coordinate, parse_error,
+    too_many, truncated,
+};
 
 /// Four-letter residue names common in CHARMM/NAMD output whose fourth
 /// letter sits in column 21 (where wide files put a two-letter chain).
@@ -31,12 +34,14 @@ const FOUR_LETTER_KEYS: [u32; 16] = {
 };
 
 pub(crate) fn parse(
-    data: &[u8],
+    src: &mut LineSource,
     name: &str,
     opts: &LoadOptions,
-    progress: &mut Progress,
 ) -> Result<Scene, SceneError> {
-    let mut builder = MolBuilder::new(data.len() / 81 + 1, opts.assembly.is_some());
+    let mut builder = MolBuilder::new(
+        (src.raw_size() / 81 + 1).min(MAX_SPHERES),
+        opts.assembly.is_some(),
+    );
     let mut assemblies: Vec<Assembly> = Vec::new();
 
     // Atoms before any MODEL record form model 1.
@@ -49,9 +54,11 @@ pub(crate) fn parse(
     let mut level0 = 0u32;
     let mut first_alt: Option<u8> = None;
 
-    for (line_no, end, line) in Lines::new(data) {
-        progress.tick(end);
+    while let Some((line_no, line, cut)) = src.next()? {
         if line.starts_with(b"ATOM") || line.starts_with(b"HETATM") {
+            if cut {
+                return Err(truncated(name, line_no));
+            }
             if accepting {
                 atom(line, line_no, name, level0, &mut first_alt, &mut builder)?;
             }
@@ -103,7 +110,7 @@ pub(crate) fn parse(
         Some(id) => Some(find_assembly(name, &assemblies, id)?),
         None => None,
     };
-    Ok(builder.finish(name, opts.color_by, assembly))
+    builder.finish(name, opts.color_by, assembly)
 }
 
 /// Parses one ATOM/HETATM record (already known to be selected).
@@ -151,10 +158,13 @@ fn atom(
         })
     };
     let center = [
-        coord(30..38, "x")?,
-        coord(38..46, "y")?,
-        coord(46..54, "z")?,
+        check_coordinate(coord(30..38, "x")?, "x", name, line_no)?,
+        check_coordinate(coord(38..46, "y")?, "y", name, line_no)?,
+        check_coordinate(coord(46..54, "z")?, "z", name, line_no)?,
     ];
+    if builder.len() >= MAX_SPHERES {
+        return Err(too_many(name, line_no));
+    }
 
     // Column 21 is blank in standard files. Wide files put the first letter
     // of a two-letter chain there (`PHEAA`); CHARMM puts the fourth letter of

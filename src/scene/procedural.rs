@@ -12,7 +12,7 @@ use glam::{Mat3, Quat, Vec3};
 use super::{MAX_LEVELS, Scene, SceneError, Sphere};
 
 /// Largest sphere count accepted (region ids are u32 and memory is finite).
-const MAX_ATOMS: usize = 1 << 30;
+use super::MAX_SPHERES as MAX_ATOMS;
 
 /// Generates the named scene with exactly `atoms` spheres.
 pub fn procedural(name: &str, atoms: usize, seed: u64) -> Result<Scene, SceneError> {

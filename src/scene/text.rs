@@ -1,43 +1,169 @@
-//! Byte-level text helpers shared by the parsers: line iteration, a fast
-//! fixed-format float parser, and progress reporting.
+//! Byte-level text helpers shared by the parsers: streaming line input
+//! with bounded memory, a fast fixed-format float parser, and progress
+//! reporting.
 
-/// Iterates over the lines of a byte buffer, yielding `(line_number,
-/// byte_offset_of_line_end, line)` with 1-based line numbers. A trailing
-/// `\r` is removed so CRLF files parse like LF files.
-pub(crate) struct Lines<'a> {
-    data: &'a [u8],
-    pos: usize,
+use std::io::BufRead;
+
+use super::SceneError;
+
+/// Longest line accepted (bytes): far above any real PDB/mmCIF/GRO/XYZ
+/// line, and what bounds a reader's memory on a file without newlines
+/// (e.g. `/dev/zero` or a gzip bomb of one byte value).
+pub(crate) const MAX_LINE_BYTES: usize = 1 << 20;
+
+/// Lines of a (possibly decompressed) text stream, read with bounded
+/// memory: one line at a time (at most [`MAX_LINE_BYTES`]), 1-based line
+/// numbers, a trailing `\r` removed (CRLF files parse like LF files), a
+/// UTF-8 byte-order mark at the start skipped, NUL bytes refused (text
+/// formats never contain them: binary garbage gets one clear message).
+/// Progress is reported from the raw (compressed) bytes consumed.
+pub(crate) struct LineSource<'a> {
+    reader: Box<dyn BufRead + 'a>,
+    name: String,
+    buf: Vec<u8>,
     line: usize,
+    /// Bytes of decompressed text consumed so far.
+    offset: u64,
+    /// The last line returned ended at end of input without a newline.
+    unterminated: bool,
+    raw_done: std::rc::Rc<std::cell::Cell<u64>>,
+    raw_total: u64,
+    progress: Progress<'a>,
 }
 
-impl<'a> Lines<'a> {
-    pub(crate) fn new(data: &'a [u8]) -> Self {
-        Lines {
-            data,
-            pos: 0,
-            line: 0,
-        }
+/// One line: (1-based number, text without the line end, whether it ended
+/// the input without a newline).
+pub(crate) type Line<'a> = (usize, &'a [u8], bool);
+
+/// Counts the raw bytes read through it (compressed input's progress).
+pub(crate) struct Counting<R> {
+    pub inner: R,
+    pub done: std::rc::Rc<std::cell::Cell<u64>>,
+}
+
+impl<R: std::io::Read> std::io::Read for Counting<R> {
+    fn read(&mut self, out: &mut [u8]) -> std::io::Result<usize> {
+        let n = self.inner.read(out)?;
+        self.done.set(self.done.get() + n as u64);
+        Ok(n)
     }
 }
 
-impl<'a> Iterator for Lines<'a> {
-    type Item = (usize, usize, &'a [u8]);
-
-    fn next(&mut self) -> Option<Self::Item> {
-        if self.pos >= self.data.len() {
-            return None;
+impl<'a> LineSource<'a> {
+    /// `raw_done` counts the raw bytes consumed (of `raw_total`).
+    pub(crate) fn new(
+        reader: Box<dyn BufRead + 'a>,
+        name: &str,
+        raw_done: std::rc::Rc<std::cell::Cell<u64>>,
+        raw_total: u64,
+        progress: &'a mut dyn FnMut(u64, u64),
+    ) -> Self {
+        LineSource {
+            reader,
+            name: name.to_string(),
+            buf: Vec::with_capacity(256),
+            line: 0,
+            offset: 0,
+            unterminated: false,
+            raw_done,
+            raw_total,
+            progress: Progress::new(progress, raw_total as usize),
         }
-        let rest = &self.data[self.pos..];
-        let (mut line, advance) = match find_byte(rest, b'\n') {
-            Some(i) => (&rest[..i], i + 1),
-            None => (rest, rest.len()),
+    }
+
+    /// A source over bytes in memory (tests, embedded data).
+    pub(crate) fn from_bytes(
+        data: &'a [u8],
+        name: &str,
+        progress: &'a mut dyn FnMut(u64, u64),
+    ) -> Self {
+        let done = std::rc::Rc::new(std::cell::Cell::new(0));
+        let counting = Counting {
+            inner: data,
+            done: done.clone(),
         };
+        Self::new(
+            Box::new(std::io::BufReader::with_capacity(1 << 16, counting)),
+            name,
+            done,
+            data.len() as u64,
+            progress,
+        )
+    }
+
+    /// Raw input size in bytes (a capacity hint; the compressed size for
+    /// gzip input).
+    pub(crate) fn raw_size(&self) -> usize {
+        self.raw_total as usize
+    }
+
+    /// The next line: (line number, text, whether it ended the input
+    /// without a newline: a data record there may have been cut short), or
+    /// None at the end of the input.
+    #[allow(clippy::should_implement_trait)]
+    pub(crate) fn next(&mut self) -> Result<Option<Line<'_>>, SceneError> {
+        self.buf.clear();
+        loop {
+            let avail = match self.reader.fill_buf() {
+                Ok(a) => a,
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+                Err(e) => {
+                    return Err(SceneError::Invalid(format!(
+                        "{}:{}: cannot read: {e}",
+                        self.name,
+                        self.line + 1
+                    )));
+                }
+            };
+            if avail.is_empty() {
+                break;
+            }
+            let (take, done) = match find_byte(avail, b'\n') {
+                Some(i) => (i + 1, true),
+                None => (avail.len(), false),
+            };
+            if self.buf.len() + take > MAX_LINE_BYTES + 1 {
+                return Err(SceneError::Invalid(format!(
+                    "{}:{}: line longer than {} bytes: not a text structure file",
+                    self.name,
+                    self.line + 1,
+                    MAX_LINE_BYTES
+                )));
+            }
+            self.buf.extend_from_slice(&avail[..take]);
+            self.reader.consume(take);
+            if done {
+                break;
+            }
+        }
+        if self.buf.is_empty() {
+            self.progress.finish();
+            return Ok(None);
+        }
+        self.line += 1;
+        self.offset += self.buf.len() as u64;
+        self.progress.tick(self.raw_done.get() as usize);
+        let mut line = &self.buf[..];
+        self.unterminated = true;
+        if let [head @ .., b'\n'] = line {
+            line = head;
+            self.unterminated = false;
+        }
         if let [head @ .., b'\r'] = line {
             line = head;
         }
-        self.pos += advance;
-        self.line += 1;
-        Some((self.line, self.pos, line))
+        if self.line == 1
+            && let Some(rest) = line.strip_prefix(b"\xEF\xBB\xBF")
+        {
+            line = rest;
+        }
+        if find_byte(line, 0).is_some() {
+            return Err(SceneError::Invalid(format!(
+                "{}:{}: binary data (NUL byte), not a text structure file",
+                self.name, self.line
+            )));
+        }
+        Ok(Some((self.line, line, self.unterminated)))
     }
 }
 
@@ -164,7 +290,8 @@ impl<'a> Progress<'a> {
     #[inline]
     pub(crate) fn tick(&mut self, done: usize) {
         let done = done as u64;
-        if done >= self.next {
+        // (unknown size, e.g. a pipe: only the end is reported)
+        if self.total > 0 && done >= self.next {
             (self.cb)(done.min(self.total), self.total);
             self.next = done + self.step;
         }
@@ -238,20 +365,45 @@ mod tests {
         );
     }
 
+    fn all_lines(data: &[u8]) -> Result<Vec<(usize, Vec<u8>, bool)>, SceneError> {
+        let mut cb = |_, _| {};
+        let mut src = LineSource::from_bytes(data, "t", &mut cb);
+        let mut v = Vec::new();
+        while let Some((n, l, cut)) = src.next()? {
+            v.push((n, l.to_vec(), cut));
+        }
+        Ok(v)
+    }
+
     #[test]
-    fn lines_strip_cr() {
-        let v: Vec<_> = Lines::new(b"a\r\nbb\n\nc")
-            .map(|(n, _, l)| (n, l))
-            .collect();
+    fn lines_strip_cr_bom_and_flag_the_unterminated_last() {
+        let v = all_lines(b"\xEF\xBB\xBFa\r\nbb\n\nc").unwrap();
+        let want: Vec<(usize, Vec<u8>, bool)> = vec![
+            (1, b"a".to_vec(), false),
+            (2, b"bb".to_vec(), false),
+            (3, b"".to_vec(), false),
+            (4, b"c".to_vec(), true),
+        ];
+        assert_eq!(v, want);
+        // a BOM only counts at the very start
         assert_eq!(
-            v,
-            vec![
-                (1, &b"a"[..]),
-                (2, &b"bb"[..]),
-                (3, &b""[..]),
-                (4, &b"c"[..])
-            ]
+            all_lines(b"x\n\xEF\xBB\xBFy\n").unwrap()[1].1,
+            b"\xEF\xBB\xBFy"
         );
+        assert!(all_lines(b"").unwrap().is_empty());
+    }
+
+    #[test]
+    fn lines_refuse_nul_and_endless_lines() {
+        let e = all_lines(b"ok\nbad\0line\n").unwrap_err().to_string();
+        assert!(e.contains("t:2:") && e.contains("NUL"), "{e}");
+        let long = vec![b'x'; MAX_LINE_BYTES + 10];
+        let e = all_lines(&long).unwrap_err().to_string();
+        assert!(e.contains("t:1:") && e.contains("longer than"), "{e}");
+        // exactly the limit is fine
+        let mut ok = vec![b'x'; MAX_LINE_BYTES];
+        ok.push(b'\n');
+        assert_eq!(all_lines(&ok).unwrap().len(), 1);
     }
 
     #[test]

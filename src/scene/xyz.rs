@@ -3,43 +3,63 @@
 
 use super::elements::{self, Element};
 use super::molecule::palette_color;
-use super::text::{Lines, Progress, parse_f32, show, split_ws};
-use super::{LoadOptions, MAX_LEVELS, ModelSelect, Scene, SceneError, Sphere, parse_error};
+use super::text::{LineSource, parse_f32, show, split_ws};
+use super::{
+    LoadOptions, MAX_LEVELS, MAX_SPHERES, ModelSelect, Scene, SceneError, Sphere, check_coordinate,
+    check_radius, parse_error, too_many, truncated,
+};
 
 pub(crate) fn parse_xyz(
-    data: &[u8],
+    src: &mut LineSource,
     name: &str,
     opts: &LoadOptions,
-    progress: &mut Progress,
 ) -> Result<Scene, SceneError> {
     let mut spheres = Vec::new();
-    let mut lines = Lines::new(data);
-    let mut toks = Vec::with_capacity(8);
     let mut frame = 0u32;
-    while let Some((count_no, _, count_line)) = lines.next() {
+    // (line of the last frame's count, the count)
+    let mut last_count: Option<(usize, usize)> = None;
+    while let Some((count_no, count_line, _)) = src.next()? {
         if count_line.iter().all(u8::is_ascii_whitespace) {
             continue; // blank lines between or after frames
         }
-        frame += 1;
-        let count: usize = std::str::from_utf8(count_line)
+        let count: usize = match std::str::from_utf8(count_line)
             .ok()
             .and_then(|s| s.trim().parse().ok())
-            .ok_or_else(|| {
-                parse_error(
-                    name,
-                    count_no,
-                    format!("bad atom count '{}'", show(count_line)),
-                )
-            })?;
+        {
+            Some(c) => c,
+            None => {
+                let msg = match last_count {
+                    // An atom line where the next frame's count should be:
+                    // the previous count was too small.
+                    Some((at, n)) if looks_like_atom(count_line) => format!(
+                        "an atom line after the {n} atoms the count on line {at} announced \
+                         (the count does not match the atom lines)"
+                    ),
+                    _ => format!("bad atom count '{}'", show(count_line)),
+                };
+                return Err(parse_error(name, count_no, msg));
+            }
+        };
+        let done_before = match opts.model {
+            ModelSelect::First => frame >= 1,
+            ModelSelect::Index(n) => frame >= n,
+            ModelSelect::All => false,
+        };
+        if done_before {
+            // The frame after the selected one starts properly: stop.
+            break;
+        }
+        frame += 1;
+        last_count = Some((count_no, count));
         // Comment line (may be empty).
-        let mut last_line = lines.next().map_or(count_no, |(n, _, _)| n);
+        let mut last_line = src.next()?.map_or(count_no, |(n, _, _)| n);
         let (accept, level0) = match opts.model {
             ModelSelect::First => (frame == 1, 0),
             ModelSelect::Index(n) => (frame == n, 0),
             ModelSelect::All => (true, frame - 1),
         };
         for i in 0..count {
-            let (line_no, end, line) = lines.next().ok_or_else(|| {
+            let (line_no, line, cut) = src.next()?.ok_or_else(|| {
                 parse_error(
                     name,
                     last_line + 1,
@@ -47,10 +67,10 @@ pub(crate) fn parse_xyz(
                 )
             })?;
             last_line = line_no;
-            progress.tick(end);
             if !accept {
                 continue;
             }
+            let mut toks = Vec::with_capacity(8);
             split_ws(line, &mut toks);
             if toks.len() < 4 {
                 return Err(parse_error(
@@ -62,6 +82,12 @@ pub(crate) fn parse_xyz(
             let center = coords(&toks[1..4], name, line_no)?;
             let element = Element::from_symbol_or_number(toks[0])
                 .unwrap_or_else(|| elements::guess_name(toks[0], b""));
+            if cut {
+                return Err(truncated(name, line_no));
+            }
+            if spheres.len() >= MAX_SPHERES {
+                return Err(too_many(name, line_no));
+            }
             let index = spheres.len() as u32;
             spheres.push(Sphere {
                 center,
@@ -69,14 +95,6 @@ pub(crate) fn parse_xyz(
                 color: element.color(),
                 region: [level0, index, 0, 0],
             });
-        }
-        let done = match opts.model {
-            ModelSelect::First => true,
-            ModelSelect::Index(n) => frame >= n,
-            ModelSelect::All => false,
-        };
-        if done {
-            break;
         }
     }
     if let ModelSelect::Index(n) = opts.model
@@ -93,16 +111,24 @@ pub(crate) fn parse_xyz(
     })
 }
 
+/// `El x y z ...`: at least four fields, the second to fourth numbers.
+fn looks_like_atom(line: &[u8]) -> bool {
+    let mut toks = Vec::new();
+    split_ws(line, &mut toks);
+    toks.len() >= 4 && toks[1..4].iter().all(|t| parse_f32(t).is_some())
+}
+
 fn coords(toks: &[&[u8]], name: &str, line_no: usize) -> Result<[f32; 3], SceneError> {
     let mut c = [0.0f32; 3];
     for ((slot, tok), axis) in c.iter_mut().zip(toks).zip(["x", "y", "z"]) {
-        *slot = parse_f32(tok).ok_or_else(|| {
+        let v = parse_f32(tok).ok_or_else(|| {
             parse_error(
                 name,
                 line_no,
                 format!("bad {axis} coordinate '{}'", show(tok)),
             )
         })?;
+        *slot = check_coordinate(v, axis, name, line_no)?;
     }
     Ok(c)
 }
@@ -110,16 +136,11 @@ fn coords(toks: &[&[u8]], name: &str, line_no: usize) -> Result<[f32; 3], SceneE
 /// Colour for XYZR spheres without elements.
 const XYZR_COLOR: [u8; 4] = [0xB4, 0xBE, 0xD2, 0xFF];
 
-pub(crate) fn parse_xyzr(
-    data: &[u8],
-    name: &str,
-    progress: &mut Progress,
-) -> Result<Scene, SceneError> {
-    let mut spheres = Vec::with_capacity(data.len() / 32 + 1);
-    let mut toks = Vec::with_capacity(4 + MAX_LEVELS);
+pub(crate) fn parse_xyzr(src: &mut LineSource, name: &str) -> Result<Scene, SceneError> {
+    let mut spheres = Vec::with_capacity((src.raw_size() / 32 + 1).min(MAX_SPHERES));
     let mut levels = 0usize;
-    for (line_no, end, line) in Lines::new(data) {
-        progress.tick(end);
+    while let Some((line_no, line, cut)) = src.next()? {
+        let mut toks = Vec::with_capacity(4 + MAX_LEVELS);
         let content = match line.iter().position(|&b| b == b'#') {
             Some(i) => &line[..i],
             None => line,
@@ -159,6 +180,7 @@ pub(crate) fn parse_xyzr(
                 ),
             )
         })?;
+        let radius = check_radius(radius, name, line_no)?;
         let mut region = [0u32; MAX_LEVELS];
         for (slot, tok) in region.iter_mut().zip(&toks[4..]) {
             *slot = std::str::from_utf8(tok)
@@ -171,6 +193,12 @@ pub(crate) fn parse_xyzr(
                         format!("bad region id '{}' (expected an integer >= 0)", show(tok)),
                     )
                 })?;
+        }
+        if cut && content.len() == line.len() {
+            return Err(truncated(name, line_no));
+        }
+        if spheres.len() >= MAX_SPHERES {
+            return Err(too_many(name, line_no));
         }
         levels = levels.max(toks.len() - 4);
         spheres.push(Sphere {

@@ -17,6 +17,20 @@ pub struct Buffer {
     usage: vk::BufferUsageFlags,
 }
 
+/// What to change when the buffer `name` is too large: the setting that
+/// sizes it.
+fn advice(name: &str) -> &'static str {
+    let light = ["deep", "issm", "shadow map", "osm", "light"];
+    let scene = ["spheres", "sphere attributes", "raster jobs"];
+    if light.iter().any(|k| name.contains(k)) {
+        "lower the light-map size (--issm-size, --sm-size or --osm-size)"
+    } else if scene.iter().any(|k| name.starts_with(k)) {
+        "render fewer spheres"
+    } else {
+        "lower the image size (--width/--height)"
+    }
+}
+
 impl Buffer {
     pub fn new(
         ctx: &Context,
@@ -31,10 +45,10 @@ impl Buffer {
         let range = ctx.props.limits.max_storage_buffer_range as u64;
         if usage.contains(vk::BufferUsageFlags::STORAGE_BUFFER) && size > range {
             return Err(Error::DeviceLimit(format!(
-                "'{name}' needs {:.1} MiB, more than this device's maxStorageBufferRange ({} MiB): \
-                 lower the image size (--width/--height) or the light-map size",
+                "'{name}' needs {:.1} MiB, more than this device's maxStorageBufferRange ({} MiB): {}",
                 size as f64 / (1u64 << 20) as f64,
-                range >> 20
+                range >> 20,
+                advice(name)
             )));
         }
         let info = vk::BufferCreateInfo::default()

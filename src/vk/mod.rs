@@ -231,7 +231,16 @@ fn create_instance(
 
 fn load_entry() -> Result<ash::Entry> {
     // SAFETY: loading the system Vulkan loader library.
-    unsafe { ash::Entry::load() }.map_err(|e| Error::Loader(e.to_string()))
+    // (the loader's own text may span lines: its first line is enough)
+    unsafe { ash::Entry::load() }.map_err(|e| {
+        Error::Loader(
+            e.to_string()
+                .lines()
+                .next()
+                .unwrap_or("not found")
+                .to_string(),
+        )
+    })
 }
 
 /// Lists every physical device with its kind and missing required features.
@@ -422,16 +431,17 @@ impl Context {
         };
         let pd = pds[index];
         let info = describe(instance, pd, index);
-        if let Some(&feature) = info.missing_features.first() {
+        if !info.missing_features.is_empty() {
             return Err(Error::MissingFeature {
                 device: info.name.clone(),
-                feature,
+                feature: info.missing_features.join(", "),
             });
         }
-        let queue_family = compute_queue_family(instance, pd).ok_or(Error::MissingFeature {
-            device: info.name.clone(),
-            feature: "compute queue with timestamps",
-        })?;
+        let queue_family =
+            compute_queue_family(instance, pd).ok_or_else(|| Error::MissingFeature {
+                device: info.name.clone(),
+                feature: "compute queue with timestamps".into(),
+            })?;
 
         let mut f12 =
             vk::PhysicalDeviceVulkan12Features::default().shader_buffer_int64_atomics(true);

@@ -572,9 +572,8 @@ impl DeepShadows {
             Ok(max as u32)
         } else {
             Err(Error::DeviceLimit(format!(
-                "deep shadow lists: a pool of {chunks} chunks ({} entries) exceeds what the device can address \
-                 ({max} chunks: maxStorageBufferRange {range} bytes per list array); lower --issm-size",
-                chunks * CHUNK as u64
+                "--deep-pool-chunks {chunks}: more than the {max} chunks of {CHUNK} entries the device \
+                 can address (maxStorageBufferRange {range} bytes per list array)"
             )))
         }
     }
