@@ -545,12 +545,26 @@ pub fn run(cmd: ViewCmd) -> Result<Exit> {
             "--width/--height must be between 1 and 16384".into(),
         ));
     }
+    let display_vars = ["DISPLAY", "WAYLAND_DISPLAY", "WAYLAND_SOCKET"];
+    if display_vars
+        .iter()
+        .all(|v| std::env::var_os(v).is_none_or(|s| s.is_empty()))
+    {
+        return Err(Error::Input(
+            "view needs a display: none of DISPLAY, WAYLAND_DISPLAY, WAYLAND_SOCKET is set \
+             (headless: use `render`, or run under xvfb-run)"
+                .into(),
+        ));
+    }
     let event_loop = EventLoop::new().map_err(|e| {
+        // winit prefixes "os error at <source file>:<line>: "; keep the reason.
         let e = e.to_string();
-        Error::Input(format!(
-            "cannot open a window: {} (is a display available? DISPLAY / WAYLAND_DISPLAY)",
-            e.lines().next().unwrap_or("no display")
-        ))
+        let first = e.lines().next().unwrap_or("no display");
+        let reason = match first.find(".rs:") {
+            Some(i) => first[i..].split_once(": ").map_or(first, |(_, r)| r),
+            None => first,
+        };
+        Error::Input(format!("cannot open a window: {reason}"))
     })?;
     event_loop.set_control_flow(ControlFlow::Poll);
     let dh = event_loop

@@ -459,7 +459,7 @@ fn finish(
         return Err(SceneError::Invalid(format!("{name}: model {n} not found")));
     }
     let assemblies = match opts.assembly {
-        Some(_) => assemblies(name, kept)?,
+        Some(want) => assemblies(name, kept, want)?,
         None => Vec::new(),
     };
     let assembly = match opts.assembly {
@@ -472,10 +472,13 @@ fn finish(
 type Op = [[f32; 4]; 3];
 
 /// Builds the assemblies from `_pdbx_struct_assembly_gen` and
-/// `_pdbx_struct_oper_list` (chains are label_asym_ids).
+/// `_pdbx_struct_oper_list` (chains are label_asym_ids). Only assembly
+/// `want` gets its operators expanded; the others are listed by id (for
+/// the "not found" message).
 fn assemblies(
     name: &str,
     kept: &HashMap<&'static str, Category>,
+    want: u32,
 ) -> Result<Vec<Assembly>, SceneError> {
     let (Some(gen_cat), Some(ops_cat)) = (
         kept.get("_pdbx_struct_assembly_gen"),
@@ -530,7 +533,11 @@ fn assemblies(
                 .map(|c| c.trim().as_bytes().to_vec())
                 .filter(|c| !c.is_empty())
                 .collect(),
-            ops: oper_expression(&r[e_col], &ops).map_err(bad)?,
+            ops: if id == want {
+                oper_expression(&r[e_col], &ops).map_err(|m| bad(format!("assembly {id}: {m}")))?
+            } else {
+                Vec::new()
+            },
         };
         match list.iter_mut().find(|a| a.id == id) {
             Some(a) => a.groups.push(group),
