@@ -351,3 +351,94 @@ pub fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<()> {
         })
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scratch(name: &str) -> std::path::PathBuf {
+        let d = std::env::temp_dir().join(format!("sphereshade-out-{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d).unwrap();
+        d
+    }
+
+    fn entries(d: &Path) -> Vec<String> {
+        let mut v: Vec<String> = std::fs::read_dir(d)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        v.sort();
+        v
+    }
+
+    #[test]
+    fn atomic_writes_leave_no_temporary_file_on_any_failure() {
+        let d = scratch("atomic");
+        // the writer fails
+        let p = d.join("a.json");
+        let e = write_atomic(&p, |tmp| {
+            std::fs::write(tmp, b"partial").unwrap();
+            Err(Error::Input("encoder failed".into()))
+        });
+        assert!(e.is_err());
+        assert!(entries(&d).is_empty(), "{:?}", entries(&d));
+        // the rename fails: the target is a non-empty directory
+        let blocked = d.join("b.png");
+        std::fs::create_dir_all(blocked.join("x")).unwrap();
+        let e = write_atomic(&blocked, |tmp| {
+            std::fs::write(tmp, b"png").map_err(|e| Error::Io {
+                path: "t".into(),
+                source: e,
+            })
+        });
+        assert!(e.is_err());
+        assert_eq!(entries(&d), vec!["b.png".to_string()]);
+        // success: only the file
+        write_json(&p, &serde_json::json!({"ok": true})).unwrap();
+        assert_eq!(entries(&d), vec!["a.json".to_string(), "b.png".to_string()]);
+        let _ = std::fs::remove_dir_all(&d);
+    }
+
+    #[test]
+    fn outputs_are_checked_before_work() {
+        let d = scratch("check");
+        let png = d.join("o.png");
+        let ok = [OutFile {
+            flag: "--out",
+            path: &png,
+            extensions: &["png"],
+        }];
+        check_outputs(&ok).unwrap();
+        assert!(entries(&d).is_empty(), "the probe file stayed");
+        let same = d.join("./o.png");
+        let twice = [
+            OutFile {
+                flag: "--out",
+                path: &png,
+                extensions: &["png"],
+            },
+            OutFile {
+                flag: "--screenshot",
+                path: &same,
+                extensions: &["png"],
+            },
+        ];
+        let e = check_outputs(&twice).unwrap_err().to_string();
+        assert!(e.contains("also the --out file"), "{e}");
+        let dir_itself = [OutFile {
+            flag: "--out",
+            path: &d,
+            extensions: &["png", ""],
+        }];
+        assert!(check_outputs(&dir_itself).is_err());
+        let _ = std::fs::remove_dir_all(&d);
+    }
+
+    #[test]
+    fn printable_escapes_control_characters() {
+        assert_eq!(printable("a\nb\x1b[31m\x07"), "a\\nb\\x1b[31m\\x07");
+        assert_eq!(printable("é ✓"), "é ✓");
+        assert_eq!(printable("x\u{202e}y"), "x\\u{202e}y");
+    }
+}
