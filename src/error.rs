@@ -31,6 +31,8 @@ pub enum Error {
     },
     #[error(transparent)]
     Scene(#[from] crate::scene::SceneError),
+    #[error(transparent)]
+    Traj(#[from] crate::traj::TrajError),
     /// Bad input: a file, an option, a combination of them.
     #[error("{0}")]
     Input(String),

@@ -2,7 +2,7 @@
 //!
 //! Arrows point one way: `cli` → `app` | `bench` → `run` → `render` (the
 //! frame graph) → `passes` → `vk`; `scene`, `camera`, `settings`, `gpu` are
-//! leaves. `reference` holds the independent CPU references the tests
+//! leaves (`traj` reads trajectory frames on top of `scene`). `reference` holds the independent CPU references the tests
 //! compare against.
 
 // `!(x > 0.0)` is used on purpose: unlike `x <= 0.0` it also rejects NaN.
@@ -22,6 +22,7 @@ pub mod run;
 pub mod scene;
 pub mod semantic;
 pub mod settings;
+pub mod traj;
 pub mod vk;
 
 pub use error::{Error, Result};

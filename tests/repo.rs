@@ -8,9 +8,9 @@ use std::path::Path;
 
 const ROOT: &str = env!("CARGO_MANIFEST_DIR");
 
-#[test]
-fn test_data_matches_its_provenance_table() {
-    let dir = Path::new(ROOT).join("tests/data");
+/// Checks every `| file | bytes | sha256 |` row of DIR/README.md; returns
+/// how many rows there were.
+fn check_table(dir: &Path) -> usize {
     let readme = std::fs::read_to_string(dir.join("README.md")).unwrap();
     let mut n = 0;
     for line in readme.lines() {
@@ -32,7 +32,22 @@ fn test_data_matches_its_provenance_table() {
         );
         n += 1;
     }
-    assert_eq!(n, 7, "expected the 7 structure files in the table");
+    n
+}
+
+#[test]
+fn test_data_matches_its_provenance_table() {
+    let dir = Path::new(ROOT).join("tests/data");
+    assert_eq!(
+        check_table(&dir),
+        7,
+        "expected the 7 structure files in the table"
+    );
+    assert_eq!(
+        check_table(&dir.join("traj")),
+        6,
+        "expected the 6 trajectory files in tests/data/traj/README.md"
+    );
 }
 
 #[test]

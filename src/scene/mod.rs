@@ -11,10 +11,11 @@ pub mod hybrid36;
 
 mod cif;
 mod gro;
+pub(crate) mod lammps;
 mod molecule;
 mod pdb;
 mod procedural;
-mod text;
+pub(crate) mod text;
 mod xyz;
 
 use std::io::{BufRead, Read};
@@ -268,7 +269,7 @@ pub enum SceneError {
     #[error("{path}: no spheres found")]
     Empty { path: String },
     #[error(
-        "{path}: unknown file extension (expected .pdb, .ent, .cif, .mmcif, .gro, .xyz, .xyzr, optionally .gz)"
+        "{path}: unknown file extension (expected .pdb, .ent, .cif, .mmcif, .gro, .xyz, .xyzr, .lammpstrj, .dump, optionally .gz)"
     )]
     UnknownFormat { path: String },
     #[error("unknown procedural scene '{0}' (expected capsid, lattice, random)")]
@@ -293,6 +294,8 @@ pub enum Format {
     Gro,
     Xyz,
     Xyzr,
+    /// LAMMPS text dump (the first frame).
+    Lammps,
 }
 
 impl Format {
@@ -303,6 +306,7 @@ impl Format {
             "gro" => Format::Gro,
             "xyz" => Format::Xyz,
             "xyzr" => Format::Xyzr,
+            "lammpstrj" | "dump" => Format::Lammps,
             _ => return None,
         })
     }
@@ -421,6 +425,7 @@ fn parse_source(
         Format::Gro => gro::parse(src, name, opts)?,
         Format::Xyz => xyz::parse_xyz(src, name, opts)?,
         Format::Xyzr => xyz::parse_xyzr(src, name)?,
+        Format::Lammps => lammps::parse(src, name)?,
     };
     if scene.spheres.is_empty() {
         return Err(SceneError::Empty {

@@ -1,0 +1,295 @@
+//! Trajectories: frames of atom positions for a topology loaded by
+//! [`crate::scene`] (DESIGN.md "Trajectories and movies"). Every reader
+//! builds an index of frame offsets when it opens a file (headers only) and
+//! then reads any frame by seeking: memory does not grow with the length.
+//! A frame that is cut or corrupt ends the index; the frames before it stay
+//! readable and [`Reader::damage`] says what is wrong, where.
+//!
+//! Coordinates are Å (XTC/TRR store nm), times ps, cells Å.
+//! A leaf beside `scene` (it uses the scene parsers for multi-model
+//! PDB/mmCIF/GRO/XYZ files and LAMMPS dumps).
+
+mod dcd;
+mod models;
+mod pbc;
+mod trr;
+mod xtc;
+
+pub use dcd::write_dcd;
+pub use pbc::{Pbc, apply_pbc};
+
+use std::path::Path;
+
+/// One frame: positions in topology order (Å), the simulation time (ps)
+/// when the format stores it, the periodic cell when it has one.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Frame {
+    pub positions: Vec<[f32; 3]>,
+    pub time_ps: Option<f64>,
+    /// Cell vectors a, b, c as rows (Å).
+    pub cell: Option<[[f64; 3]; 3]>,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum TrajError {
+    #[error("{path}: {source}")]
+    Io {
+        path: String,
+        source: std::io::Error,
+    },
+    /// A frame that cannot be read: the file, the 0-based frame and the
+    /// byte offset where it starts.
+    #[error("{path}: frame {frame} at byte {offset}: {msg}")]
+    Frame {
+        path: String,
+        frame: usize,
+        offset: u64,
+        msg: String,
+    },
+    #[error("{0}")]
+    Invalid(String),
+    #[error(transparent)]
+    Scene(#[from] crate::scene::SceneError),
+}
+
+/// A trajectory file opened for random access.
+pub trait Reader: Send {
+    /// Atoms per frame.
+    fn atoms(&self) -> usize;
+    /// Frames in the index (the complete ones).
+    fn frames(&self) -> usize;
+    /// Reads frame `k` (0-based, < `frames()`).
+    fn read(&mut self, k: usize, out: &mut Frame) -> Result<(), TrajError>;
+    /// What stopped the index early (a cut or corrupt frame), if anything.
+    fn damage(&self) -> Option<&TrajError>;
+}
+
+/// Trajectory formats, by extension.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TrajFormat {
+    Xtc,
+    Trr,
+    Dcd,
+    Lammps,
+    /// Multi-model PDB/mmCIF or multi-frame GRO/XYZ (scene formats).
+    Models(crate::scene::Format),
+}
+
+pub fn format_of(path: &Path) -> Option<TrajFormat> {
+    let ext = path.extension()?.to_str()?.to_ascii_lowercase();
+    Some(match ext.as_str() {
+        "xtc" => TrajFormat::Xtc,
+        "trr" => TrajFormat::Trr,
+        "dcd" => TrajFormat::Dcd,
+        "lammpstrj" | "dump" => TrajFormat::Lammps,
+        _ => match crate::scene::format_of(path)? {
+            (_, true) => return None, // gzip has no random access
+            (f, false) => TrajFormat::Models(f),
+        },
+    })
+}
+
+/// Opens a trajectory and builds its frame index.
+pub fn open(path: &Path) -> Result<Box<dyn Reader>, TrajError> {
+    let name = path.display().to_string();
+    let format = format_of(path).ok_or_else(|| {
+        TrajError::Invalid(format!(
+            "{name}: not a trajectory (expected .xtc, .trr, .dcd, .lammpstrj/.dump, or an \
+             uncompressed multi-model .pdb/.cif or multi-frame .gro/.xyz)"
+        ))
+    })?;
+    let io = |source| TrajError::Io {
+        path: name.clone(),
+        source,
+    };
+    if path.is_dir() {
+        return Err(io(std::io::Error::other("is a directory")));
+    }
+    Ok(match format {
+        TrajFormat::Xtc => Box::new(xtc::Xtc::open(path)?),
+        TrajFormat::Trr => Box::new(trr::Trr::open(path)?),
+        TrajFormat::Dcd => Box::new(dcd::Dcd::open(path)?),
+        TrajFormat::Lammps => Box::new(models::Models::open(path, models::Kind::Lammps)?),
+        TrajFormat::Models(f) => Box::new(models::Models::open(path, models::Kind::Scene(f))?),
+    })
+}
+
+/// `--frames A:B:S`: 0-based, B exclusive, any part may be empty; negative
+/// A or B count from the end (Python slices).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FrameRange {
+    pub start: Option<i64>,
+    pub stop: Option<i64>,
+    pub step: i64,
+}
+
+impl Default for FrameRange {
+    fn default() -> Self {
+        FrameRange {
+            start: None,
+            stop: None,
+            step: 1,
+        }
+    }
+}
+
+impl std::str::FromStr for FrameRange {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        let bad = || format!("'{s}': expected A:B:S (0-based, B exclusive, parts may be empty)");
+        let parts: Vec<&str> = s.split(':').collect();
+        if parts.is_empty() || parts.len() > 3 {
+            return Err(bad());
+        }
+        let num = |p: &str| -> Result<Option<i64>, String> {
+            let p = p.trim();
+            if p.is_empty() {
+                Ok(None)
+            } else {
+                p.parse::<i64>().map(Some).map_err(|_| bad())
+            }
+        };
+        let start = num(parts[0])?;
+        if parts.len() == 1 {
+            // a single frame index
+            let k = start.ok_or_else(bad)?;
+            return Ok(FrameRange {
+                start: Some(k),
+                stop: Some(if k == -1 { i64::MAX } else { k + 1 }),
+                step: 1,
+            });
+        }
+        let stop = num(parts[1])?;
+        let step = match parts.get(2) {
+            Some(p) => num(p)?.unwrap_or(1),
+            None => 1,
+        };
+        if step <= 0 {
+            return Err(format!("'{s}': the step must be at least 1"));
+        }
+        Ok(FrameRange { start, stop, step })
+    }
+}
+
+impl std::fmt::Display for FrameRange {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let o = |v: Option<i64>| v.map(|v| v.to_string()).unwrap_or_default();
+        write!(f, "{}:{}:{}", o(self.start), o(self.stop), self.step)
+    }
+}
+
+impl FrameRange {
+    /// The frame indices of a trajectory of `n` frames.
+    pub fn indices(&self, n: usize) -> Vec<usize> {
+        let n = n as i64;
+        let resolve = |v: i64| if v < 0 { (n + v).max(0) } else { v.min(n) };
+        let a = self.start.map_or(0, resolve);
+        let b = self
+            .stop
+            .map_or(n, |v| if v == i64::MAX { n } else { resolve(v) });
+        (a..b)
+            .step_by(self.step as usize)
+            .map(|k| k as usize)
+            .collect()
+    }
+}
+
+/// Runs a decoder that may panic on corrupt data (third-party code),
+/// turning a panic into an error without printing it.
+pub(crate) fn guarded<T>(f: impl FnOnce() -> std::io::Result<T>) -> std::io::Result<T> {
+    quiet_panics::install();
+    quiet_panics::QUIET.with(|q| q.set(true));
+    let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(f));
+    quiet_panics::QUIET.with(|q| q.set(false));
+    match r {
+        Ok(r) => r,
+        Err(p) => {
+            let msg = p
+                .downcast_ref::<String>()
+                .cloned()
+                .or_else(|| p.downcast_ref::<&str>().map(|s| s.to_string()))
+                .unwrap_or_else(|| "decoder failed".into());
+            Err(std::io::Error::new(
+                std::io::ErrorKind::InvalidData,
+                format!("corrupt data ({})", msg.lines().next().unwrap_or("")),
+            ))
+        }
+    }
+}
+
+mod quiet_panics {
+    use std::cell::Cell;
+    use std::sync::Once;
+
+    thread_local! {
+        pub static QUIET: Cell<bool> = const { Cell::new(false) };
+    }
+
+    /// A panic hook that stays silent while a guarded decoder runs on this
+    /// thread and defers to the previous hook otherwise.
+    pub fn install() {
+        static ONCE: Once = Once::new();
+        ONCE.call_once(|| {
+            let previous = std::panic::take_hook();
+            std::panic::set_hook(Box::new(move |info| {
+                if !QUIET.with(|q| q.get()) {
+                    previous(info);
+                }
+            }));
+        });
+    }
+}
+
+/// Big-endian XDR reading for XTC/TRR headers.
+pub(crate) mod xdr {
+    use std::io::Read;
+
+    pub fn i32(r: &mut impl Read) -> std::io::Result<i32> {
+        let mut b = [0u8; 4];
+        r.read_exact(&mut b)?;
+        Ok(i32::from_be_bytes(b))
+    }
+    pub fn f32(r: &mut impl Read) -> std::io::Result<f32> {
+        let mut b = [0u8; 4];
+        r.read_exact(&mut b)?;
+        Ok(f32::from_be_bytes(b))
+    }
+    pub fn f64(r: &mut impl Read) -> std::io::Result<f64> {
+        let mut b = [0u8; 8];
+        r.read_exact(&mut b)?;
+        Ok(f64::from_be_bytes(b))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn frame_ranges_slice_like_python() {
+        let r = |s: &str| s.parse::<FrameRange>().unwrap().indices(10);
+        assert_eq!(r(":"), (0..10).collect::<Vec<_>>());
+        assert_eq!(r("::3"), vec![0, 3, 6, 9]);
+        assert_eq!(r("5:"), vec![5, 6, 7, 8, 9]);
+        assert_eq!(r("2:5"), vec![2, 3, 4]);
+        assert_eq!(r("-3:"), vec![7, 8, 9]);
+        assert_eq!(r(":-8"), vec![0, 1]);
+        assert_eq!(r("4"), vec![4]);
+        assert_eq!(r("-1"), vec![9]);
+        assert_eq!(r("8:20"), vec![8, 9]);
+        assert!(r("7:3").is_empty());
+        assert!(r("20:").is_empty());
+        assert!(r("-20:2").len() == 2);
+        for bad in ["a:b", "1:2:0", "1:2:-1", "1:2:3:4", ""] {
+            assert!(bad.parse::<FrameRange>().is_err(), "{bad}");
+        }
+        assert_eq!("::10".parse::<FrameRange>().unwrap().to_string(), "::10");
+    }
+
+    #[test]
+    fn guarded_turns_panics_into_errors_quietly() {
+        let e = guarded::<()>(|| panic!("index out of bounds")).unwrap_err();
+        assert!(e.to_string().contains("corrupt data"), "{e}");
+        assert_eq!(guarded(|| Ok(3)).unwrap(), 3);
+    }
+}
