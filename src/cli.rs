@@ -46,15 +46,39 @@ pub struct RenderArgs {
     /// What --out holds.
     #[arg(long, value_enum, default_value = "color")]
     pub aov: Aov,
-    /// The PNG to write (written atomically: never a partial file).
+    /// The PNG to write (written atomically: never a partial file); with
+    /// --trajectory a pattern with %d or %05d, replaced by the frame index.
     #[arg(long)]
-    pub out: PathBuf,
+    pub out: Option<PathBuf>,
     /// Also write the run's stats (per-pass ms, memory, image hash) as JSON.
     #[arg(long)]
     pub json: Option<PathBuf>,
-    /// Measured frames (timings are median/min/max over them).
-    #[arg(long, default_value_t = 1)]
-    pub frames: u32,
+    /// Measured frames (timings are median/min/max over them); with
+    /// --trajectory the frames to render, A:B:S (0-based, B exclusive, any
+    /// part may be empty, e.g. `::10`, `5:`; default all).
+    #[arg(long, allow_hyphen_values = true)]
+    pub frames: Option<String>,
+    /// A trajectory for the INPUT topology: .xtc .trr .dcd .lammpstrj/.dump,
+    /// or a multi-model .pdb/.cif, multi-frame .gro/.xyz.
+    #[arg(long)]
+    pub trajectory: Option<PathBuf>,
+    /// With --trajectory: also (or only) write an H.264 movie through ffmpeg.
+    #[arg(long)]
+    pub movie: Option<PathBuf>,
+    /// Movie frame rate.
+    #[arg(long, default_value_t = 30.0)]
+    pub fps: f64,
+    /// With --trajectory: fit the camera to the first rendered frame and keep
+    /// it (`first`), or refit every frame (`each`).
+    #[arg(long, default_value = "first", value_parser = ["first", "each"])]
+    pub camera: String,
+    /// With --trajectory: rotate the camera DEG per frame about its up axis.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub orbit: f64,
+    /// Periodic boundaries of trajectory frames: keep, wrap atoms into the
+    /// cell, or make each residue whole.
+    #[arg(long, value_enum, default_value = "keep")]
+    pub pbc: crate::traj::Pbc,
     /// Frames rendered (and not measured) before the measured ones.
     #[arg(long, default_value_t = 0)]
     pub warmup: u32,
@@ -109,10 +133,35 @@ fn info(device: Option<usize>) -> Result<Exit> {
 }
 
 fn render(args: RenderArgs) -> Result<Exit> {
+    if args.trajectory.is_some() {
+        return render_trajectory(args);
+    }
+    for (set, flag) in [
+        (args.movie.is_some(), "--movie"),
+        (args.camera != "first", "--camera"),
+        (args.orbit != 0.0, "--orbit"),
+        (args.pbc != crate::traj::Pbc::Keep, "--pbc"),
+    ] {
+        if set {
+            return Err(Error::Input(format!("{flag} applies to --trajectory runs")));
+        }
+    }
+    let out = args
+        .out
+        .clone()
+        .ok_or_else(|| Error::Input("render needs --out FILE.png".into()))?;
+    let frames: u32 = match args.frames.as_deref() {
+        None => 1,
+        Some(s) => s.parse().map_err(|_| {
+            Error::Input(format!(
+                "--frames {s}: expected a number of measured frames (A:B:S ranges need --trajectory)"
+            ))
+        })?,
+    };
     // Every output checked before any work (and none aliasing another).
     let mut outs = vec![output::OutFile {
         flag: "--out",
-        path: &args.out,
+        path: &out,
         extensions: &["png"],
     }];
     if let Some(j) = &args.json {
@@ -123,7 +172,7 @@ fn render(args: RenderArgs) -> Result<Exit> {
         });
     }
     output::check_outputs(&outs)?;
-    run::check_frames(args.frames)?;
+    run::check_frames(frames)?;
     let (scene, load_ms) = run::load_scene(&args.scene)?;
     let settings = args.options.resolve(&args.axes, &scene)?;
     let ctx = run::context_for(&args.options)?;
@@ -135,14 +184,14 @@ fn render(args: RenderArgs) -> Result<Exit> {
         settings,
         args.aov,
         args.warmup,
-        args.frames,
+        frames,
         load_ms,
     )?;
     let mut stats = outcome.stats;
     // Tear the device down first so leak reports are counted too.
     let (n, _) = ctx.finish();
     stats.validation_messages = n;
-    outcome.image.save_png(&args.out)?;
+    outcome.image.save_png(&out)?;
     if let Some(j) = &args.json {
         output::write_json(j, &stats)?;
     }
@@ -154,8 +203,56 @@ fn render(args: RenderArgs) -> Result<Exit> {
         stats.height,
         stats.total_ms.median,
         stats.frames,
-        output::shown(&args.out)
+        output::shown(&out)
     );
+    Ok(if n > 0 {
+        Exit::ValidationMessages(n)
+    } else {
+        Exit::Ok
+    })
+}
+
+/// `render TOPOLOGY --trajectory TRAJ ...` (see `movie`).
+fn render_trajectory(args: RenderArgs) -> Result<Exit> {
+    let Some(traj_path) = args.trajectory.as_deref() else {
+        return Err(Error::Internal("no trajectory".into()));
+    };
+    if args.scene.input.is_none() {
+        return Err(Error::Input(
+            "--trajectory needs a topology INPUT (a structure file with the same atoms)".into(),
+        ));
+    }
+    if args.scene.assembly.is_some() || args.scene.replicate.is_some() {
+        return Err(Error::Input(
+            "--assembly and --replicate do not apply to trajectories".into(),
+        ));
+    }
+    let range: crate::traj::FrameRange = match args.frames.as_deref() {
+        None => Default::default(),
+        Some(s) => s
+            .parse()
+            .map_err(|e: String| Error::Input(format!("--frames {e}")))?,
+    };
+    let m = crate::movie::MovieArgs {
+        trajectory: traj_path,
+        range,
+        out: args.out.as_deref(),
+        movie: args.movie.as_deref(),
+        fps: args.fps,
+        json: args.json.as_deref(),
+        camera_each: args.camera == "each",
+        orbit_deg: args.orbit,
+        pbc: args.pbc,
+        aov: args.aov,
+    };
+    crate::movie::check(&m)?;
+    let (scene, _) = run::load_scene(&args.scene)?;
+    let ctx = run::context_for(&args.options)?;
+    let input = run::input_name(&args.scene);
+    let resolve = |s: &crate::scene::Scene| args.options.resolve(&args.axes, s);
+    let done = crate::movie::render_trajectory(&ctx, &scene, &input, &m, &resolve)?;
+    let (n, _) = ctx.finish();
+    let _ = done;
     Ok(if n > 0 {
         Exit::ValidationMessages(n)
     } else {

@@ -14,6 +14,7 @@ pub mod camera;
 pub mod cli;
 pub mod error;
 pub mod gpu;
+pub mod movie;
 pub mod output;
 pub mod passes;
 pub mod reference;

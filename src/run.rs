@@ -324,7 +324,6 @@ pub fn render_run_with(
     let mut r = Renderer::new(ctx, scene, settings)?;
     let times = run_frames_with(&mut r, warmup, frames, before)?;
     let image = aov_image(&r, aov)?;
-    let (passes, total_ms) = output::summarize(&times);
     let light_cached = if cached && r.settings().shadows != ShadowMode::None {
         r.set_light_cache(true);
         // builds the structure the measured frames reuse
@@ -336,16 +335,32 @@ pub fn render_run_with(
     } else {
         None
     };
+    let mut stats = run_stats(ctx, &r, input, &times, load_ms, &image);
+    stats.light_cached = light_cached;
+    Ok(RunOutcome { stats, image })
+}
+
+/// The DESIGN.md stats record of frames `times` rendered by `r`, whose
+/// last image is `image`.
+pub fn run_stats(
+    ctx: &Context,
+    r: &Renderer,
+    input: &str,
+    times: &[PassTimes],
+    load_ms: f64,
+    image: &output::AovImage,
+) -> RunStats {
+    let (passes, total_ms) = output::summarize(times);
     let gpu_memory = r.memory_by_class();
     let s = r.settings();
-    let stats = RunStats {
+    RunStats {
         device: ctx.info.name.clone(),
         driver: ctx.info.driver.clone(),
         input: input.to_string(),
         spheres: r.sphere_count() as u64,
         width: s.camera.width,
         height: s.camera.height,
-        frames: frames.max(1),
+        frames: times.len().max(1) as u32,
         shadows: s.shadows.name(),
         ssdo: s.ssdo.name(),
         raster: s.raster.name(),
@@ -358,9 +373,8 @@ pub fn render_run_with(
         validation_messages: ctx.validation_messages(),
         deep: r.deep_stats(),
         image_sha256: image.sha256(),
-        light_cached,
-    };
-    Ok(RunOutcome { stats, image })
+        light_cached: None,
+    }
 }
 
 /// The input's name in the JSON: the file, or `scene:NAME`.

@@ -2,13 +2,14 @@
 # Installs the system packages sphereshade needs to build and test on a fresh
 # Debian 12 machine: lavapipe (CPU Vulkan), the Khronos validation layers,
 # glslang/spirv tools, cmake + a C++ compiler + python3 (shaderc is built from
-# source) and Xvfb for the windowed smoke test. Idempotent: packages already
+# source), Xvfb for the windowed smoke test and ffmpeg (trajectory movies,
+# `render --movie`, and its test). Idempotent: packages already
 # present are skipped by apt-get; nothing is installed when all are there.
 set -euo pipefail
 
 PKGS=(mesa-vulkan-drivers vulkan-validationlayers vulkan-tools glslang-tools
       spirv-tools libvulkan-dev xvfb xauth cmake g++ python3 pkg-config
-      libx11-dev libxkbcommon-dev libxkbcommon-x11-0 libwayland-dev)
+      libx11-dev libxkbcommon-dev libxkbcommon-x11-0 libwayland-dev ffmpeg)
 
 missing=()
 for p in "${PKGS[@]}"; do

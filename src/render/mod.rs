@@ -156,6 +156,8 @@ pub(crate) struct Resources {
     light_cached: bool,
     /// Reuse light-space structures while valid (`set_light_cache`).
     light_cache: bool,
+    /// Kept host-visible buffer for `set_positions`.
+    staging: Option<Buffer>,
 }
 
 /// Typical sphere radius (median of a sample) to scale screen-space effects.
@@ -172,6 +174,24 @@ fn typical_radius(scene: &Scene) -> f32 {
 }
 
 pub use crate::camera::default_camera;
+
+/// As `Scene::bounding_sphere`, from the GPU geometry.
+fn bounding_sphere(geom: &[GpuSphere]) -> (DVec3, f64) {
+    let Some(first) = geom.first() else {
+        return (DVec3::ZERO, 0.0);
+    };
+    let c0 = glam::Vec3::new(first[0], first[1], first[2]);
+    let (lo, hi) = geom.iter().fold((c0, c0), |(lo, hi), g| {
+        let c = glam::Vec3::new(g[0], g[1], g[2]);
+        (lo.min(c), hi.max(c))
+    });
+    let c = (lo + hi) * 0.5;
+    let r = geom
+        .iter()
+        .map(|g| glam::Vec3::new(g[0], g[1], g[2]).distance(c) + g[3])
+        .fold(0.0f32, f32::max);
+    (c.as_dvec3(), r as f64)
+}
 
 fn normalized(v: DVec3) -> [f32; 4] {
     // (validated directions; the fallback only keeps NaN off the GPU)
@@ -408,6 +428,7 @@ impl<'c> Renderer<'c> {
             ssdo: None,
             light_cached: false,
             light_cache: false,
+            staging: None,
         };
         // Without a hierarchy every sphere is its own region (semantic SSDO
         // then equals plain SSDO).
@@ -481,6 +502,56 @@ impl<'c> Renderer<'c> {
         let mut old = std::mem::replace(&mut self.res.targets, targets);
         old.destroy(self.ctx);
         self.settings.camera = cam;
+        self.res.globals.cam = cam.to_gpu(self.res.depth_offset(&cam));
+        self.res.update_light_view(&self.settings);
+        Ok(())
+    }
+
+    /// New sphere centres (a trajectory frame), in the scene's order: only
+    /// the positions are uploaded (through a kept staging buffer); the
+    /// bounds follow them and every light-space structure is rebuilt by
+    /// the next frame, since the spheres moved.
+    pub fn set_positions(&mut self, positions: &[[f32; 3]]) -> Result<()> {
+        if positions.len() != self.res.geom.len() {
+            return Err(Error::Input(format!(
+                "{} positions for {} spheres",
+                positions.len(),
+                self.res.geom.len()
+            )));
+        }
+        let limit = crate::scene::MAX_COORDINATE;
+        if let Some(i) = positions
+            .iter()
+            .position(|p| !p.iter().all(|c| c.is_finite() && c.abs() <= limit))
+        {
+            return Err(Error::Input(format!(
+                "position {i} ({:?}) is not finite or beyond ±{limit:e}",
+                positions[i]
+            )));
+        }
+        // Frames in flight read the sphere buffer.
+        self.wait_idle()?;
+        for (g, p) in self.res.geom.iter_mut().zip(positions) {
+            g[0] = p[0];
+            g[1] = p[1];
+            g[2] = p[2];
+        }
+        let Resources {
+            spheres,
+            geom,
+            staging,
+            ..
+        } = &mut self.res;
+        spheres.upload_with(self.ctx, bytemuck::cast_slice(geom.as_slice()), staging)?;
+        self.res.bounds = bounding_sphere(&self.res.geom);
+        self.res.light_cached = false;
+        for k in &mut self.res.techniques {
+            k.stale = true;
+        }
+        if let Some(i) = self.res.active {
+            self.refit(i)?;
+        }
+        let cam = self.settings.camera;
         self.res.globals.cam = cam.to_gpu(self.res.depth_offset(&cam));
         self.res.update_light_view(&self.settings);
         Ok(())
@@ -998,6 +1069,7 @@ impl Drop for Renderer<'_> {
         r.targets.destroy(ctx);
         r.spheres.destroy(ctx);
         r.attrs.destroy(ctx);
+        r.staging.destroy_with(ctx);
     }
 }
 

@@ -221,6 +221,54 @@ impl Buffer {
         result
     }
 
+    /// [`upload`](Self::upload) through a caller-kept host-visible
+    /// `staging` buffer (made or grown as needed): per-frame data such as
+    /// trajectory positions allocates nothing after the first frame.
+    pub fn upload_with(
+        &self,
+        ctx: &Context,
+        data: &[u8],
+        staging: &mut Option<Buffer>,
+    ) -> Result<()> {
+        if data.len() as u64 > self.size {
+            return Err(Error::Internal(format!(
+                "upload past the end of {}",
+                self.name
+            )));
+        }
+        if staging.as_ref().is_none_or(|s| s.size < data.len() as u64) {
+            if let Some(mut old) = staging.take() {
+                old.destroy(ctx);
+            }
+            *staging = Some(Buffer::new(
+                ctx,
+                &format!("{} staging", self.name),
+                data.len() as u64,
+                vk::BufferUsageFlags::TRANSFER_SRC,
+                MemoryLocation::CpuToGpu,
+            )?);
+        }
+        let st = staging
+            .as_mut()
+            .ok_or_else(|| Error::Internal("no staging buffer".into()))?;
+        let dst = st
+            .mapped_mut()
+            .ok_or_else(|| Error::Internal("staging buffer not mapped".into()))?;
+        dst[..data.len()].copy_from_slice(data);
+        let src = st.raw;
+        ctx.one_shot("upload", |cmd| {
+            let region = [vk::BufferCopy {
+                src_offset: 0,
+                dst_offset: 0,
+                size: data.len() as u64,
+            }];
+            // SAFETY: the command buffer is recording; both handles are live
+            // and the caller waited for frames that read the destination.
+            unsafe { ctx.device.cmd_copy_buffer(cmd, src, self.raw, &region) };
+            Ok(())
+        })
+    }
+
     /// Reads `len` bytes at `offset` back to the host (waits for the queue).
     pub fn download(&self, ctx: &Context, offset: u64, len: u64) -> Result<Vec<u8>> {
         if offset + len > self.size {

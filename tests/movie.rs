@@ -1,0 +1,312 @@
+//! `render TOPOLOGY --trajectory TRAJ`: frames to files through the real
+//! binary under validation. Frame k renders the id AOV an XYZR file of
+//! frame k's coordinates renders; `--frames` slices (negative, empty);
+//! disjoint ranges write exactly the files of one full run; JSON Lines;
+//! a cut trajectory renders the frames before the cut and names it;
+//! mismatched atom counts and a missing ffmpeg are refused before any work.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn data(name: &str) -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data/traj")
+        .join(name)
+        .display()
+        .to_string()
+}
+
+fn dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("sphereshade-movie-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn run(args: &[&str], path_env: Option<&str>) -> Output {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_sphereshade"));
+    c.env("XDG_RUNTIME_DIR", std::env::temp_dir()).args(args);
+    if let Some(p) = path_env {
+        c.env("PATH", p);
+    }
+    c.output().expect("run sphereshade")
+}
+
+fn ok(o: &Output) {
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+}
+
+/// The error: exit 1, and the last stderr line (progress lines may come
+/// before it when frames were rendered) is the one error line.
+fn err(o: &Output) -> String {
+    assert_eq!(
+        o.status.code(),
+        Some(1),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let e = String::from_utf8_lossy(&o.stderr).into_owned();
+    let last = e.lines().last().unwrap_or("").to_string();
+    assert!(last.starts_with("sphereshade: error: "), "{e}");
+    assert_eq!(e.matches("sphereshade: error").count(), 1, "{e}");
+    last
+}
+
+fn files(d: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(d)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    v.sort();
+    v
+}
+
+const SMALL: [&str; 6] = ["--width", "96", "--height", "72", "--validate", "--ssdo"];
+
+fn traj_args<'a>(top: &'a str, traj: &'a str, extra: &[&'a str]) -> Vec<&'a str> {
+    let mut a = vec!["render", top, "--trajectory", traj];
+    a.extend(SMALL);
+    a.push("plain");
+    a.extend(extra);
+    a
+}
+
+#[test]
+fn frame_k_renders_like_an_xyzr_of_its_coordinates() {
+    let d = dir("xyzr");
+    let (top, traj) = (data("adk_open.pdb"), data("adk_dims.dcd"));
+    let pattern = d.join("id_%02d.png");
+    // (one explicit camera for both: a trajectory's camera is fitted to
+    // its frame 0, the XYZR's to itself)
+    let cam = ["--view-center", "0,0,0", "--view-height", "90"];
+    let mut a = traj_args(
+        &top,
+        &traj,
+        &[
+            "--frames",
+            "40",
+            "--aov",
+            "id",
+            "--out",
+            pattern.to_str().unwrap(),
+        ],
+    );
+    a.extend(cam);
+    ok(&run(&a, None));
+    // frame 40's coordinates with the topology's radii, as .xyzr
+    let scene =
+        sphereshade::scene::load(Path::new(&top), &Default::default(), &mut |_, _| {}).unwrap();
+    let mut r = sphereshade::traj::open(Path::new(&traj)).unwrap();
+    let mut f = sphereshade::traj::Frame::default();
+    r.read(40, &mut f).unwrap();
+    let text: String = f
+        .positions
+        .iter()
+        .zip(&scene.spheres)
+        .map(|(p, s)| format!("{} {} {} {}\n", p[0], p[1], p[2], s.radius))
+        .collect();
+    let xyzr = d.join("frame40.xyzr");
+    std::fs::write(&xyzr, text).unwrap();
+    let single = d.join("single.png");
+    let mut a = vec!["render", xyzr.to_str().unwrap()];
+    a.extend(SMALL);
+    a.extend(["plain", "--aov", "id", "--out", single.to_str().unwrap()]);
+    a.extend(cam);
+    ok(&run(&a, None));
+    let (from_traj, from_file) = (
+        std::fs::read(d.join("id_40.png")).unwrap(),
+        std::fs::read(&single).unwrap(),
+    );
+    assert!(
+        from_traj == from_file,
+        "frame 40 of the DCD and its XYZR give different id images"
+    );
+    let _ = std::fs::remove_dir_all(&d);
+}
+
+#[test]
+fn ranges_split_across_runs_write_the_files_of_one_run() {
+    let (top, traj) = (data("adk_oplsaa.gro"), data("adk_oplsaa.xtc"));
+    let full = dir("full");
+    let split = dir("split");
+    let out = |d: &Path| d.join("f_%05d.png").display().to_string();
+    let fo = out(&full);
+    let json = full.join("stats.jsonl").display().to_string();
+    ok(&run(
+        &traj_args(&top, &traj, &["--out", &fo, "--json", &json]),
+        None,
+    ));
+    let so = out(&split);
+    for range in ["0:4", "4:"] {
+        ok(&run(
+            &traj_args(&top, &traj, &["--frames", range, "--out", &so]),
+            None,
+        ));
+    }
+    let names: Vec<String> = (0..10).map(|k| format!("f_{k:05}.png")).collect();
+    let mut want = names.clone();
+    want.push("stats.jsonl".into());
+    want.sort();
+    assert_eq!(files(&full), want);
+    assert_eq!(files(&split), names);
+    for n in &names {
+        assert!(
+            std::fs::read(full.join(n)).unwrap() == std::fs::read(split.join(n)).unwrap(),
+            "{n} differs between one run and two"
+        );
+    }
+    // JSON Lines: one render object per frame, with frame and time
+    let text = std::fs::read_to_string(full.join("stats.jsonl")).unwrap();
+    let lines: Vec<serde_json::Value> = text
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(lines.len(), 10);
+    for (k, v) in lines.iter().enumerate() {
+        assert_eq!(v["frame"], k);
+        let t = v["time_ps"].as_f64().unwrap();
+        assert!((t - 100.0 * k as f64).abs() < 1e-3, "frame {k}: time {t}");
+        assert_eq!(v["spheres"], 47681);
+        assert_eq!(v["validation_messages"], 0);
+        assert!(v["passes"].as_array().is_some_and(|p| !p.is_empty()));
+    }
+    // negative and stepped slices name the files by frame index
+    let neg = dir("neg");
+    ok(&run(
+        &traj_args(&top, &traj, &["--frames", "-3::2", "--out", &out(&neg)]),
+        None,
+    ));
+    assert_eq!(files(&neg), vec!["f_00007.png", "f_00009.png"]);
+    // an empty selection is refused
+    let e = err(&run(
+        &traj_args(&top, &traj, &["--frames", "5:2", "--out", &out(&neg)]),
+        None,
+    ));
+    assert!(
+        e.contains("selects no frame") && e.contains("10 frame"),
+        "{e}"
+    );
+    let e = err(&run(
+        &traj_args(&top, &traj, &["--frames", "1:2:0", "--out", &out(&neg)]),
+        None,
+    ));
+    assert!(e.contains("step must be at least 1"), "{e}");
+    for d in [full, split, neg] {
+        let _ = std::fs::remove_dir_all(&d);
+    }
+}
+
+#[test]
+fn refusals_before_any_work_and_a_cut_trajectory() {
+    let d = dir("refuse");
+    let out = d.join("f_%d.png").display().to_string();
+    // atom counts differ: both files and counts named
+    let e = err(&run(
+        &traj_args(
+            &data("adk_open.pdb"),
+            &data("adk_oplsaa.xtc"),
+            &["--out", &out],
+        ),
+        None,
+    ));
+    assert!(
+        e.contains("3341") && e.contains("47681") && e.contains("adk_oplsaa.xtc"),
+        "{e}"
+    );
+    // --movie without ffmpeg on PATH
+    let movie = d.join("m.mp4").display().to_string();
+    let e = err(&run(
+        &traj_args(
+            &data("adk_oplsaa.gro"),
+            &data("adk_oplsaa.xtc"),
+            &["--movie", &movie],
+        ),
+        Some("/nonexistent"),
+    ));
+    assert!(e.contains("--movie needs ffmpeg"), "{e}");
+    // an output name without the frame index
+    let e = err(&run(
+        &traj_args(
+            &data("adk_oplsaa.gro"),
+            &data("adk_oplsaa.xtc"),
+            &["--out", d.join("x.png").to_str().unwrap()],
+        ),
+        None,
+    ));
+    assert!(e.contains("%d"), "{e}");
+    assert!(files(&d).is_empty(), "{:?}", files(&d));
+    // cut inside frame 6: frames 0-5 are rendered, then one line naming
+    // the file, the frame and its byte offset, exit 1
+    let bytes = std::fs::read(data("adk_oplsaa.xtc")).unwrap();
+    let cut = d.join("cut.xtc");
+    std::fs::write(&cut, &bytes[..bytes.len() * 65 / 100]).unwrap();
+    let e = err(&run(
+        &traj_args(
+            &data("adk_oplsaa.gro"),
+            cut.to_str().unwrap(),
+            &["--out", &out],
+        ),
+        None,
+    ));
+    assert!(
+        e.contains("cut.xtc: frame 6 at byte") && e.contains("6 frames before it"),
+        "{e}"
+    );
+    let pngs: Vec<String> = files(&d)
+        .into_iter()
+        .filter(|f| f.ends_with(".png"))
+        .collect();
+    assert_eq!(
+        pngs,
+        (0..6).map(|k| format!("f_{k}.png")).collect::<Vec<_>>()
+    );
+    let _ = std::fs::remove_dir_all(&d);
+}
+
+#[test]
+fn a_movie_through_ffmpeg() {
+    if Command::new("ffmpeg").arg("-version").output().is_err() {
+        panic!("ffmpeg is missing: run tools/setup.sh");
+    }
+    let d = dir("mp4");
+    let movie = d.join("adk.mp4");
+    ok(&run(
+        &traj_args(
+            &data("adk_oplsaa.gro"),
+            &data("adk_oplsaa.xtc"),
+            &[
+                "--frames",
+                "::3",
+                "--movie",
+                movie.to_str().unwrap(),
+                "--fps",
+                "10",
+                "--orbit",
+                "5",
+            ],
+        ),
+        None,
+    ));
+    let probe = Command::new("ffprobe")
+        .args([
+            "-v",
+            "error",
+            "-count_frames",
+            "-show_entries",
+            "stream=width,height,nb_read_frames,codec_name",
+            "-of",
+            "csv=p=0",
+        ])
+        .arg(&movie)
+        .output()
+        .expect("ffprobe");
+    let info = String::from_utf8_lossy(&probe.stdout).trim().to_string();
+    assert_eq!(info, "h264,96,72,4", "{info}");
+    assert_eq!(files(&d), vec!["adk.mp4"]);
+    let _ = std::fs::remove_dir_all(&d);
+}
