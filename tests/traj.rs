@@ -376,3 +376,63 @@ fn cut_files_keep_their_earlier_frames_and_say_where() {
         }
     }
 }
+
+/// adk_oplsaa is a rhombic dodecahedron whose raw XTC coordinates split
+/// molecules across the boundary: `whole` joins every residue, `wrap`
+/// puts every atom inside the cell.
+#[test]
+fn pbc_whole_joins_the_split_residues_of_adk() {
+    let topo =
+        sphereshade::scene::load(&data("adk_oplsaa.gro"), &Default::default(), &mut |_, _| {})
+            .unwrap();
+    let residues: Vec<u32> = topo.spheres.iter().map(|s| s.region[2]).collect();
+    let mut r = traj::open(&data("adk_oplsaa.xtc")).unwrap();
+    let f = frame(r.as_mut(), 9);
+    let cell = f.cell.unwrap();
+    // largest extent of any residue (Å)
+    let extent = |p: &[[f32; 3]]| -> (f32, usize) {
+        let mut by: std::collections::HashMap<u32, ([f32; 3], [f32; 3])> = Default::default();
+        for (q, &res) in p.iter().zip(&residues) {
+            let e = by.entry(res).or_insert((*q, *q));
+            for (k, &v) in q.iter().enumerate() {
+                e.0[k] = e.0[k].min(v);
+                e.1[k] = e.1[k].max(v);
+            }
+        }
+        let big = by
+            .values()
+            .filter(|(lo, hi)| (0..3).any(|k| hi[k] - lo[k] > 20.0))
+            .count();
+        let worst = by
+            .values()
+            .map(|(lo, hi)| (0..3).map(|k| hi[k] - lo[k]).fold(0.0f32, f32::max))
+            .fold(0.0f32, f32::max);
+        (worst, big)
+    };
+    let (raw_worst, raw_split) = extent(&f.positions);
+    let mut whole = f.positions.clone();
+    traj::apply_pbc(traj::Pbc::Whole, &mut whole, Some(&cell), &residues);
+    let (w_worst, w_split) = extent(&whole);
+    // the protein is one residue per amino acid: the biggest residue
+    // (a water, an ion or an amino acid) spans a few Å
+    eprintln!(
+        "residues over 20 Å: raw {raw_split} (widest {raw_worst:.1} Å), whole {w_split} (widest {w_worst:.1} Å)"
+    );
+    assert!(
+        raw_split >= 3 && raw_worst > 60.0,
+        "the raw frame should have split molecules ({raw_split})"
+    );
+    assert_eq!(w_split, 0, "whole left {w_split} residues split");
+    let mut wrapped = f.positions.clone();
+    traj::apply_pbc(traj::Pbc::Wrap, &mut wrapped, Some(&cell), &residues);
+    // inside: fractional coordinates in [0, 1) (the cell is lower triangular)
+    let (a, b, c) = (cell[0], cell[1], cell[2]);
+    for p in &wrapped {
+        let fz = p[2] as f64 / c[2];
+        let fy = (p[1] as f64 - fz * c[1]) / b[1];
+        let fx = (p[0] as f64 - fz * c[0] - fy * b[0]) / a[0];
+        for v in [fx, fy, fz] {
+            assert!((-1e-4..1.0 + 1e-4).contains(&v), "{p:?} -> {fx} {fy} {fz}");
+        }
+    }
+}

@@ -173,3 +173,54 @@ fn view_toggles_every_mode_and_drags_the_light_without_rebuilding() {
         100.0 - pct
     );
 }
+
+/// `view TOP --trajectory TRAJ` plays frames from its reader thread under
+/// validation: 20 window frames advance through the 10-frame XTC (looping),
+/// with no validation message (exit 0 under --validate) and a screenshot.
+#[test]
+fn view_plays_a_trajectory() {
+    let dir = std::env::temp_dir().join(format!("sphereshade-view-traj-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let shot = dir.join("traj.png");
+    let traj = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/traj/");
+    let (top, xtc) = (
+        format!("{traj}adk_oplsaa.gro"),
+        format!("{traj}adk_oplsaa.xtc"),
+    );
+    let o = Command::new("xvfb-run")
+        .args(["-a", "-s", "-screen 0 1024x768x24"])
+        .arg(env!("CARGO_BIN_EXE_sphereshade"))
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+        .args([
+            "view",
+            &top,
+            "--trajectory",
+            &xtc,
+            "--width",
+            "160",
+            "--height",
+            "120",
+        ])
+        .args([
+            "--frames",
+            "20",
+            "--validate",
+            "--ssdo",
+            "off",
+            "--screenshot",
+        ])
+        .arg(&shot)
+        .output()
+        .expect("run xvfb-run");
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert_eq!(o.status.code(), Some(0), "view failed: {err}");
+    let played = err
+        .lines()
+        .find_map(|l| l.strip_prefix("view: played "))
+        .unwrap_or_else(|| panic!("no playback report: {err}"));
+    let n: u64 = played.split_whitespace().next().unwrap().parse().unwrap();
+    assert!(n >= 10, "only {n} trajectory frames shown: {played}");
+    assert!(!err.contains("validation message"), "{err}");
+    assert!(shot.exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}

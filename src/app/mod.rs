@@ -4,6 +4,7 @@
 //! it a headless-friendly smoke test (Xvfb), `--resize-test` resizes the
 //! window half-way through.
 
+mod player;
 mod swapchain;
 
 use crate::error::{Error, Result};
@@ -51,6 +52,13 @@ pub struct ViewCmd {
     /// key through all its states and drags the light 8 steps.
     #[arg(long, value_parser = ["toggle-all"])]
     pub script: Option<String>,
+    /// Play a trajectory of the INPUT topology (space play/pause, left/right
+    /// step, [ ] slower/faster, L loop).
+    #[arg(long)]
+    pub trajectory: Option<PathBuf>,
+    /// Periodic boundaries of trajectory frames: keep, wrap, whole.
+    #[arg(long, value_enum, default_value = "keep")]
+    pub pbc: crate::traj::Pbc,
 }
 
 /// One scripted input action.
@@ -80,7 +88,7 @@ fn script(name: &str) -> Vec<Action> {
 
 pub const HELP: &str = "controls: left drag orbit | right/middle drag pan | wheel zoom | shift+drag light | \
 S shadows (none/issm/issm-soft/deep/sm-pcf/osm) | O ssdo (off/plain/semantic) | B blur | +/- opacity | R reset camera | \
-P screenshot | H help | Esc quit";
+P screenshot | H help | Esc quit | with --trajectory: space play/pause, left/right step, [ ] slower/faster, L loop";
 
 /// Camera parameters the controls change.
 #[derive(Clone, Copy, Debug)]
@@ -130,6 +138,7 @@ struct App<'c> {
     /// Seconds spent in mode toggles and light-drag steps (handler only).
     toggle_times: Vec<f64>,
     drag_times: Vec<f64>,
+    player: Option<player::Player>,
 }
 
 /// The next value of a mode in its declaration order (wrapping): S and O
@@ -211,8 +220,13 @@ impl<'c> App<'c> {
         let passes: Vec<String> = times.iter().map(|(n, t)| format!("{n} {t:.1}")).collect();
         let Some(r) = &self.renderer else { return };
         let (n, s) = (r.sphere_count(), r.settings());
+        let playing = self
+            .player
+            .as_ref()
+            .map(|p| format!("{} | ", p.status()))
+            .unwrap_or_default();
         win.set_title(&format!(
-            "sphereshade | {n} spheres | {fps:.1} fps | gpu {gpu:.1} ms | shadows {} ssdo {} blur {} opacity {:.2} | {} | H help",
+            "sphereshade | {playing}{n} spheres | {fps:.1} fps | gpu {gpu:.1} ms | shadows {} ssdo {} blur {} opacity {:.2} | {} | H help",
             s.shadows.name(),
             s.ssdo.name(),
             if s.blur { "on" } else { "off" },
@@ -269,6 +283,19 @@ impl<'c> App<'c> {
                 started.elapsed().as_secs_f64() * 1e3,
                 r.sphere_count()
             );
+            if let Some(t) = &self.cmd.trajectory {
+                let residues: Vec<u32> = if scene.level_names.len() >= 3 {
+                    scene.spheres.iter().map(|s| s.region[2]).collect()
+                } else {
+                    (0..scene.spheres.len() as u32).collect()
+                };
+                self.player = Some(player::Player::open(
+                    t,
+                    scene.spheres.len(),
+                    self.cmd.pbc,
+                    residues,
+                )?);
+            }
             self.renderer = Some(r);
             self.loading = Loading::Done;
             drop(scene);
@@ -282,6 +309,13 @@ impl<'c> App<'c> {
         let Some(r) = &mut self.renderer else {
             return Ok(());
         };
+        // A trajectory frame that arrived replaces the positions (smoke runs
+        // with --frames step at once, so N frames play N trajectory frames).
+        if let Some(p) = &mut self.player
+            && let Some(f) = p.poll(self.cmd.frames.is_some())?
+        {
+            r.set_positions(&f.positions)?;
+        }
         // At most two frames in flight: this returns the timings of the frame
         // submitted two calls ago (already done), never stalling on this one.
         let times = r.render_frame_pipelined()?.unwrap_or_default();
@@ -349,6 +383,22 @@ impl<'c> App<'c> {
     }
 
     fn key(&mut self, key: &Key) -> Result<()> {
+        if let Some(p) = &mut self.player {
+            match key.as_ref() {
+                Key::Named(NamedKey::Space) => p.toggle_play(),
+                Key::Named(NamedKey::ArrowLeft) => p.step(-1),
+                Key::Named(NamedKey::ArrowRight) => p.step(1),
+                Key::Character("[") => p.faster(0.5),
+                Key::Character("]") => p.faster(2.0),
+                Key::Character("l" | "L") => p.looping = !p.looping,
+                _ => return self.mode_key(key),
+            }
+            return Ok(());
+        }
+        self.mode_key(key)
+    }
+
+    fn mode_key(&mut self, key: &Key) -> Result<()> {
         let Some(r) = &mut self.renderer else {
             return Ok(());
         };
@@ -623,8 +673,15 @@ pub fn run(cmd: ViewCmd) -> Result<Exit> {
         actions,
         toggle_times: Vec::new(),
         drag_times: Vec::new(),
+        player: None,
     };
     let ran = event_loop.run_app(&mut app);
+    if let Some(p) = &app.player {
+        eprintln!(
+            "view: played {} trajectory frame(s) of {} (last shown: frame {})",
+            p.shown, p.n, p.current
+        );
+    }
     let mean_ms = |v: &[f64]| 1e3 * v.iter().sum::<f64>() / v.len().max(1) as f64;
     if !app.toggle_times.is_empty() || !app.drag_times.is_empty() {
         eprintln!(
