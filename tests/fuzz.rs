@@ -304,3 +304,91 @@ fn mutated_inputs_never_panic_hang_or_load_garbage() {
     );
     assert!(rss < 512 * 1024, "peak RSS {} MiB", rss / 1024);
 }
+
+/// The trajectory readers under the same mutations (written to files:
+/// they seek): no panic escapes (molly's decoder panics are guarded), no
+/// case hangs, every error is one line.
+#[test]
+fn mutated_trajectories_never_panic() {
+    let per_format: usize = std::env::var("FUZZ_CASES")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .map_or(400, |n: usize| n / 10)
+        .max(50);
+    let dir = std::env::temp_dir().join(format!("sphereshade-fuzz-traj-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let data = |f: &str| {
+        std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/traj/").to_string() + f)
+            .unwrap()
+    };
+    // Two frames of each binary format (small), the whole LAMMPS dump.
+    let xtc = data("adk_oplsaa.xtc");
+    let trr = data("adk_oplsaa.trr");
+    let dcd = data("adk_dims.dcd");
+    let seeds: Vec<(&str, Vec<u8>)> = vec![
+        ("xtc", xtc[..xtc.len() / 5].to_vec()),
+        ("trr", trr[..trr.len() / 5].to_vec()),
+        ("dcd", dcd[..dcd.len() / 40].to_vec()),
+        ("lammpstrj", data("image_vf.lammpstrj")),
+    ];
+    let mut rng = Rng(0xD1CE_0F5E_ED00_0001);
+    let started = Instant::now();
+    let (mut total, mut opened, mut frames_read) = (0usize, 0usize, 0usize);
+    for (ext, seed) in seeds {
+        let path = dir.join(format!("m.{ext}"));
+        for case in 0..per_format {
+            // byte-level mutations only for binary formats (line splices
+            // would mostly make them unreadable at frame 0)
+            let input = mutate(&seed, &mut rng);
+            std::fs::write(&path, &input).unwrap();
+            let t = Instant::now();
+            let r = std::panic::catch_unwind(|| -> (bool, usize, Vec<String>) {
+                let mut errors = Vec::new();
+                let mut n = 0;
+                match sphereshade::traj::open(&path) {
+                    Err(e) => {
+                        errors.push(e.to_string());
+                        (false, 0, errors)
+                    }
+                    Ok(mut r) => {
+                        let mut f = sphereshade::traj::Frame::default();
+                        for k in 0..r.frames() {
+                            match r.read(k, &mut f) {
+                                Ok(()) => n += 1,
+                                Err(e) => errors.push(e.to_string()),
+                            }
+                        }
+                        (true, n, errors)
+                    }
+                }
+            });
+            total += 1;
+            let (ok, n, errors) = r.unwrap_or_else(|_| {
+                let keep = dir.join(format!("panic-{case}.{ext}"));
+                std::fs::write(&keep, &input).unwrap();
+                panic!(
+                    "{ext} case {case}: panic (input kept at {})",
+                    keep.display()
+                )
+            });
+            opened += ok as usize;
+            frames_read += n;
+            for e in errors {
+                assert!(
+                    !e.is_empty() && e.lines().count() == 1,
+                    "{ext} {case}: {e:?}"
+                );
+            }
+            assert!(
+                t.elapsed() < Duration::from_secs(5),
+                "{ext} case {case}: {:?}",
+                t.elapsed()
+            );
+        }
+    }
+    eprintln!(
+        "trajectory fuzz: {total} cases in {:.1} s, {opened} opened, {frames_read} frames read",
+        started.elapsed().as_secs_f64()
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
