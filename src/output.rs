@@ -29,15 +29,25 @@ impl AovImage {
         format!("{:x}", h.finalize())
     }
 
+    /// The PNG file's bytes (the one encoder every output goes through).
+    pub fn png_bytes(&self) -> Result<Vec<u8>> {
+        let mut out = std::io::Cursor::new(Vec::new());
+        let f = image::ImageFormat::Png;
+        match self {
+            AovImage::Rgba8(i) => i.write_to(&mut out, f),
+            AovImage::Gray16(i) => i.write_to(&mut out, f),
+            AovImage::Gray8(i) => i.write_to(&mut out, f),
+        }
+        .map_err(|e| Error::Internal(format!("PNG encoding: {e}")))?;
+        Ok(out.into_inner())
+    }
+
     /// Writes a PNG atomically ([`write_atomic`]).
     pub fn save_png(&self, path: &Path) -> Result<()> {
+        let bytes = self.png_bytes()?;
         write_atomic(path, |tmp| {
-            let saved = match self {
-                AovImage::Rgba8(i) => i.save_with_format(tmp, image::ImageFormat::Png),
-                AovImage::Gray16(i) => i.save_with_format(tmp, image::ImageFormat::Png),
-                AovImage::Gray8(i) => i.save_with_format(tmp, image::ImageFormat::Png),
-            };
-            saved.map_err(|e| Error::Input(format!("{}: cannot write PNG: {e}", shown(path))))
+            std::fs::write(tmp, &bytes)
+                .map_err(|e| Error::Input(format!("{}: cannot write PNG: {e}", shown(path))))
         })
     }
 }

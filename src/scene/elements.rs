@@ -128,6 +128,10 @@ pub struct Element(u8); // atomic number, 0 = unknown
 
 impl Element {
     pub const UNKNOWN: Element = Element(0);
+    /// A water model's massless site (TIP4P `MW`, TIP5P `LP1`/`LP2`): kept,
+    /// so atom counts match trajectories, but with a radius of 0.1 Å it sits
+    /// unseen inside its oxygen instead of showing as a 1.7 Å unknown atom.
+    pub const VIRTUAL: Element = Element(255);
     pub const H: Element = Element(1);
     pub const B: Element = Element(5);
     pub const C: Element = Element(6);
@@ -164,16 +168,25 @@ impl Element {
 
     /// Symbol with conventional capitalisation ("C", "Cl"); "X" if unknown.
     pub fn symbol(self) -> &'static str {
+        if self == Element::VIRTUAL {
+            return "VS";
+        }
         self.info().map_or("X", |i| i.symbol)
     }
 
     /// Van der Waals radius in Å.
     pub fn radius(self) -> f32 {
+        if self == Element::VIRTUAL {
+            return 0.1;
+        }
         self.info().map_or(UNKNOWN_RADIUS, |i| i.radius)
     }
 
     /// CPK colour, RGBA with A = 255.
     pub fn color(self) -> [u8; 4] {
+        if self == Element::VIRTUAL {
+            return Element::O.color();
+        }
         self.info().map_or(UNKNOWN_COLOR, |i| {
             [(i.rgb >> 16) as u8, (i.rgb >> 8) as u8, i.rgb as u8, 0xFF]
         })
@@ -245,6 +258,9 @@ fn special_name(name: &[u8]) -> Option<Element> {
         b"ZN2" => Element::ZN,
         b"MG2" => Element::MG,
         b"OH2" | b"OW" => Element::O,
+        b"MW" | b"MW1" | b"MW2" | b"LP" | b"LP1" | b"LP2" | b"EP" | b"EP1" | b"EP2" => {
+            Element::VIRTUAL
+        }
         _ => return None,
     })
 }
@@ -403,7 +419,9 @@ mod tests {
         assert_eq!(guess_name(b"CL", b"CL"), Element::CL);
         assert_eq!(guess_name(b"ZN", b"ZN2"), Element::ZN);
         assert_eq!(guess_name(b"1HB", b"ALA"), Element::H);
-        assert_eq!(guess_name(b"MW", b"SOL"), Element::UNKNOWN);
+        assert_eq!(guess_name(b"MW", b"SOL"), Element::VIRTUAL);
+        assert_eq!(guess_name(b"LP1", b"TIP5"), Element::VIRTUAL);
+        assert_eq!(Element::VIRTUAL.radius(), 0.1);
         assert_eq!(guess_name(b"", b""), Element::UNKNOWN);
     }
 }

@@ -24,6 +24,7 @@ use std::path::Path;
 use glam::Vec3;
 
 pub use procedural::procedural;
+pub use xyz::from_arrays;
 
 /// Number of region levels every sphere carries.
 pub const MAX_LEVELS: usize = 4;

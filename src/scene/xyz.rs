@@ -208,19 +208,102 @@ pub(crate) fn parse_xyzr(src: &mut LineSource, name: &str) -> Result<Scene, Scen
             region,
         });
     }
-    // Colour by the second level when there is one (chain-like), else the
-    // first, so region structure is visible.
+    Ok(xyzr_scene(spheres, levels, name))
+}
+
+/// The scene of `.xyzr` spheres with `levels` region columns: coloured by
+/// the second level when there is one (chain-like), else the first, so
+/// region structure is visible; one colour without levels.
+pub(crate) fn xyzr_scene(mut spheres: Vec<Sphere>, levels: usize, name: &str) -> Scene {
     if levels > 0 {
         let level = levels.min(2) - 1;
         for s in &mut spheres {
             s.color = palette_color(s.region[level]);
         }
+    } else {
+        for s in &mut spheres {
+            s.color = XYZR_COLOR;
+        }
     }
-    Ok(Scene {
+    Scene {
         spheres,
         level_names: (0..levels).map(|i| format!("level{i}")).collect(),
         source: name.to_string(),
-    })
+    }
+}
+
+/// Spheres from arrays (the Python module): centres, radii, optional RGBA
+/// colours and region ids (`levels` per sphere, outermost first). Without
+/// colours they are coloured as an `.xyzr` file with the same columns, so
+/// the same arrays render as that file does. Checked as a file would be.
+pub fn from_arrays(
+    positions: &[[f32; 3]],
+    radii: &[f32],
+    colors: Option<&[[u8; 4]]>,
+    regions: Option<(&[u32], usize)>,
+    name: &str,
+) -> Result<Scene, SceneError> {
+    let n = positions.len();
+    let bad = |m: String| SceneError::Invalid(m);
+    if n == 0 {
+        return Err(bad("no spheres (positions is empty)".into()));
+    }
+    if n > MAX_SPHERES {
+        return Err(bad(format!("{n} spheres, more than {MAX_SPHERES}")));
+    }
+    if radii.len() != n {
+        return Err(bad(format!("{} radii for {n} positions", radii.len())));
+    }
+    if let Some(c) = colors
+        && c.len() != n
+    {
+        return Err(bad(format!("{} colours for {n} positions", c.len())));
+    }
+    let levels = regions.map_or(0, |r| r.1);
+    if levels > MAX_LEVELS {
+        return Err(bad(format!("{levels} region levels, at most {MAX_LEVELS}")));
+    }
+    if let Some((r, l)) = regions
+        && r.len() != n * l
+    {
+        return Err(bad(format!(
+            "{} region ids for {n} spheres x {l} levels",
+            r.len()
+        )));
+    }
+    let mut spheres = Vec::with_capacity(n);
+    for (i, (p, &r)) in positions.iter().zip(radii).enumerate() {
+        for (v, axis) in p.iter().zip(["x", "y", "z"]) {
+            if !(v.is_finite() && v.abs() <= super::MAX_COORDINATE) {
+                return Err(bad(format!(
+                    "positions[{i}]: {axis} = {v} is not finite or beyond ±{:e}",
+                    super::MAX_COORDINATE
+                )));
+            }
+        }
+        if !(r > 0.0 && r <= super::MAX_COORDINATE) {
+            return Err(bad(format!(
+                "radii[{i}] = {r}: must be a finite number > 0"
+            )));
+        }
+        let mut region = [0u32; MAX_LEVELS];
+        if let Some((ids, l)) = regions {
+            region[..l].copy_from_slice(&ids[i * l..(i + 1) * l]);
+        }
+        spheres.push(Sphere {
+            center: *p,
+            radius: r,
+            color: XYZR_COLOR,
+            region,
+        });
+    }
+    let mut scene = xyzr_scene(spheres, levels, name);
+    if let Some(c) = colors {
+        for (s, c) in scene.spheres.iter_mut().zip(c) {
+            s.color = *c;
+        }
+    }
+    Ok(scene)
 }
 
 #[cfg(test)]
