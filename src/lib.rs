@@ -23,6 +23,7 @@ pub mod run;
 pub mod scene;
 pub mod semantic;
 pub mod settings;
+pub mod tachyon;
 pub mod traj;
 pub mod vk;
 

@@ -22,21 +22,20 @@ pub struct LevelChoice {
 }
 
 /// Hierarchy levels that actually separate something (more than one
-/// distinct region), outermost first. A single-model file has one region at
-/// the model level, which would switch semantic occlusion off entirely.
+/// distinct region), outermost first. Empty when none does (an `.xyzr`
+/// file without region columns, a single-region model): semantic SSDO then
+/// treats every sphere as its own region, i.e. it equals plain SSDO. (Until
+/// this was empty-able such scenes had one region in all, and semantic
+/// SSDO found no occluder at all: no ambient occlusion in the default mode.)
 pub fn useful_levels(scene: &Scene) -> Vec<u32> {
-    let n = scene.level_names.len().clamp(1, MAX_LEVELS);
-    let mut out = Vec::new();
-    for level in 0..n {
-        let first = scene.spheres.first().map(|s| s.region[level]);
-        if scene.spheres.iter().any(|s| Some(s.region[level]) != first) {
-            out.push(level as u32);
-        }
-    }
-    if out.is_empty() {
-        out.push(n as u32 - 1);
-    }
-    out
+    let n = scene.level_names.len().min(MAX_LEVELS);
+    (0..n)
+        .filter(|&level| {
+            let first = scene.spheres.first().map(|s| s.region[level]);
+            scene.spheres.iter().any(|s| Some(s.region[level]) != first)
+        })
+        .map(|l| l as u32)
+        .collect()
 }
 
 /// Default thresholds (world units of visible height): the first at 60% of
@@ -94,6 +93,42 @@ pub fn choose(d: f64, thresholds: &[f64], levels: &[u32]) -> LevelChoice {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::scene::Sphere;
+
+    fn scene(regions: &[[u32; 2]], levels: usize) -> Scene {
+        Scene {
+            spheres: regions
+                .iter()
+                .map(|&[a, b]| Sphere {
+                    center: [0.0; 3],
+                    radius: 1.0,
+                    color: [255; 4],
+                    region: {
+                        let mut r = [0; MAX_LEVELS];
+                        r[0] = a;
+                        r[1] = b;
+                        r
+                    },
+                })
+                .collect(),
+            level_names: (0..levels).map(|l| format!("l{l}")).collect(),
+            source: "test".into(),
+        }
+    }
+
+    #[test]
+    fn only_levels_that_separate_are_useful() {
+        // no levels at all (.xyzr without region columns)
+        assert!(useful_levels(&scene(&[[0, 0], [0, 0]], 0)).is_empty());
+        // one model, one chain: nothing separates
+        assert!(useful_levels(&scene(&[[0, 3], [0, 3]], 2)).is_empty());
+        // one model, two chains
+        assert_eq!(useful_levels(&scene(&[[0, 3], [0, 4]], 2)), vec![1]);
+        assert_eq!(useful_levels(&scene(&[[1, 3], [2, 4]], 2)), vec![0, 1]);
+        // no levels: the choice is level 0 and nothing blends
+        let c = choose(10.0, &default_thresholds(0, 10.0), &[]);
+        assert_eq!((c.level_a, c.level_b, c.blend), (0, 0, 0.0));
+    }
 
     #[test]
     fn crossing_a_threshold_switches_level_through_a_blend() {

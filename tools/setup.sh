@@ -4,14 +4,15 @@
 # glslang/spirv tools, cmake + a C++ compiler + python3 (shaderc is built from
 # source), Xvfb for the windowed smoke test and ffmpeg (trajectory movies,
 # `render --movie`, and its test), and python3-venv/-dev for the Python
-# module (`pip install .` in a venv; .ci/run runs its tests). Idempotent: packages already
+# module (`pip install .` in a venv; .ci/run runs its tests), and tachyon,
+# the ray tracer tests/look.rs compares the look with. Idempotent: packages already
 # present are skipped by apt-get; nothing is installed when all are there.
 set -euo pipefail
 
 PKGS=(mesa-vulkan-drivers vulkan-validationlayers vulkan-tools glslang-tools
       spirv-tools libvulkan-dev xvfb xauth cmake g++ python3 pkg-config
       libx11-dev libxkbcommon-dev libxkbcommon-x11-0 libwayland-dev ffmpeg
-      python3-venv python3-dev python3-pip)
+      python3-venv python3-dev python3-pip tachyon)
 
 missing=()
 for p in "${PKGS[@]}"; do

@@ -13,7 +13,7 @@ use crate::settings::{RenderSettings, SsdoMode};
 use crate::vk::{Buffer, Recorder};
 
 /// Fraction of the key light's diffuse term kept in full shadow.
-pub const SHADOW_DIFFUSE: f32 = 0.12;
+pub const SHADOW_DIFFUSE: f32 = 0.05;
 
 /// Every pass a frame may record: its name (= debug label = timestamp
 /// scope = JSON name) and what it does.
@@ -69,7 +69,7 @@ pub const PASSES: &[(&str, &str)] = &[
     ("blur_v", "the same, vertical, back into the SSDO result"),
     (
         "shade",
-        "full resolution, covered pixels: surface from (pixel ray, sphere id); key-light lookup compiled in per technique (ISSM: exact light-ray tests against the spheres of the 3x3 patch (t = 1) or (2t+1)², soft `(1 - s'/s_eff)^x`; deep: exact transmittance walk of the texel's list; sm-pcf: biased PCF; osm: interpolated optical depth; none+SSDO: screen-space march); the pixel's SSDO result; key (shadowed: ambient + fill + rim only), fill and rim lights, ambient × occlusion + bounce, tone map into the colour buffer; the shadow and ao AOVs (unorm16) only when asked for",
+        "full resolution, covered pixels: surface from (pixel ray, sphere id); key-light lookup compiled in per technique (ISSM: exact light-ray tests against the spheres of the 3x3 patch (t = 1) or (2t+1)², soft `(1 - s'/s_eff)^x`; deep: exact transmittance walk of the texel's list; sm-pcf: biased PCF; osm: interpolated optical depth; none+SSDO: screen-space march); the pixel's SSDO result; key (5 % of its diffuse kept in full shadow), sky light × ambient visibility, occluded fill and rim, half the bounce, a filmic curve on the luminance (hue kept) into the colour buffer; the shadow and ao AOVs (unorm16) only when asked for",
     ),
 ];
 
