@@ -32,10 +32,9 @@ layout(push_constant) uniform Push {
 
 // The surface at pixel j with key texel v: view distance, normal, region.
 void surface_at(uint j, uvec2 v, out float z, out vec3 n, out uint region) {
-    uint w = g.cam.dims.x;
     z = key_view_z(g.cam, j, uintBitsToFloat(v.y));
     vec4 sp = texelFetch(sphereTex, int(v.x));
-    n = normalize(point_at(g.cam, vec2(j % w, j / w), z) - sp.xyz);
+    n = normalize(point_at(g.cam, image_px(g.cam, j), z) - sp.xyz);
     region = g.counts.w != 0u ? v.x : (SEMANTIC ? texelFetch(attrTex, int(2u * v.x))[pc.level] : 0u);
 }
 

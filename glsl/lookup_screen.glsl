@@ -12,12 +12,13 @@ float key_visibility(Surface s, uint pixel) {
     uint w = g.cam.dims.x, h = g.cam.dims.y;
     vec3 x = s.p + s.n * 1e-3;
     vec3 l = -normalize(g.light_dir.xyz);
-    float rot = hash12(uvec2(pixel % w, pixel / w));
+    float rot = hash12(uvec2(image_px(g.cam, pixel)));
+    vec2 org = vec2(g.cam.dims.zw);
     float march = g.shadow_f0.x, thickness = g.shadow_f0.y;
     uint steps = g.shadow_u.x;
     for (uint j = 1u; j <= steps; ++j) {
         vec3 p = x + l * (march * (float(j) - 1.0 + rot) / float(steps));
-        vec2 px = round(project_px(g.cam, p));
+        vec2 px = round(project_px(g.cam, p)) - org;
         if (px.x < 0.0 || px.y < 0.0 || px.x >= float(w) || px.y >= float(h)) break;
         uint q = uint(px.y) * w + uint(px.x);
         uvec2 v = texelFetch(visTex, int(q)).xy;

@@ -65,7 +65,7 @@ void visit(uint id, Footprint f, ivec2 t) {
     // atomic only where this sphere is nearer (measured on lavapipe: the
     // scattered atomics are most of the pass; the 1M capsid's raster went
     // from 147 to 107 ms at 1080p).
-    uint k = uint(t.y) * f.v.dims.x + uint(t.x);
+    uint k = uint(t.y - int(f.v.dims.w)) * f.v.dims.x + uint(t.x - int(f.v.dims.z));
     uint64_t key = vis_key(d, id);
     // (depth bits of positive floats order as unsigned integers; the empty
     // key is all ones; ties go to the atomic, which keeps the smaller id)

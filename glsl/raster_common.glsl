@@ -18,8 +18,9 @@ vec2 persp_extent(float a, float z, float r, float dist) {
     return vec2(x0, x1);
 }
 
-// Inclusive pixel rectangle (x0, y0, x1, y1) whose centres may see the sphere;
-// empty when x0 > x1 or y0 > y1.
+// Inclusive pixel rectangle (x0, y0, x1, y1), in image coordinates, whose
+// centres may see the sphere, clipped to the view's buffer window; empty
+// when x0 > x1 or y0 > y1.
 ivec4 sphere_rect(View v, vec3 cv, float r) {
     float ppu = v.center.w, w = v.right.w, h = v.up.w;
     vec2 xr, yr;
@@ -39,6 +40,7 @@ ivec4 sphere_rect(View v, vec3 cv, float r) {
     float fy0 = clamp(0.5 * h - yr.y * ppu - 0.5 - SLACK, -1.0, h);
     float fy1 = clamp(0.5 * h - yr.x * ppu - 0.5 + SLACK, -1.0, h);
     ivec4 rect = ivec4(ceil(fx0), ceil(fy0), floor(fx1), floor(fy1));
-    return ivec4(max(rect.xy, ivec2(0)), min(rect.zw, ivec2(int(w) - 1, int(h) - 1)));
+    ivec2 lo = ivec2(v.dims.zw), hi = min(lo + ivec2(v.dims.xy), ivec2(int(w), int(h))) - 1;
+    return ivec4(max(rect.xy, lo), min(rect.zw, hi));
 }
 #endif

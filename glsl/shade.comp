@@ -19,6 +19,9 @@ layout(constant_id = 4) const bool USE_SHADOW = false;
 // read_ambient, --aov shadow|ao): 4 B/px less traffic and memory.
 layout(constant_id = 5) const bool AOVS = false;
 layout(constant_id = 6) const bool ISSM_CORE_ONLY = false;  // lookup_issm.glsl
+layout(constant_id = 7) const bool OUTLINE = false;  // --outline: silhouette lines
+// RGBA16 colour (--png-depth 16): two words per pixel, R|G<<16, B|A<<16.
+layout(constant_id = 8) const bool WIDE = false;
 
 layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
 layout(set = 0, binding = 1) uniform usamplerBuffer visTex;
@@ -30,8 +33,12 @@ layout(set = 0, binding = 7) writeonly buffer Aov { uint aov[]; };
 
 layout(push_constant) uniform Push {
     float shadow_diffuse; // fraction of key diffuse kept in full shadow
-    float pad2;
-    float pad0, pad1;
+    float outline_px;     // line width in pixels (OUTLINE)
+    float fog_near;       // view_z where the depth cue starts and ends;
+    float fog_far;        // fog_far <= fog_near: no fog
+    float edge_dz;        // a neighbour nearer by more than this is an edge
+    uint level;           // hierarchy level whose region changes are edges
+    uint pad0, pad1;
 } pc;
 
 #include "lookup.glsl"
@@ -54,6 +61,59 @@ vec3 filmic(vec3 c) {
     return o;
 }
 
+void put_color(uint i, vec4 c) {
+    if (WIDE) {
+        uvec4 u = uvec4(clamp(c, 0.0, 1.0) * 65535.0 + 0.5);
+        color[2u * i] = u.r | (u.g << 16);
+        color[2u * i + 1u] = u.b | (u.a << 16);
+    } else {
+        color[i] = pack_rgba8(SWAP_RB ? c.bgra : c);
+    }
+}
+
+// The background at a pixel, display-encoded (background.a: 0 gradient,
+// 1 flat colour, 2 transparent).
+vec4 background_at(uvec2 px) {
+    uint mode = uint(g.background.a);
+    if (mode == 2u) return vec4(0.0);
+    if (mode == 1u) return vec4(g.background.rgb, 1.0);
+    // Vertical gradient keeps silhouettes readable against the background.
+    float t = (float(px.y) + float(g.cam.dims.w)) / g.cam.up.w;
+    return vec4(mix(g.background.rgb * 1.25, g.background.rgb * 0.6, t), 1.0);
+}
+
+uint region_of(uint id) {
+    return g.counts.w != 0u ? 0u : texelFetch(attrTex, int(2u * id))[pc.level];
+}
+
+// Silhouette lines (as ChimeraX's and Mol*'s): a pixel lies on a line when
+// a pixel within outline_px (a cross and its diagonals) shows a surface
+// nearer by more than edge_dz, or of another region at the chosen level
+// and not farther; background pixels when one is covered. The line falls
+// on the far side of the edge, so it is outline_px wide.
+bool on_outline(uvec2 px, bool cov, float z, uint region) {
+    uint w = g.cam.dims.x, h = g.cam.dims.y;
+    int steps = int(pc.outline_px + 0.5);
+    for (int k = 1; k <= steps; ++k) {
+        int d = max(1, int(float(k) * 0.70710678 + 0.5));
+        ivec2 offs[8] = ivec2[](ivec2(k, 0), ivec2(-k, 0), ivec2(0, k), ivec2(0, -k),
+                                ivec2(d, d), ivec2(-d, d), ivec2(d, -d), ivec2(-d, -d));
+        for (int o = 0; o < 8; ++o) {
+            ivec2 q = ivec2(px) + offs[o];
+            if (q.x < 0 || q.y < 0 || q.x >= int(w) || q.y >= int(h)) continue;
+            uint j = uint(q.y) * w + uint(q.x);
+            uvec2 v = texelFetch(visTex, int(j)).xy;
+            if (v.x == NO_SPHERE) continue;
+            if (!cov) return true;
+            float zq = key_view_z(g.cam, j, uintBitsToFloat(v.y));
+            if (z - zq > pc.edge_dz) return true;
+            uint rq = region_of(v.x);
+            if (g.counts.w == 0u && rq != region && (zq < z || (zq == z && rq < region))) return true;
+        }
+    }
+    return false;
+}
+
 void main() {
     uint w = g.cam.dims.x, h = g.cam.dims.y;
     uvec2 px;
@@ -61,17 +121,16 @@ void main() {
     uint i = px.y * w + px.x;
     Surface s;
     if (!surface_of(i, s)) {
-        // Vertical gradient keeps silhouettes readable against the background.
-        float t = float(px.y) / float(h);
-        vec3 bg = mix(g.background.rgb * 1.25, g.background.rgb * 0.6, t);
-        color[i] = pack_rgba8(vec4(SWAP_RB ? bg.bgr : bg, 1.0));
+        vec4 bg = background_at(px);
+        if (OUTLINE && on_outline(px, false, 0.0, 0u)) bg = vec4(0.0, 0.0, 0.0, 1.0);
+        put_color(i, bg);
         if (AOVS) aov[i] = 0xFFFFFFFFu;
         return;
     }
     vec3 albedo = albedo_of(s.id);
     vec3 n = s.n;
     vec3 o, vdir;
-    view_ray(g.cam, vec2(px), o, vdir);
+    view_ray(g.cam, vec2(px + g.cam.dims.zw), o, vdir);
     vec3 v = -vdir;
 
     vec3 l_key = -normalize(g.light_dir.xyz);
@@ -113,7 +172,24 @@ void main() {
     vec3 c = albedo * (0.8 * key + fill * ao + sky) + 0.5 * albedo * albedo * amb.yzw
            + vec3(0.25 * spec * vis_key) + vec3(rim * ao);
     c = filmic(c);
+    float alpha = 1.0;
+    float z = view_z(g.cam, s.p);
+    if (pc.fog_far > pc.fog_near) {
+        // depth cue toward the background (display-linear), or toward
+        // transparency over a transparent one
+        float f = clamp((z - pc.fog_near) / (pc.fog_far - pc.fog_near), 0.0, 1.0);
+        vec4 bg = background_at(px);
+        if (bg.a == 0.0) {
+            alpha = 1.0 - f;
+        } else {
+            c = mix(c, pow(bg.rgb, vec3(2.2)), f);
+        }
+    }
     vec3 outc = linear_to_srgb(c);
-    color[i] = pack_rgba8(vec4(SWAP_RB ? outc.bgr : outc, 1.0));
+    if (OUTLINE && on_outline(px, true, z, region_of(s.id))) {
+        outc = vec3(0.0);
+        alpha = 1.0;
+    }
+    put_color(i, vec4(outc, alpha));
     if (AOVS) aov[i] = uint(clamp(vis_key, 0.0, 1.0) * 65535.0 + 0.5) | (uint(clamp(amb.x, 0.0, 1.0) * 65535.0 + 0.5) << 16);
 }

@@ -16,7 +16,12 @@ struct View {
     vec4 up;     // xyz u = cross(r, d); w image height in pixels
     vec4 dir;    // xyz d (view direction); w eye distance from centre (0 = orthographic)
     vec4 depth;  // x offset added to orthographic depth so keys stay positive; yzw unused
-    uvec4 dims;  // x W, y H; zw unused
+    // x, y: the frame's buffer size in pixels (the whole image, or one tile
+    // window of it with its margin); z, w: the window's first pixel in the
+    // image (0 for whole images and light views). Rays and patterns use
+    // image coordinates (right.w, up.w are the image size), buffers the
+    // window's: a tile computes the bits of the untiled image.
+    uvec4 dims;
 };
 
 struct Globals {
@@ -45,7 +50,20 @@ struct SphereAttr {
 const uint64_t VIS_EMPTY = 0xFFFFFFFFFFFFFFFFul;
 const uint NO_SPHERE = 0xFFFFFFFFu;
 
+// Image coordinates of buffer pixel i (row-major in the window).
+vec2 image_px(View v, uint i) {
+    return vec2(i % v.dims.x + v.dims.z, i / v.dims.x + v.dims.w);
+}
+
+// Row-major index in the whole image of buffer pixel i (per-pixel noise
+// seeds: the same in a tile as in the untiled image).
+uint image_index(View v, uint i) {
+    vec2 p = image_px(v, i);
+    return uint(p.y) * uint(v.right.w) + uint(p.x);
+}
+
 // Plane coordinates of a pixel centre (DESIGN.md camera convention).
+// px: image coordinates.
 vec2 pixel_plane(View v, vec2 px) {
     float w = v.right.w, h = v.up.w;
     float hh = h / v.center.w; // view height in world units
@@ -138,9 +156,8 @@ vec3 point_at(View v, vec2 px, float z) {
 // perspective: distance along the ray from the eye).
 float key_view_z(View v, uint q, float key) {
     if (v.dir.w == 0.0) return key - v.depth.x;
-    uint w = v.dims.x;
     vec3 o, d;
-    view_ray(v, vec2(q % w, q / w), o, d);
+    view_ray(v, image_px(v, q), o, d);
     return key * dot(d, v.dir.xyz);
 }
 

@@ -96,17 +96,19 @@ float depth_of(vec3 s) { return PERSP ? view_z(g.cam, s) : s.z; }
 // branches for lavapipe to run both sides of.
 bool surface_seen(vec3 s, out uvec2 q, out float qz, out vec3 qp) {
     uint w = g.cam.dims.x, h = g.cam.dims.y;
-    float ppu = g.cam.center.w;
-    vec2 px = PERSP ? round(project_px(g.cam, s))
-                    : round(vec2(s.x * ppu + 0.5 * float(w) - 0.5, 0.5 * float(h) - s.y * ppu - 0.5));
+    float ppu = g.cam.center.w, iw = g.cam.right.w, ih = g.cam.up.w;
+    vec2 org = vec2(g.cam.dims.zw);
+    // (image coordinates, then the window's)
+    vec2 px = (PERSP ? round(project_px(g.cam, s))
+                     : round(vec2(s.x * ppu + 0.5 * iw - 0.5, 0.5 * ih - s.y * ppu - 0.5))) - org;
     bool inside = px.x >= 0.0 && px.y >= 0.0 && px.x < float(w) && px.y < float(h);
     q = uvec2(clamp(px, vec2(0.0), vec2(float(w) - 1.0, float(h) - 1.0)));
     uint j = q.y * w + q.x;
     uint depth_bits = texelFetch(visWordTex, int(2u * j + 1u)).x;
     qz = key_view_z(g.cam, j, uintBitsToFloat(depth_bits));
-    vec2 pc2 = vec2(q);
+    vec2 pc2 = vec2(q) + org;
     qp = PERSP ? point_at(g.cam, pc2, qz)
-               : vec3((pc2.x + 0.5 - 0.5 * float(w)) / ppu, (0.5 * float(h) - 0.5 - pc2.y) / ppu, qz);
+               : vec3((pc2.x + 0.5 - 0.5 * iw) / ppu, (0.5 * ih - 0.5 - pc2.y) / ppu, qz);
     return inside && depth_bits != 0xFFFFFFFFu;
 }
 

@@ -24,9 +24,8 @@ bool surface_of(uint i, out Surface s) {
     s.id = v.x;
     s.key = uintBitsToFloat(v.y);
     vec4 sp = texelFetch(sphereTex, int(s.id));
-    uint w = g.cam.dims.x;
     vec3 o, d;
-    view_ray(g.cam, vec2(i % w, i / w), o, d);
+    view_ray(g.cam, image_px(g.cam, i), o, d);
     // Exact hit recomputed relative to the sphere centre for precision.
     vec3 oc = o - sp.xyz;
     float b = dot(oc, d);

@@ -117,6 +117,13 @@ impl Camera {
     }
 
     pub fn to_gpu(&self, depth_offset: f64) -> GpuView {
+        self.to_gpu_window(depth_offset, None)
+    }
+
+    /// The view for a frame whose buffers hold `window` of the image (None:
+    /// the whole image): rays keep the image's coordinates.
+    pub fn to_gpu_window(&self, depth_offset: f64, window: Option<Window>) -> GpuView {
+        let win = window.unwrap_or(Window::whole(self));
         let f = |v: DVec3, w: f64| [v.x as f32, v.y as f32, v.z as f32, w as f32];
         GpuView {
             center: f(self.center, self.pixels_per_unit()),
@@ -124,8 +131,41 @@ impl Camera {
             up: f(self.up, self.height as f64),
             dir: f(self.dir, self.eye_distance()),
             depth: [depth_offset as f32, 0.0, 0.0, 0.0],
-            dims: [self.width, self.height, 0, 0],
+            dims: [win.width, win.height, win.x, win.y],
         }
+    }
+}
+
+/// A rectangle of an image's pixels: what a tile's buffers hold (the tile
+/// and its margin).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Window {
+    pub x: u32,
+    pub y: u32,
+    pub width: u32,
+    pub height: u32,
+}
+
+impl Window {
+    pub fn whole(cam: &Camera) -> Window {
+        Window {
+            x: 0,
+            y: 0,
+            width: cam.width,
+            height: cam.height,
+        }
+    }
+
+    pub fn pixels(&self) -> u64 {
+        self.width as u64 * self.height as u64
+    }
+
+    /// Whether it is a non-empty part of `cam`'s image.
+    pub fn fits(&self, cam: &Camera) -> bool {
+        self.width > 0
+            && self.height > 0
+            && self.x as u64 + self.width as u64 <= cam.width as u64
+            && self.y as u64 + self.height as u64 <= cam.height as u64
     }
 }
 

@@ -13,6 +13,8 @@ use std::path::Path;
 /// An encoded AOV image ready to be written.
 pub enum AovImage {
     Rgba8(image::RgbaImage),
+    /// `--png-depth 16` colour.
+    Rgba16(image::ImageBuffer<image::Rgba<u16>, Vec<u16>>),
     Gray16(image::ImageBuffer<image::Luma<u16>, Vec<u16>>),
     Gray8(image::GrayImage),
 }
@@ -23,6 +25,7 @@ impl AovImage {
         let mut h = Sha256::new();
         match self {
             AovImage::Rgba8(i) => h.update(i.as_raw()),
+            AovImage::Rgba16(i) => h.update(bytemuck::cast_slice::<u16, u8>(i.as_raw())),
             AovImage::Gray16(i) => h.update(bytemuck::cast_slice::<u16, u8>(i.as_raw())),
             AovImage::Gray8(i) => h.update(i.as_raw()),
         }
@@ -35,6 +38,7 @@ impl AovImage {
         let f = image::ImageFormat::Png;
         match self {
             AovImage::Rgba8(i) => i.write_to(&mut out, f),
+            AovImage::Rgba16(i) => i.write_to(&mut out, f),
             AovImage::Gray16(i) => i.write_to(&mut out, f),
             AovImage::Gray8(i) => i.write_to(&mut out, f),
         }
@@ -173,6 +177,72 @@ pub fn color_image(w: u32, h: u32, color: &[u32]) -> AovImage {
     AovImage::Rgba8(
         image::RgbaImage::from_raw(w, h, bytes).unwrap_or_else(|| image::RgbaImage::new(w, h)),
     )
+}
+
+/// `color` at 16 bits per channel from the RGBA16 colour buffer (two
+/// words per pixel: R|G<<16, B|A<<16).
+pub fn color16_image(w: u32, h: u32, words: &[u32]) -> AovImage {
+    let data: Vec<u16> = words
+        .iter()
+        .flat_map(|&x| [(x & 0xFFFF) as u16, (x >> 16) as u16])
+        .collect();
+    AovImage::Rgba16(
+        image::ImageBuffer::from_raw(w, h, data).unwrap_or_else(|| image::ImageBuffer::new(w, h)),
+    )
+}
+
+/// The box filter of `--ssaa n`: each output pixel the average of its n x n
+/// samples in linear colour (the shader's encoding is a 2.2 power), colour
+/// weighted by alpha (coverage), alpha averaged. `words` per sample: one
+/// (RGBA8) or two (RGBA16, `wide`). Returns the same layout at 1/n size.
+pub fn downsample(w: u32, h: u32, n: u32, words: &[u32], wide: bool) -> Vec<u32> {
+    let (ow, oh) = (w / n, h / n);
+    let lut8: Vec<f32> = (0..256).map(|v| (v as f32 / 255.0).powf(2.2)).collect();
+    let sample = |i: usize| -> [f32; 4] {
+        if wide {
+            let (a, b) = (words[2 * i], words[2 * i + 1]);
+            let c = [a & 0xFFFF, a >> 16, b & 0xFFFF, b >> 16].map(|v| v as f32 / 65535.0);
+            [c[0].powf(2.2), c[1].powf(2.2), c[2].powf(2.2), c[3]]
+        } else {
+            let c = words[i].to_le_bytes();
+            [lut8[c[0] as usize], lut8[c[1] as usize], lut8[c[2] as usize], c[3] as f32 / 255.0]
+        }
+    };
+    let per = if wide { 2 } else { 1 };
+    let mut out = vec![0u32; ow as usize * oh as usize * per];
+    for oy in 0..oh {
+        for ox in 0..ow {
+            let mut acc = [0.0f32; 4];
+            for sy in 0..n {
+                for sx in 0..n {
+                    let i = (oy * n + sy) as usize * w as usize + (ox * n + sx) as usize;
+                    let c = sample(i);
+                    for k in 0..3 {
+                        acc[k] += c[k] * c[3];
+                    }
+                    acc[3] += c[3];
+                }
+            }
+            let a = acc[3] / (n * n) as f32;
+            let enc = |k: usize| {
+                if acc[3] > 0.0 {
+                    (acc[k] / acc[3]).clamp(0.0, 1.0).powf(1.0 / 2.2)
+                } else {
+                    0.0
+                }
+            };
+            let o = oy as usize * ow as usize + ox as usize;
+            if wide {
+                let q = |v: f32| (v * 65535.0 + 0.5) as u32;
+                out[2 * o] = q(enc(0)) | (q(enc(1)) << 16);
+                out[2 * o + 1] = q(enc(2)) | (q(a) << 16);
+            } else {
+                let q = |v: f32| (v * 255.0 + 0.5) as u32;
+                out[o] = q(enc(0)) | (q(enc(1)) << 8) | (q(enc(2)) << 16) | (q(a) << 24);
+            }
+        }
+    }
+    out
 }
 
 /// Sphere index per pixel from the visibility buffer (None = background).

@@ -270,6 +270,50 @@ pub fn aov_image(r: &Renderer, aov: Aov) -> Result<output::AovImage> {
     })
 }
 
+/// The AOV of a whole image (tiled or not; supersampled by `n` when the
+/// AOV is colour: box-filtered down here).
+pub fn image_aov(img: &crate::render::tiles::Image, aov: Aov, n: u32) -> output::AovImage {
+    let (w, h) = (img.width, img.height);
+    let covered = || -> Vec<bool> { img.vis.iter().map(|&k| k != crate::gpu::VIS_EMPTY).collect() };
+    match aov {
+        Aov::Color => {
+            let (words, w, h) = if n > 1 {
+                (output::downsample(w, h, n, &img.color, img.wide), w / n, h / n)
+            } else {
+                (img.color.clone(), w, h)
+            };
+            if img.wide {
+                output::color16_image(w, h, &words)
+            } else {
+                output::color_image(w, h, &words)
+            }
+        }
+        Aov::Id => output::id_image(w, h, &img.vis),
+        Aov::Depth => {
+            let d: Vec<f32> = img
+                .vis
+                .iter()
+                .map(|&k| {
+                    if k == crate::gpu::VIS_EMPTY {
+                        -1.0
+                    } else {
+                        f32::from_bits((k >> 32) as u32)
+                    }
+                })
+                .collect();
+            output::depth_image(w, h, &d)
+        }
+        Aov::Shadow | Aov::Ao => {
+            let words = img.aov.as_deref().unwrap_or(&[]);
+            let shift = if aov == Aov::Shadow { 0 } else { 16 };
+            let values = (0..img.vis.len()).map(|i| {
+                words.get(i).map_or(1.0, |a| ((a >> shift) & 0xFFFF) as f32 / 65535.0)
+            });
+            output::unit_image(w, h, values, &covered())
+        }
+    }
+}
+
 /// Everything one render run produces.
 pub struct RunOutcome {
     pub stats: RunStats,
@@ -321,9 +365,27 @@ pub fn render_run_with(
 ) -> Result<RunOutcome> {
     let mut settings = settings;
     settings.aovs |= matches!(aov, Aov::Shadow | Aov::Ao);
-    let mut r = Renderer::new(ctx, scene, settings)?;
-    let times = run_frames_with(&mut r, warmup, frames, before)?;
-    let image = aov_image(&r, aov)?;
+    // only the colour is supersampled (DESIGN.md): the other AOVs keep one
+    // sample per pixel centre
+    let n = if aov == Aov::Color { settings.ssaa.max(1) } else { 1 };
+    if n > 1 {
+        settings = settings.supersampled(n);
+    }
+    let tile = settings.tile_size;
+    let mut r = Renderer::new_windowed(ctx, scene, settings, tile)?;
+    for _ in 0..warmup {
+        r.render_image_with(tile, false)?;
+    }
+    let mut times = Vec::new();
+    let mut last = None;
+    for k in 0..frames.max(1) {
+        before(&mut r, k)?;
+        let (img, t) = r.render_image_with(tile, k + 1 == frames.max(1))?;
+        times.push(t);
+        last = img.or(last);
+    }
+    let img = last.ok_or_else(|| Error::Internal("no image read back".into()))?;
+    let image = image_aov(&img, aov, n);
     let light_cached = if cached && r.settings().shadows != ShadowMode::None {
         r.set_light_cache(true);
         // builds the structure the measured frames reuse
@@ -358,8 +420,9 @@ pub fn run_stats(
         driver: ctx.info.driver.clone(),
         input: input.to_string(),
         spheres: r.sphere_count() as u64,
-        width: s.camera.width,
-        height: s.camera.height,
+        // (the output image: a supersampled camera is n times larger)
+        width: s.camera.width / s.look.ssaa.max(1),
+        height: s.camera.height / s.look.ssaa.max(1),
         frames: times.len().max(1) as u32,
         shadows: s.shadows.name(),
         ssdo: s.ssdo.name(),

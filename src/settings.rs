@@ -165,9 +165,37 @@ pub struct RenderSettings {
     /// Keep the shadow and ao AOVs (4 B/px more) for `read_shadow` and
     /// `read_ambient`; off, frames write colour only.
     pub aovs: bool,
+    /// The part of the camera's image the frame's buffers hold (a tile and
+    /// its margin); None = all of it. Pixels are the untiled image's bits.
+    pub window: Option<crate::camera::Window>,
+    pub look: Look,
+    /// Supersampling asked for (`--ssaa`): `run::render_run` renders the
+    /// colour AOV with `supersampled(ssaa)` and box-filters it down.
+    pub ssaa: u32,
+    /// Tile side asked for (`--tile-size`); None = tiles only when needed.
+    pub tile_size: Option<u32>,
 }
 
 impl RenderSettings {
+    /// The settings that render `n` x `n` samples per output pixel: the
+    /// camera's image is n times larger per axis (same view), and
+    /// `look.ssaa` says so to the screen-space passes.
+    pub fn supersampled(&self, n: u32) -> RenderSettings {
+        let mut s = self.clone();
+        let n = n.max(1);
+        s.camera.width = self.camera.width * n / self.look.ssaa.max(1);
+        s.camera.height = self.camera.height * n / self.look.ssaa.max(1);
+        s.look.ssaa = n;
+        s.window = None;
+        s
+    }
+
+    /// The pixels a frame's buffers hold.
+    pub fn window(&self) -> crate::camera::Window {
+        self.window
+            .unwrap_or(crate::camera::Window::whole(&self.camera))
+    }
+
     /// Whether SSDO runs.
     pub fn ssdo_on(&self) -> bool {
         self.ssdo != SsdoMode::Off
@@ -243,6 +271,109 @@ value_name!(OnOff);
 impl OnOff {
     pub fn on(self) -> bool {
         self == OnOff::On
+    }
+}
+
+/// `--background gradient|R,G,B|transparent` (R,G,B: 0..255 each, or
+/// `white`, `black`, `#RRGGBB`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Background {
+    /// The default: a dark vertical gradient.
+    Gradient,
+    /// One colour (sRGB bytes).
+    Color([u8; 3]),
+    /// Alpha 0 on background pixels (RGBA PNG).
+    Transparent,
+}
+
+impl FromStr for Background {
+    type Err = String;
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        let bad = || format!("'{s}': expected gradient, transparent, R,G,B (0..255), #RRGGBB, white or black");
+        match s.trim() {
+            "gradient" => return Ok(Background::Gradient),
+            "transparent" => return Ok(Background::Transparent),
+            "white" => return Ok(Background::Color([255; 3])),
+            "black" => return Ok(Background::Color([0; 3])),
+            _ => {}
+        }
+        if let Some(hex) = s.trim().strip_prefix('#') {
+            if hex.len() != 6 || !hex.bytes().all(|b| b.is_ascii_hexdigit()) {
+                return Err(bad());
+            }
+            let v = u32::from_str_radix(hex, 16).map_err(|_| bad())?;
+            return Ok(Background::Color([(v >> 16) as u8, (v >> 8) as u8, v as u8]));
+        }
+        let parts: Vec<&str> = s.split(',').collect();
+        if parts.len() != 3 {
+            return Err(bad());
+        }
+        let mut c = [0u8; 3];
+        for (o, p) in c.iter_mut().zip(&parts) {
+            *o = p.trim().parse::<u8>().map_err(|_| bad())?;
+        }
+        Ok(Background::Color(c))
+    }
+}
+
+impl fmt::Display for Background {
+    fn fmt(&self, f: &mut fmt::Formatter) -> fmt::Result {
+        match self {
+            Background::Gradient => f.write_str("gradient"),
+            Background::Transparent => f.write_str("transparent"),
+            Background::Color([r, g, b]) => write!(f, "{r},{g},{b}"),
+        }
+    }
+}
+
+/// `--fog NEAR,FAR`: view distances (world units, as `view_z`: along the
+/// view direction from the eye, or for orthographic views from the plane
+/// through the view centre, negative toward the viewer), NEAR < FAR.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Fog(pub [f64; 2]);
+
+impl FromStr for Fog {
+    type Err = String;
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        let parts: Vec<&str> = s.split(',').collect();
+        let bad = || format!("'{s}': expected NEAR,FAR (view distances, NEAR < FAR)");
+        if parts.len() != 2 {
+            return Err(bad());
+        }
+        let n: f64 = parts[0].trim().parse().map_err(|_| bad())?;
+        let f: f64 = parts[1].trim().parse().map_err(|_| bad())?;
+        if !(n.is_finite() && f.is_finite() && n < f && n.abs() <= 1e15 && f.abs() <= 1e15) {
+            return Err(bad());
+        }
+        Ok(Fog([n, f]))
+    }
+}
+
+/// How the image looks beyond the lighting: background, lines, depth cue,
+/// colour precision and supersampling (DESIGN.md "Images for publication").
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Look {
+    pub background: Background,
+    /// Silhouette line width in output pixels (0 = none).
+    pub outline: f32,
+    pub fog: Option<Fog>,
+    /// Colour written as RGBA16 (`--png-depth 16`).
+    pub color16: bool,
+    /// The camera is this many times the output size per axis (`--ssaa`):
+    /// screen-space radii, the blur and lines are in output pixels, so the
+    /// look is the same at every factor.
+    pub ssaa: u32,
+}
+
+impl Default for Look {
+    fn default() -> Self {
+        Look {
+            background: Background::Gradient,
+            outline: 0.0,
+            fog: None,
+            color16: false,
+            ssaa: 1,
+        }
     }
 }
 
@@ -383,6 +514,24 @@ pub struct Options {
     /// Physical device index (see `sphereshade info`).
     #[arg(long)]
     pub device: Option<usize>,
+    /// Supersampling: N x N samples per pixel (1-4), averaged in linear
+    /// colour (the colour AOV only).
+    #[arg(long, default_value_t = Options::default().ssaa)]
+    pub ssaa: u32,
+    /// Background: gradient, R,G,B (0..255), #RRGGBB, white, black, or
+    /// transparent (RGBA with alpha 0 there).
+    #[arg(long, default_value_t = Options::default().background)]
+    pub background: Background,
+    /// Silhouette lines this many pixels wide where depth or region changes.
+    #[arg(long, default_value_t = Options::default().outline, allow_negative_numbers = true)]
+    pub outline: f32,
+    /// Depth cue toward the background between view distances NEAR,FAR.
+    #[arg(long, allow_hyphen_values = true)]
+    pub fog: Option<Fog>,
+    /// Render in tiles of this many pixels per side (multiple of 8), as an
+    /// image too large for one device allocation is (tests, memory limits).
+    #[arg(long)]
+    pub tile_size: Option<u32>,
 }
 
 impl Default for Options {
@@ -413,6 +562,11 @@ impl Default for Options {
             semantic_levels: None,
             validate: false,
             device: None,
+            ssaa: 1,
+            background: Background::Gradient,
+            outline: 0.0,
+            fog: None,
+            tile_size: None,
         }
     }
 }
@@ -471,6 +625,17 @@ impl Options {
         if !(1..=1024).contains(&self.osm_slices) {
             return input("--osm-slices must be between 1 and 1024".into());
         }
+        if !(1..=4).contains(&self.ssaa) {
+            return input("--ssaa must be between 1 and 4".into());
+        }
+        if !(self.outline >= 0.0 && self.outline <= 64.0) {
+            return input("--outline must be between 0 and 64 pixels".into());
+        }
+        if let Some(t) = self.tile_size
+            && !(8..=16384).contains(&t)
+        {
+            return input("--tile-size must be between 8 and 16384".into());
+        }
         Ok(RenderSettings {
             camera,
             light: self.light.0,
@@ -497,6 +662,17 @@ impl Options {
             raster: axes.raster,
             deep_pool_chunks: self.deep_pool_chunks,
             aovs: false,
+            window: None,
+            ssaa: self.ssaa,
+            tile_size: self.tile_size,
+            look: Look {
+                background: self.background,
+                outline: self.outline,
+                fog: self.fog,
+                color16: false,
+                // (applied by `supersampled`, which scales the camera)
+                ssaa: 1,
+            },
             semantic_levels: self.semantic_levels.as_ref().map(|l| l.0.clone()),
         })
     }

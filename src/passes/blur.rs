@@ -78,8 +78,10 @@ impl BlurPass {
         ]
     }
 
-    pub fn prepare(&mut self, ctx: &Context, semantic: bool) -> Result<()> {
-        for radius in BLUR_RADII {
+    /// Makes the pipelines of both radii at supersampling factor `n`
+    /// (radii in output pixels: n times as many taps).
+    pub fn prepare(&mut self, ctx: &Context, semantic: bool, n: i32) -> Result<()> {
+        for radius in BLUR_RADII.map(|r| r * n) {
             for axis in [Axis::Horizontal, Axis::Vertical] {
                 self.variants.ensure(
                     ctx,

@@ -20,7 +20,16 @@ use std::collections::HashMap;
 pub struct ShadePush {
     /// Fraction of the key light's diffuse term kept in full shadow.
     pub shadow_diffuse: f32,
-    pub pad: [f32; 3],
+    /// Silhouette line width in pixels (with ShadeMode::outline).
+    pub outline_px: f32,
+    /// Depth cue from view_z fog_near to fog_far (fog_far <= fog_near: none).
+    pub fog_near: f32,
+    pub fog_far: f32,
+    /// A neighbour nearer by more than this (world units) makes a line.
+    pub edge_dz: f32,
+    /// Hierarchy level whose region changes make lines.
+    pub level: u32,
+    pub pad: [u32; 2],
 }
 
 /// The frame's screen-space inputs of `shade` and `ssdo_prep`.
@@ -133,10 +142,14 @@ pub struct ShadeMode {
     pub aovs: bool,
     /// ISSM reads only its 3x3 core ([`Lookup::core_only`]).
     pub core_only: bool,
+    /// Silhouette lines.
+    pub outline: bool,
+    /// RGBA16 colour.
+    pub wide: bool,
 }
 
 impl ShadeMode {
-    fn constants(&self) -> [u32; 6] {
+    fn constants(&self) -> [u32; 8] {
         let use_shadow = !matches!(self.kind, LookupKind::None | LookupKind::Screen);
         [
             self.soft as u32,
@@ -145,6 +158,8 @@ impl ShadeMode {
             use_shadow as u32,
             self.aovs as u32,
             self.core_only as u32,
+            self.outline as u32,
+            self.wide as u32,
         ]
     }
 }

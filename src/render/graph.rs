@@ -197,7 +197,16 @@ impl Resources {
                 // shadowed point keeps ambient and this fraction of the key's
                 // diffuse term, and loses its specular term.
                 shadow_diffuse: SHADOW_DIFFUSE,
-                pad: [0.0; 3],
+                outline_px: self.outline_px(settings) as f32,
+                fog_near: settings.look.fog.map_or(0.0, |f| f.0[0] as f32),
+                fog_far: settings.look.fog.map_or(0.0, |f| f.0[1] as f32),
+                // a step of a sphere radius between neighbours is an edge
+                edge_dz: self.typical_radius as f32,
+                level: {
+                    let c = self.level_choice(cam);
+                    if c.blend >= 0.5 { c.level_b } else { c.level_a }
+                },
+                pad: [0; 2],
             },
             (t.width, t.height),
         )

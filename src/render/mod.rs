@@ -7,6 +7,7 @@
 pub mod frame;
 pub mod graph;
 pub mod targets;
+pub mod tiles;
 
 use crate::camera::Camera;
 use crate::error::{Error, Result};
@@ -242,7 +243,10 @@ impl Resources {
     pub(crate) fn ssdo_params(&self, settings: &RenderSettings) -> SsdoParams {
         let cam = &settings.camera;
         let r = self.typical_radius;
-        let px = 1.0 / cam.pixels_per_unit();
+        // one output pixel (supersampled: N samples), so the look does not
+        // change with --ssaa
+        let n = settings.look.ssaa.max(1);
+        let px = n as f64 / cam.pixels_per_unit();
         let choice = self.level_choice(cam);
         let taps = if r / px < SSDO_SMALL_RADIUS_PX {
             SSDO_TAPS_SMALL
@@ -272,7 +276,7 @@ impl Resources {
                 perspective: cam.fov_deg.is_some(),
                 ..taps.0
             },
-            blur_radius: taps.1,
+            blur_radius: taps.1 * n as i32,
             blur: BlurPush {
                 sigma_z: (0.5 * r).max(px) as f32,
                 level: if choice.blend >= 0.5 {
@@ -314,7 +318,14 @@ impl Resources {
             swap_rb: self.bgra,
             aovs: settings.aovs,
             core_only: lookup.core_only(),
+            outline: self.outline_px(settings) > 0,
+            wide: settings.look.color16,
         }
+    }
+
+    /// Silhouette line width in buffer pixels.
+    pub(crate) fn outline_px(&self, settings: &RenderSettings) -> u32 {
+        (settings.look.outline * settings.look.ssaa.max(1) as f32).round() as u32
     }
 
     /// Makes the pipelines this frame's modes need (the first time), and
@@ -346,7 +357,7 @@ impl Resources {
         {
             let semantic = settings.ssdo == SsdoMode::Semantic;
             st.pass.prepare(ctx, &plain, semantic, taps)?;
-            st.blur.prepare(ctx, semantic)?;
+            st.blur.prepare(ctx, semantic, settings.look.ssaa.max(1) as i32)?;
         }
         Ok(())
     }
@@ -393,7 +404,19 @@ impl<'c> Renderer<'c> {
             (attrs.len() * 32) as u64,
         )?);
         attr_buf.upload(ctx, 0, bytemuck::cast_slice(&attrs))?;
-        let targets = ctx.guard(Targets::new(ctx, cam.width, cam.height, settings.aovs)?);
+        let win = settings.window();
+        if !win.fits(&cam) {
+            return Err(Error::Input(format!(
+                "window {win:?} is not inside the {}x{} image",
+                cam.width, cam.height
+            )));
+        }
+        if settings.window.is_some() && settings.raster == RasterMode::Graphics {
+            return Err(Error::Input(
+                "tiles need --raster compute (the graphics baseline draws whole images)".into(),
+            ));
+        }
+        let targets = ctx.guard(Targets::new(ctx, win.width, win.height, settings.aovs, settings.look.color16)?);
         let raster_graphics = ctx.guard(match settings.raster {
             RasterMode::Graphics => Some(GraphicsRasterPass::new(ctx)?),
             RasterMode::Compute => None,
@@ -417,7 +440,7 @@ impl<'c> Renderer<'c> {
             levels,
             thresholds,
             globals: Globals {
-                background: [0.13, 0.14, 0.17, 1.0],
+                background: background_word(settings.look.background),
                 ..Default::default()
             },
             bgra: false,
@@ -438,7 +461,7 @@ impl<'c> Renderer<'c> {
         // then equals plain SSDO).
         let no_levels = res.levels.is_empty() as u32;
         res.globals.counts = [res.sphere_count, 0, 0, no_levels];
-        res.globals.cam = cam.to_gpu(res.depth_offset(&cam));
+        res.globals.cam = cam.to_gpu_window(res.depth_offset(&cam), settings.window);
         let mut r = Renderer {
             ctx,
             settings,
@@ -491,7 +514,7 @@ impl<'c> Renderer<'c> {
                 "set_camera: the image size changed; call resize".into(),
             ));
         }
-        self.res.globals.cam = cam.to_gpu(self.res.depth_offset(&cam));
+        self.res.globals.cam = cam.to_gpu_window(self.res.depth_offset(&cam), self.settings.window);
         self.settings.camera = cam;
         if self.res.active.is_none() {
             self.res.update_light_view(&self.settings);
@@ -499,14 +522,43 @@ impl<'c> Renderer<'c> {
         Ok(())
     }
 
-    /// A new image size: reallocates the screen targets only.
+    /// A new image size: reallocates the screen targets only (the whole
+    /// image: any window is dropped).
     pub fn resize(&mut self, cam: Camera) -> Result<()> {
-        self.wait_idle()?;
-        let targets = Targets::new(self.ctx, cam.width, cam.height, self.settings.aovs)?;
-        let mut old = std::mem::replace(&mut self.res.targets, targets);
-        old.destroy(self.ctx);
+        self.resize_window(cam, None)
+    }
+
+    /// Frames from now on hold `window` of the image (None: all of it):
+    /// the tiles of an image too large for one allocation. Reallocates the
+    /// screen targets when the window's size changes.
+    pub fn set_window(&mut self, window: Option<crate::camera::Window>) -> Result<()> {
+        self.resize_window(self.settings.camera, window)
+    }
+
+    fn resize_window(&mut self, cam: Camera, window: Option<crate::camera::Window>) -> Result<()> {
+        let win = window.unwrap_or(crate::camera::Window::whole(&cam));
+        if !win.fits(&cam) {
+            return Err(Error::Input(format!(
+                "window {win:?} is not inside the {}x{} image",
+                cam.width, cam.height
+            )));
+        }
+        if window.is_some() && self.settings.raster == RasterMode::Graphics {
+            return Err(Error::Input(
+                "tiles need --raster compute (the graphics baseline draws whole images)".into(),
+            ));
+        }
+        let t = &self.res.targets;
+        let wide = self.settings.look.color16;
+        if (t.width, t.height) != (win.width, win.height) || t.aovs != self.settings.aovs || t.wide != wide {
+            self.wait_idle()?;
+            let targets = Targets::new(self.ctx, win.width, win.height, self.settings.aovs, wide)?;
+            let mut old = std::mem::replace(&mut self.res.targets, targets);
+            old.destroy(self.ctx);
+        }
         self.settings.camera = cam;
-        self.res.globals.cam = cam.to_gpu(self.res.depth_offset(&cam));
+        self.settings.window = window;
+        self.res.globals.cam = cam.to_gpu_window(self.res.depth_offset(&cam), window);
         self.res.update_light_view(&self.settings);
         Ok(())
     }
@@ -556,7 +608,7 @@ impl<'c> Renderer<'c> {
             self.refit(i)?;
         }
         let cam = self.settings.camera;
-        self.res.globals.cam = cam.to_gpu(self.res.depth_offset(&cam));
+        self.res.globals.cam = cam.to_gpu_window(self.res.depth_offset(&cam), self.settings.window);
         self.res.update_light_view(&self.settings);
         Ok(())
     }
@@ -896,11 +948,14 @@ impl<'c> Renderer<'c> {
         )
     }
 
+    /// The colour buffer: one RGBA8 word per pixel, or two (RGBA16) with
+    /// `look.color16`.
     pub fn read_color(&self) -> Result<Vec<u32>> {
+        let words = if self.res.targets.wide { 2 } else { 1 };
         self.res
             .targets
             .color
-            .download_pod(self.ctx, 0, self.pixels())
+            .download_pod(self.ctx, 0, self.pixels() * words)
     }
 
     /// Visible positions: xyz world (the shader's reconstruction from the
@@ -917,7 +972,9 @@ impl<'c> Renderer<'c> {
                     return [0.0, 0.0, 0.0, -1.0];
                 }
                 let s = self.res.geom[(k & 0xFFFF_FFFF) as usize];
-                let (o, d) = cam.ray(i as u32 % cam.width, i as u32 / cam.width);
+                let win = self.settings.window();
+                let (x, y) = (i as u32 % win.width + win.x, i as u32 / win.width + win.y);
+                let (o, d) = cam.ray(x, y);
                 let c = glam::DVec3::new(s[0] as f64, s[1] as f64, s[2] as f64);
                 let (t, _) =
                     crate::reference::ray_sphere(o, d, c, s[3] as f64).unwrap_or((0.0, 0.0));
@@ -939,7 +996,7 @@ impl<'c> Renderer<'c> {
             return Ok(());
         }
         self.settings.aovs = on;
-        self.resize(self.settings.camera)
+        self.resize_window(self.settings.camera, self.settings.window)
     }
 
     /// The shadow and ao AOVs as shade wrote them (unorm16 each).
@@ -1039,6 +1096,17 @@ impl<'c> Renderer<'c> {
         self.settings
             .ssdo_on()
             .then(|| self.res.level_choice(&self.settings.camera))
+    }
+}
+
+/// The shader's background word: rgb (display-encoded) and the mode in a
+/// (0 gradient, 1 flat colour, 2 transparent).
+fn background_word(b: crate::settings::Background) -> [f32; 4] {
+    use crate::settings::Background;
+    match b {
+        Background::Gradient => [0.13, 0.14, 0.17, 0.0],
+        Background::Color(c) => [c[0] as f32 / 255.0, c[1] as f32 / 255.0, c[2] as f32 / 255.0, 1.0],
+        Background::Transparent => [0.0, 0.0, 0.0, 2.0],
     }
 }
 

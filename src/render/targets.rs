@@ -22,6 +22,8 @@ pub struct Targets {
     /// written) when they are off.
     pub aov: Buffer,
     pub aovs: bool,
+    /// The colour buffer holds RGBA16 (two words per pixel).
+    pub wide: bool,
     /// SSDO records (half resolution) and result (full).
     pub records: Buffer,
     pub ao: Buffer,
@@ -34,7 +36,7 @@ pub fn half(w: u32, h: u32) -> (u32, u32) {
 }
 
 impl Targets {
-    pub fn new(ctx: &Context, width: u32, height: u32, aovs: bool) -> Result<Self> {
+    pub fn new(ctx: &Context, width: u32, height: u32, aovs: bool, wide: bool) -> Result<Self> {
         let pixels = width as u64 * height as u64;
         let (hw, hh) = half(width, height);
         let blocks = hw as u64 * hh as u64;
@@ -44,7 +46,8 @@ impl Targets {
             Ok::<_, crate::Error>(ctx.guard(Buffer::storage(ctx, name, size)?))
         };
         let vis = ctx.guard(raster::vis_buffer(ctx, "visibility", pixels)?);
-        let color = storage("colour", pixels * 4)?;
+        // RGBA8, or RGBA16 in two words (--png-depth 16)
+        let color = storage("colour", pixels * if wide { 8 } else { 4 })?;
         let aov = storage("shadow and ao", if aovs { pixels * 4 } else { 4 })?;
         let records = storage("ssdo records", blocks * 16)?;
         let ao = storage("ssdo ao", pixels * 4)?;
@@ -56,6 +59,7 @@ impl Targets {
             color: color.keep(),
             aov: aov.keep(),
             aovs,
+            wide,
             records: records.keep(),
             ao: ao.keep(),
         })

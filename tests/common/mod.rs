@@ -87,6 +87,10 @@ pub fn settings(camera: Camera, shadows: ShadowMode) -> RenderSettings {
         deep_pool_chunks: None,
         semantic_levels: None,
         aovs: true,
+        window: None,
+        look: Default::default(),
+        ssaa: 1,
+        tile_size: None,
     }
 }
 

@@ -1,0 +1,353 @@
+//! Images larger than one device allocation (8K on lavapipe's 128 MiB
+//! `maxStorageBufferRange`, or supersampled ones), rendered in tiles with
+//! the same camera. A tile's buffers hold a window of the image: the tile
+//! and a margin around it as wide as the screen-space passes reach (SSDO
+//! taps, the blur, the screen-space shadow march), so every kept pixel sees
+//! exactly the neighbours it sees untiled; rays and per-pixel patterns use
+//! image coordinates (glsl/shared.glsl `image_px`), so a tile computes the
+//! same bits. Light-space structures are built once and reused by every
+//! tile (the light cache).
+
+use super::Renderer;
+use crate::camera::Window;
+use crate::error::{Error, Result};
+use crate::vk::{Context, PassTimes};
+
+/// Window origins are multiples of this: the SSDO block (2), its 4x4
+/// rotation pattern over blocks and the 8x8 workgroup tiles then line up
+/// with the untiled image's.
+pub const ALIGN: u32 = 8;
+
+/// One tile: the pixels it keeps and the window its buffers hold.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Tile {
+    pub kept: Window,
+    pub window: Window,
+}
+
+/// A whole image read back: colour, visibility keys and (when kept) the
+/// shadow|ao AOV words, row-major.
+pub struct Image {
+    pub width: u32,
+    pub height: u32,
+    /// RGBA8 words, or with `wide` two words (RGBA16) per pixel.
+    pub color: Vec<u32>,
+    pub wide: bool,
+    pub vis: Vec<u64>,
+    pub aov: Option<Vec<u32>>,
+    /// Tiles rendered (1 = untiled).
+    pub tiles: usize,
+}
+
+/// The most pixels one window may have on this device: the visibility
+/// buffer (8 B/px plus guard words) must fit one storage buffer range and
+/// its 32-bit view (2 texels/px) one texel buffer.
+pub fn max_window_pixels(ctx: &Context) -> u64 {
+    let l = &ctx.props.limits;
+    let by_range = (l.max_storage_buffer_range as u64 / 8)
+        .saturating_sub(crate::passes::raster::VIS_GUARD_WORDS);
+    let by_texels = l.max_texel_buffer_elements as u64 / 2;
+    by_range.min(by_texels)
+}
+
+/// Tiles covering a `width` x `height` image: one whole-image tile when it
+/// fits in `max_pixels` and no size is forced; else square tiles (side a
+/// multiple of ALIGN) whose windows, with `margin` on every side, fit.
+pub fn plan(
+    width: u32,
+    height: u32,
+    margin: u32,
+    max_pixels: u64,
+    forced: Option<u32>,
+) -> Result<Vec<Tile>> {
+    let whole = Window {
+        x: 0,
+        y: 0,
+        width,
+        height,
+    };
+    if forced.is_none() && whole.pixels() <= max_pixels {
+        return Ok(vec![Tile {
+            kept: whole,
+            window: whole,
+        }]);
+    }
+    let side = match forced {
+        Some(t) => t.max(1).div_ceil(ALIGN) * ALIGN,
+        None => {
+            // the window of a tile of side s spans at most s + 2 margin + ALIGN
+            let fit = (max_pixels as f64).sqrt() as u64;
+            let s = fit.saturating_sub(2 * margin as u64 + ALIGN as u64) / ALIGN as u64
+                * ALIGN as u64;
+            if s == 0 {
+                return Err(Error::DeviceLimit(format!(
+                    "the screen-space passes reach {margin} px, more than a tile of this \
+                     device can hold ({max_pixels} px per buffer): lower --ssaa or --width/--height"
+                )));
+            }
+            s.min(u32::MAX as u64) as u32
+        }
+    };
+    let mut tiles = Vec::new();
+    for ty in (0..height).step_by(side as usize) {
+        for tx in (0..width).step_by(side as usize) {
+            let kept = Window {
+                x: tx,
+                y: ty,
+                width: side.min(width - tx),
+                height: side.min(height - ty),
+            };
+            let x0 = tx.saturating_sub(margin) / ALIGN * ALIGN;
+            let y0 = ty.saturating_sub(margin) / ALIGN * ALIGN;
+            let x1 = (tx as u64 + side as u64 + margin as u64).min(width as u64) as u32;
+            let y1 = (ty as u64 + side as u64 + margin as u64).min(height as u64) as u32;
+            let window = Window {
+                x: x0,
+                y: y0,
+                width: x1 - x0,
+                height: y1 - y0,
+            };
+            if window.pixels() > max_pixels {
+                return Err(Error::DeviceLimit(format!(
+                    "a {side} px tile with its {margin} px margin needs {} px, more than this \
+                     device's {max_pixels} per buffer: use a smaller tile",
+                    window.pixels()
+                )));
+            }
+            tiles.push(Tile { kept, window });
+        }
+    }
+    Ok(tiles)
+}
+
+/// Adds `t`'s pass times to `sum` (by pass name, in order of appearance).
+fn accumulate(sum: &mut PassTimes, t: &PassTimes) {
+    for &(name, ms) in &t.passes {
+        match sum.passes.iter_mut().find(|(n, _)| *n == name) {
+            Some(e) => e.1 += ms,
+            None => sum.passes.push((name, ms)),
+        }
+    }
+    sum.total_ms += t.total_ms;
+}
+
+/// Copies the `kept` pixels of a `window`-sized buffer into the image.
+fn place<T: Copy>(dst: &mut [T], width: u32, tile: &Tile, src: &[T]) {
+    let (k, w) = (tile.kept, tile.window);
+    for y in 0..k.height {
+        let sy = (k.y + y - w.y) as usize * w.width as usize + (k.x - w.x) as usize;
+        let dy = (k.y + y) as usize * width as usize + k.x as usize;
+        dst[dy..dy + k.width as usize].copy_from_slice(&src[sy..sy + k.width as usize]);
+    }
+}
+
+impl<'a> Renderer<'a> {
+    /// A renderer for images of any size: made with a small window when
+    /// the whole image cannot be one (or tiles are forced); `render_image`
+    /// then sets each tile's window.
+    pub fn new_windowed(
+        ctx: &'a Context,
+        scene: &crate::scene::Scene,
+        settings: crate::settings::RenderSettings,
+        forced_tile: Option<u32>,
+    ) -> Result<Renderer<'a>> {
+        let cam = settings.camera;
+        let whole = Window::whole(&cam);
+        if forced_tile.is_none() && whole.pixels() <= max_window_pixels(ctx) {
+            return Renderer::new(ctx, scene, settings);
+        }
+        let mut s = settings;
+        s.window = Some(Window {
+            x: 0,
+            y: 0,
+            width: cam.width.min(ALIGN),
+            height: cam.height.min(ALIGN),
+        });
+        Renderer::new(ctx, scene, s)
+    }
+
+    /// How far (pixels) the screen-space passes of this renderer's modes
+    /// reach from a pixel: the margin a tile needs so it computes the
+    /// untiled pixels. 0 when no screen-space pass runs.
+    pub fn tile_margin(&self) -> u32 {
+        let s = &self.settings;
+        let outline = self.res.outline_px(s);
+        if !s.ssdo_on() {
+            return outline;
+        }
+        let cam = &s.camera;
+        let p = self.res.ssdo_params(s);
+        let mut reach = p.ssdo.r_far.max(p.ssdo.r_near) as f64;
+        if self.res.active_shadow().is_none() {
+            reach = reach.max(p.screen.f0[0] as f64);
+        }
+        let mut ppu = cam.pixels_per_unit();
+        if cam.fov_deg.is_some() {
+            // a world length at view distance z spans dist / z times its
+            // length at the view centre: the nearest sphere sets the reach
+            let (eye, dir, dist) = (cam.eye(), cam.dir, cam.eye_distance());
+            let near = self
+                .res
+                .geom
+                .iter()
+                .map(|g| {
+                    let c = glam::DVec3::new(g[0] as f64, g[1] as f64, g[2] as f64);
+                    (c - eye).dot(dir) - g[3] as f64
+                })
+                .fold(f64::MAX, f64::min);
+            ppu *= dist / near.max(1e-3 * dist);
+        }
+        let px = (reach * ppu).ceil().min(1e6) as u32;
+        // + both blur passes' radius, the block and rounding slack
+        px + p.blur_radius.max(0) as u32 + outline + 2 * ALIGN
+    }
+
+    /// Renders the whole image, in tiles when one window cannot hold it on
+    /// this device or `forced_tile` asks for a tile side, and reads it back.
+    /// The pass times are summed over the tiles.
+    pub fn render_image(&mut self, forced_tile: Option<u32>) -> Result<(Image, PassTimes)> {
+        self.render_image_with(forced_tile, true)
+            .map(|(i, t)| (i.unwrap_or_else(|| unreachable_image()), t))
+    }
+
+    /// `render_image` that reads an untiled frame back only when `read`
+    /// (measured frames before the last need no pixels; tiles always do).
+    pub fn render_image_with(
+        &mut self,
+        forced_tile: Option<u32>,
+        read: bool,
+    ) -> Result<(Option<Image>, PassTimes)> {
+        let cam = self.settings.camera;
+        let tiles = plan(
+            cam.width,
+            cam.height,
+            self.tile_margin(),
+            max_window_pixels(self.ctx),
+            forced_tile,
+        )?;
+        let aovs = self.settings.aovs;
+        let wide = self.settings.look.color16;
+        if tiles.len() == 1 {
+            if self.settings.window.is_some() {
+                self.set_window(None)?;
+            }
+            let times = self.render_frame()?;
+            if !read {
+                return Ok((None, times));
+            }
+            let image = Image {
+                width: cam.width,
+                height: cam.height,
+                color: self.read_color()?,
+                wide,
+                vis: self.read_vis()?,
+                aov: if aovs { Some(self.read_aov()?) } else { None },
+                tiles: 1,
+            };
+            return Ok((Some(image), times));
+        }
+        let n = cam.width as usize * cam.height as usize;
+        let mut image = Image {
+            width: cam.width,
+            height: cam.height,
+            color: vec![0; if wide { 2 * n } else { n }],
+            wide,
+            vis: vec![crate::gpu::VIS_EMPTY; n],
+            aov: aovs.then(|| vec![0; n]),
+            tiles: tiles.len(),
+        };
+        let mut sum = PassTimes::default();
+        let cache = self.res.light_cache;
+        // the light structure is built by the first tile, reused by the rest
+        self.set_light_cache(true);
+        let result = (|| {
+            for tile in &tiles {
+                self.set_window(Some(tile.window))?;
+                let t = self.render_frame()?;
+                accumulate(&mut sum, &t);
+                let color = self.read_color()?;
+                if wide {
+                    place::<[u32; 2]>(
+                        bytemuck::cast_slice_mut(&mut image.color),
+                        cam.width,
+                        tile,
+                        bytemuck::cast_slice(&color),
+                    );
+                } else {
+                    place(&mut image.color, cam.width, tile, &color);
+                }
+                place(&mut image.vis, cam.width, tile, &self.read_vis()?);
+                if let Some(a) = image.aov.as_mut() {
+                    place(a, cam.width, tile, &self.read_aov()?);
+                }
+            }
+            Ok::<_, Error>(())
+        })();
+        self.set_light_cache(cache);
+        result?;
+        Ok((Some(image), sum))
+    }
+}
+
+fn unreachable_image() -> Image {
+    // render_image_with(.., true) always reads
+    Image {
+        width: 0,
+        height: 0,
+        color: Vec::new(),
+        wide: false,
+        vis: Vec::new(),
+        aov: None,
+        tiles: 0,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tiles_cover_the_image_once_with_aligned_windows() {
+        for (w, h, m, t) in [(100, 70, 13, 32), (64, 64, 0, 8), (1000, 9, 40, 24)] {
+            let tiles = plan(w, h, m, u64::MAX, Some(t)).unwrap();
+            let mut seen = vec![0u8; (w * h) as usize];
+            for tl in &tiles {
+                assert_eq!(tl.window.x % ALIGN, 0);
+                assert_eq!(tl.window.y % ALIGN, 0);
+                assert!(tl.window.fits(&crate::camera::Camera::new(
+                    glam::DVec3::ZERO,
+                    glam::DVec3::NEG_Z,
+                    glam::DVec3::Y,
+                    1.0,
+                    None,
+                    w,
+                    h
+                )
+                .unwrap()));
+                let (k, wi) = (tl.kept, tl.window);
+                // the margin is there wherever the image goes on
+                assert!(k.x - wi.x >= m.min(k.x));
+                assert!(k.y - wi.y >= m.min(k.y));
+                assert!(wi.x + wi.width >= (k.x + k.width + m).min(w));
+                assert!(wi.y + wi.height >= (k.y + k.height + m).min(h));
+                for y in k.y..k.y + k.height {
+                    for x in k.x..k.x + k.width {
+                        seen[(y * w + x) as usize] += 1;
+                    }
+                }
+            }
+            assert!(seen.iter().all(|&c| c == 1), "{w}x{h} tile {t}");
+        }
+    }
+
+    #[test]
+    fn a_fitting_image_is_one_tile_and_a_hopeless_margin_an_error() {
+        let t = plan(640, 480, 50, 640 * 480, None).unwrap();
+        assert_eq!(t.len(), 1);
+        assert_eq!(t[0].window.pixels(), 640 * 480);
+        let t = plan(7680, 4320, 50, 16_777_152, None).unwrap();
+        assert!(t.len() > 1 && t.iter().all(|t| t.window.pixels() <= 16_777_152));
+        let e = plan(7680, 4320, 5000, 16_777_152, None).unwrap_err();
+        assert!(e.to_string().contains("reach 5000 px"), "{e}");
+    }
+}
