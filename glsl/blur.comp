@@ -41,7 +41,7 @@ void surface_at(uint j, uvec2 v, out float z, out vec3 n, out uint region) {
 void main() {
     uint w = g.cam.dims.x, h = g.cam.dims.y;
     uvec2 px;
-    if (!tile_pixel(w, h, px)) return;
+    if (!tile_pixel(w, h, px) || !IN_ACTIVE(px)) return;
     uint i = px.y * w + px.x;
     uvec2 v0 = texelFetch(visTex, int(i)).xy;
     uint centre = texelFetch(inTex, int(i)).x;

@@ -117,7 +117,7 @@ bool on_outline(uvec2 px, bool cov, float z, uint region) {
 void main() {
     uint w = g.cam.dims.x, h = g.cam.dims.y;
     uvec2 px;
-    if (!tile_pixel(w, h, px)) return;
+    if (!tile_pixel(w, h, px) || !IN_ACTIVE(px)) return;
     uint i = px.y * w + px.x;
     Surface s;
     if (!surface_of(i, s)) {

@@ -24,6 +24,13 @@ struct View {
     uvec4 dims;
 };
 
+// Globals.params while tiling: the buffer rectangle [x0, y0, x1, y1) whose
+// pixels the per-pixel passes after the rasterizer (ssdo, blur, shade)
+// compute: the kept tile and the blur's reach around it. The margin
+// beyond it is only read (visibility, SSDO records). The whole buffer
+// otherwise.
+#define ACTIVE_RECT(g) (g.params)
+
 struct Globals {
     View cam;
     View light;

@@ -120,7 +120,7 @@ const float BAYER4[16] = float[](0.0, 8.0, 2.0, 10.0, 12.0, 4.0, 14.0, 6.0,
 void main() {
     uint w = g.cam.dims.x, h = g.cam.dims.y;
     uvec2 px;
-    if (!tile_pixel(w, h, px)) return;
+    if (!tile_pixel(w, h, px) || !IN_ACTIVE(px)) return;
     uint i = px.y * w + px.x;
     Surface s;
     if (!surface_of(i, s)) {

@@ -18,6 +18,10 @@ bool tile_origin(uint w, uint h, out uvec2 origin) {
     return true;
 }
 
+// Whether pixel px of the buffer is in the active rectangle (see
+// ACTIVE_RECT in shared.glsl; needs `Globals g`).
+#define IN_ACTIVE(px) (float(px.x) >= ACTIVE_RECT(g).x && float(px.y) >= ACTIVE_RECT(g).y && float(px.x) < ACTIVE_RECT(g).z && float(px.y) < ACTIVE_RECT(g).w)
+
 // The pixel this invocation shades in a w x h image, or false past the edge.
 bool tile_pixel(uint w, uint h, out uvec2 px) {
     uvec2 origin;

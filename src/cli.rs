@@ -82,6 +82,9 @@ pub struct RenderArgs {
     /// Frames rendered (and not measured) before the measured ones.
     #[arg(long, default_value_t = 0)]
     pub warmup: u32,
+    /// Bits per channel of the colour PNG.
+    #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u8).range(8..=16))]
+    pub png_depth: u8,
 }
 
 pub use crate::run::Exit;
@@ -159,10 +162,29 @@ fn render(args: RenderArgs) -> Result<Exit> {
         })?,
     };
     // Every output checked before any work (and none aliasing another).
+    let exr = out
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("exr"));
+    if exr && args.aov != Aov::Color {
+        return Err(Error::Input(
+            "--out FILE.exr holds every layer (R,G,B,A, depth, id, shadow, ao, normal): --aov applies to PNG".into(),
+        ));
+    }
+    if args.png_depth != 8 && args.png_depth != 16 {
+        return Err(Error::Input(format!(
+            "--png-depth {}: expected 8 or 16",
+            args.png_depth
+        )));
+    }
+    if args.png_depth == 16 && args.aov != Aov::Color {
+        return Err(Error::Input(
+            "--png-depth 16 applies to the colour image".into(),
+        ));
+    }
     let mut outs = vec![output::OutFile {
         flag: "--out",
         path: &out,
-        extensions: &["png"],
+        extensions: &["png", "exr"],
     }];
     if let Some(j) = &args.json {
         outs.push(output::OutFile {
@@ -174,9 +196,31 @@ fn render(args: RenderArgs) -> Result<Exit> {
     output::check_outputs(&outs)?;
     run::check_frames(frames)?;
     let (scene, load_ms) = run::load_scene(&args.scene)?;
-    let settings = args.options.resolve(&args.axes, &scene)?;
+    let mut settings = args.options.resolve(&args.axes, &scene)?;
+    settings.look.color16 = args.png_depth == 16;
     let ctx = run::context_for(&args.options)?;
     let input = run::input_name(&args.scene);
+    if exr {
+        let (layers, mut stats) = run::render_layers(&ctx, &scene, &input, settings, load_ms)?;
+        let (n, _) = ctx.finish();
+        stats.validation_messages = n;
+        let (w, h) = (stats.width, stats.height);
+        output::write_exr(&out, w, h, layers)?;
+        if let Some(j) = &args.json {
+            output::write_json(j, &stats)?;
+        }
+        eprintln!(
+            "{input}: {} spheres, {w}x{h}, frame {:.2} ms, wrote {}",
+            stats.spheres,
+            stats.total_ms.median,
+            output::shown(&out)
+        );
+        return Ok(if n > 0 {
+            Exit::ValidationMessages(n)
+        } else {
+            Exit::Ok
+        });
+    }
     let outcome = run::render_run(
         &ctx,
         &scene,

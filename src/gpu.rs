@@ -35,6 +35,8 @@ pub struct Globals {
     /// w 1 when the scene has no region hierarchy (each sphere is its own
     /// region for semantic SSDO).
     pub counts: [u32; 4],
+    /// The active rectangle [x0, y0, x1, y1) of the buffer (tiles: the kept
+    /// tile and the blur's reach; else the whole buffer), glsl ACTIVE_RECT.
     pub params: [f32; 4],
     /// Parameters of the active shadow technique's lookup (glsl/lookup_*.glsl
     /// say which field is what).

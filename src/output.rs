@@ -179,6 +179,25 @@ pub fn color_image(w: u32, h: u32, color: &[u32]) -> AovImage {
     )
 }
 
+/// Writes a single-part OpenEXR of `w` x `h` f32 channels, atomically
+/// (the layer names of DESIGN.md: `R,G,B,A`, `depth`, `id`, ...).
+pub fn write_exr(path: &Path, w: u32, h: u32, channels: Vec<(&str, Vec<f32>)>) -> Result<()> {
+    use exr::prelude::{AnyChannel, AnyChannels, FlatSamples, Image, SmallVec, WritableImage};
+    let list: Vec<AnyChannel<FlatSamples>> = channels
+        .into_iter()
+        .map(|(name, v)| AnyChannel::new(name, FlatSamples::F32(v)))
+        .collect();
+    let image = Image::from_channels(
+        (w as usize, h as usize),
+        AnyChannels::sort(SmallVec::from_vec(list)),
+    );
+    write_atomic(path, |tmp| {
+        image.write().to_file(tmp).map_err(|e| {
+            crate::error::Error::Input(format!("{}: cannot write EXR: {e}", shown(path)))
+        })
+    })
+}
+
 /// `color` at 16 bits per channel from the RGBA16 colour buffer (two
 /// words per pixel: R|G<<16, B|A<<16).
 pub fn color16_image(w: u32, h: u32, words: &[u32]) -> AovImage {
@@ -191,39 +210,56 @@ pub fn color16_image(w: u32, h: u32, words: &[u32]) -> AovImage {
     )
 }
 
-/// The box filter of `--ssaa n`: each output pixel the average of its n x n
-/// samples in linear colour (the shader's encoding is a 2.2 power), colour
-/// weighted by alpha (coverage), alpha averaged. `words` per sample: one
-/// (RGBA8) or two (RGBA16, `wide`). Returns the same layout at 1/n size.
-pub fn downsample(w: u32, h: u32, n: u32, words: &[u32], wide: bool) -> Vec<u32> {
-    let (ow, oh) = (w / n, h / n);
-    let lut8: Vec<f32> = (0..256).map(|v| (v as f32 / 255.0).powf(2.2)).collect();
-    let sample = |i: usize| -> [f32; 4] {
-        if wide {
-            let (a, b) = (words[2 * i], words[2 * i + 1]);
-            let c = [a & 0xFFFF, a >> 16, b & 0xFFFF, b >> 16].map(|v| v as f32 / 65535.0);
-            [c[0].powf(2.2), c[1].powf(2.2), c[2].powf(2.2), c[3]]
-        } else {
-            let c = words[i].to_le_bytes();
-            [lut8[c[0] as usize], lut8[c[1] as usize], lut8[c[2] as usize], c[3] as f32 / 255.0]
+/// The box filter of `--ssaa n`: images of the same pixels at n x n
+/// sub-pixel positions summed in linear colour (the shader's encoding is a
+/// 2.2 power), colour weighted by alpha (coverage); `finish` gives their
+/// average in the buffer layout: one word per pixel (RGBA8) or two
+/// (RGBA16, `wide`).
+pub struct Accumulator {
+    acc: Vec<[f32; 4]>,
+    samples: u32,
+    wide: bool,
+}
+
+impl Accumulator {
+    pub fn new(pixels: usize, wide: bool) -> Self {
+        Accumulator {
+            acc: vec![[0.0; 4]; pixels],
+            samples: 0,
+            wide,
         }
-    };
-    let per = if wide { 2 } else { 1 };
-    let mut out = vec![0u32; ow as usize * oh as usize * per];
-    for oy in 0..oh {
-        for ox in 0..ow {
-            let mut acc = [0.0f32; 4];
-            for sy in 0..n {
-                for sx in 0..n {
-                    let i = (oy * n + sy) as usize * w as usize + (ox * n + sx) as usize;
-                    let c = sample(i);
-                    for k in 0..3 {
-                        acc[k] += c[k] * c[3];
-                    }
-                    acc[3] += c[3];
-                }
+    }
+
+    pub fn add(&mut self, words: &[u32]) {
+        let lut8: Vec<f32> = (0..256).map(|v| (v as f32 / 255.0).powf(2.2)).collect();
+        for (i, a) in self.acc.iter_mut().enumerate() {
+            let c = if self.wide {
+                let (x, y) = (words[2 * i], words[2 * i + 1]);
+                let c = [x & 0xFFFF, x >> 16, y & 0xFFFF, y >> 16].map(|v| v as f32 / 65535.0);
+                [c[0].powf(2.2), c[1].powf(2.2), c[2].powf(2.2), c[3]]
+            } else {
+                let c = words[i].to_le_bytes();
+                [
+                    lut8[c[0] as usize],
+                    lut8[c[1] as usize],
+                    lut8[c[2] as usize],
+                    c[3] as f32 / 255.0,
+                ]
+            };
+            for k in 0..3 {
+                a[k] += c[k] * c[3];
             }
-            let a = acc[3] / (n * n) as f32;
+            a[3] += c[3];
+        }
+        self.samples += 1;
+    }
+
+    pub fn finish(&self) -> Vec<u32> {
+        let n = self.samples.max(1) as f32;
+        let per = if self.wide { 2 } else { 1 };
+        let mut out = vec![0u32; self.acc.len() * per];
+        for (o, acc) in self.acc.iter().enumerate() {
+            let a = acc[3] / n;
             let enc = |k: usize| {
                 if acc[3] > 0.0 {
                     (acc[k] / acc[3]).clamp(0.0, 1.0).powf(1.0 / 2.2)
@@ -231,8 +267,7 @@ pub fn downsample(w: u32, h: u32, n: u32, words: &[u32], wide: bool) -> Vec<u32>
                     0.0
                 }
             };
-            let o = oy as usize * ow as usize + ox as usize;
-            if wide {
+            if self.wide {
                 let q = |v: f32| (v * 65535.0 + 0.5) as u32;
                 out[2 * o] = q(enc(0)) | (q(enc(1)) << 16);
                 out[2 * o + 1] = q(enc(2)) | (q(a) << 16);
@@ -241,8 +276,8 @@ pub fn downsample(w: u32, h: u32, n: u32, words: &[u32], wide: bool) -> Vec<u32>
                 out[o] = q(enc(0)) | (q(enc(1)) << 8) | (q(enc(2)) << 16) | (q(a) << 24);
             }
         }
+        out
     }
-    out
 }
 
 /// Sphere index per pixel from the visibility buffer (None = background).

@@ -170,23 +170,21 @@ pub struct RenderSettings {
     pub window: Option<crate::camera::Window>,
     pub look: Look,
     /// Supersampling asked for (`--ssaa`): `run::render_run` renders the
-    /// colour AOV with `supersampled(ssaa)` and box-filters it down.
+    /// colour AOV n x n times with the camera moved to each sub-pixel
+    /// sample position (`shifted`) and averages them.
     pub ssaa: u32,
     /// Tile side asked for (`--tile-size`); None = tiles only when needed.
     pub tile_size: Option<u32>,
 }
 
 impl RenderSettings {
-    /// The settings that render `n` x `n` samples per output pixel: the
-    /// camera's image is n times larger per axis (same view), and
-    /// `look.ssaa` says so to the screen-space passes.
-    pub fn supersampled(&self, n: u32) -> RenderSettings {
+    /// The camera moved by (dx, dy) pixels in the image plane (x right, y
+    /// down): the sub-pixel sample positions of `--ssaa`.
+    pub fn shifted(&self, dx: f64, dy: f64) -> RenderSettings {
         let mut s = self.clone();
-        let n = n.max(1);
-        s.camera.width = self.camera.width * n / self.look.ssaa.max(1);
-        s.camera.height = self.camera.height * n / self.look.ssaa.max(1);
-        s.look.ssaa = n;
-        s.window = None;
+        let c = &mut s.camera;
+        let ppu = c.pixels_per_unit();
+        c.center += c.right * (dx / ppu) - c.up * (dy / ppu);
         s
     }
 
@@ -289,7 +287,11 @@ pub enum Background {
 impl FromStr for Background {
     type Err = String;
     fn from_str(s: &str) -> std::result::Result<Self, String> {
-        let bad = || format!("'{s}': expected gradient, transparent, R,G,B (0..255), #RRGGBB, white or black");
+        let bad = || {
+            format!(
+                "'{s}': expected gradient, transparent, R,G,B (0..255), #RRGGBB, white or black"
+            )
+        };
         match s.trim() {
             "gradient" => return Ok(Background::Gradient),
             "transparent" => return Ok(Background::Transparent),
@@ -302,7 +304,11 @@ impl FromStr for Background {
                 return Err(bad());
             }
             let v = u32::from_str_radix(hex, 16).map_err(|_| bad())?;
-            return Ok(Background::Color([(v >> 16) as u8, (v >> 8) as u8, v as u8]));
+            return Ok(Background::Color([
+                (v >> 16) as u8,
+                (v >> 8) as u8,
+                v as u8,
+            ]));
         }
         let parts: Vec<&str> = s.split(',').collect();
         if parts.len() != 3 {
@@ -349,8 +355,8 @@ impl FromStr for Fog {
     }
 }
 
-/// How the image looks beyond the lighting: background, lines, depth cue,
-/// colour precision and supersampling (DESIGN.md "Images for publication").
+/// How the image looks beyond the lighting: background, lines, depth cue
+/// and colour precision (DESIGN.md "Images for publication").
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Look {
     pub background: Background,
@@ -359,10 +365,6 @@ pub struct Look {
     pub fog: Option<Fog>,
     /// Colour written as RGBA16 (`--png-depth 16`).
     pub color16: bool,
-    /// The camera is this many times the output size per axis (`--ssaa`):
-    /// screen-space radii, the blur and lines are in output pixels, so the
-    /// look is the same at every factor.
-    pub ssaa: u32,
 }
 
 impl Default for Look {
@@ -372,7 +374,6 @@ impl Default for Look {
             outline: 0.0,
             fog: None,
             color16: false,
-            ssaa: 1,
         }
     }
 }
@@ -670,8 +671,6 @@ impl Options {
                 outline: self.outline,
                 fog: self.fog,
                 color16: false,
-                // (applied by `supersampled`, which scales the camera)
-                ssaa: 1,
             },
             semantic_levels: self.semantic_levels.as_ref().map(|l| l.0.clone()),
         })

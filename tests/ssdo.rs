@@ -256,6 +256,8 @@ fn bilateral_blur_keeps_depth_edges_and_smooths_flat_areas() {
     };
     let (hw, hh) = (w / 2, h / 2);
     globals.counts = [1, hw, hh, 0];
+    // the active rectangle: every pixel
+    globals.params = [0.0, 0.0, w as f32, h as f32];
     let mut vis = vec![0u64; n + 64];
     let mut amb = vec![0.0f32; n];
     let mut ao_in = vec![0u32; n];

@@ -198,6 +198,13 @@ impl Inner {
         })?);
         let mut settings = options.options.resolve(&options.axes, &scene)?;
         settings.aovs = matches!(options.aov, Aov::Shadow | Aov::Ao);
+        // (one Vulkan frame per render() call here: supersampling and tiles
+        // are the CLI's render loop, not yet the module's)
+        if settings.ssaa > 1 || settings.tile_size.is_some() {
+            return Err(sphereshade::Error::Input(
+                "ssaa and tile_size are not supported by the Python module yet: use `sphereshade render`".into(),
+            ));
+        }
         // SAFETY: the renderer's borrow of the context is extended to
         // 'static; the context is boxed, never moved out while the renderer
         // lives, and `drop` / `close` drop the renderer first.
@@ -260,6 +267,13 @@ fn image_to_py<'py>(py: Python<'py>, image: AovImage) -> Bound<'py, PyAny> {
             let a =
                 numpy::ndarray::Array3::from_shape_vec((h as usize, w as usize, 4), i.into_raw())
                     .expect("RGBA buffer of its size");
+            a.into_pyarray(py).into_any()
+        }
+        AovImage::Rgba16(i) => {
+            let (w, h) = i.dimensions();
+            let a =
+                numpy::ndarray::Array3::from_shape_vec((h as usize, w as usize, 4), i.into_raw())
+                    .expect("RGBA16 buffer of its size");
             a.into_pyarray(py).into_any()
         }
         AovImage::Gray16(i) => {

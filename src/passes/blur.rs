@@ -78,10 +78,8 @@ impl BlurPass {
         ]
     }
 
-    /// Makes the pipelines of both radii at supersampling factor `n`
-    /// (radii in output pixels: n times as many taps).
-    pub fn prepare(&mut self, ctx: &Context, semantic: bool, n: i32) -> Result<()> {
-        for radius in BLUR_RADII.map(|r| r * n) {
+    pub fn prepare(&mut self, ctx: &Context, semantic: bool) -> Result<()> {
+        for radius in BLUR_RADII {
             for axis in [Axis::Horizontal, Axis::Vertical] {
                 self.variants.ensure(
                     ctx,

@@ -243,10 +243,7 @@ impl Resources {
     pub(crate) fn ssdo_params(&self, settings: &RenderSettings) -> SsdoParams {
         let cam = &settings.camera;
         let r = self.typical_radius;
-        // one output pixel (supersampled: N samples), so the look does not
-        // change with --ssaa
-        let n = settings.look.ssaa.max(1);
-        let px = n as f64 / cam.pixels_per_unit();
+        let px = 1.0 / cam.pixels_per_unit();
         let choice = self.level_choice(cam);
         let taps = if r / px < SSDO_SMALL_RADIUS_PX {
             SSDO_TAPS_SMALL
@@ -276,7 +273,7 @@ impl Resources {
                 perspective: cam.fov_deg.is_some(),
                 ..taps.0
             },
-            blur_radius: taps.1 * n as i32,
+            blur_radius: taps.1,
             blur: BlurPush {
                 sigma_z: (0.5 * r).max(px) as f32,
                 level: if choice.blend >= 0.5 {
@@ -325,7 +322,7 @@ impl Resources {
 
     /// Silhouette line width in buffer pixels.
     pub(crate) fn outline_px(&self, settings: &RenderSettings) -> u32 {
-        (settings.look.outline * settings.look.ssaa.max(1) as f32).round() as u32
+        settings.look.outline.round() as u32
     }
 
     /// Makes the pipelines this frame's modes need (the first time), and
@@ -357,7 +354,7 @@ impl Resources {
         {
             let semantic = settings.ssdo == SsdoMode::Semantic;
             st.pass.prepare(ctx, &plain, semantic, taps)?;
-            st.blur.prepare(ctx, semantic, settings.look.ssaa.max(1) as i32)?;
+            st.blur.prepare(ctx, semantic)?;
         }
         Ok(())
     }
@@ -416,7 +413,13 @@ impl<'c> Renderer<'c> {
                 "tiles need --raster compute (the graphics baseline draws whole images)".into(),
             ));
         }
-        let targets = ctx.guard(Targets::new(ctx, win.width, win.height, settings.aovs, settings.look.color16)?);
+        let targets = ctx.guard(Targets::new(
+            ctx,
+            win.width,
+            win.height,
+            settings.aovs,
+            settings.look.color16,
+        )?);
         let raster_graphics = ctx.guard(match settings.raster {
             RasterMode::Graphics => Some(GraphicsRasterPass::new(ctx)?),
             RasterMode::Compute => None,
@@ -462,6 +465,7 @@ impl<'c> Renderer<'c> {
         let no_levels = res.levels.is_empty() as u32;
         res.globals.counts = [res.sphere_count, 0, 0, no_levels];
         res.globals.cam = cam.to_gpu_window(res.depth_offset(&cam), settings.window);
+        res.globals.params = [0.0, 0.0, win.width as f32, win.height as f32];
         let mut r = Renderer {
             ctx,
             settings,
@@ -535,6 +539,34 @@ impl<'c> Renderer<'c> {
         self.resize_window(self.settings.camera, window)
     }
 
+    /// `set_window` for a tile that keeps only `kept` (image coordinates,
+    /// inside the window): the per-pixel passes after the rasterizer skip
+    /// the margin beyond the blur's reach around it (they are only read
+    /// there).
+    pub fn set_tile(
+        &mut self,
+        window: crate::camera::Window,
+        kept: crate::camera::Window,
+    ) -> Result<()> {
+        self.resize_window(self.settings.camera, Some(window))?;
+        let reach = self.res.ssdo_params(&self.settings).blur_radius.max(0) as u32
+            + self.outline_reach()
+            + crate::render::tiles::ALIGN;
+        let lo = |k: u32, w: u32| k.saturating_sub(reach).max(w) - w;
+        let hi = |k: u32, n: u32, w: u32, size: u32| (k + n + reach - w).min(size);
+        self.res.globals.params = [
+            lo(kept.x, window.x) as f32,
+            lo(kept.y, window.y) as f32,
+            hi(kept.x, kept.width, window.x, window.width) as f32,
+            hi(kept.y, kept.height, window.y, window.height) as f32,
+        ];
+        Ok(())
+    }
+
+    fn outline_reach(&self) -> u32 {
+        self.res.outline_px(&self.settings)
+    }
+
     fn resize_window(&mut self, cam: Camera, window: Option<crate::camera::Window>) -> Result<()> {
         let win = window.unwrap_or(crate::camera::Window::whole(&cam));
         if !win.fits(&cam) {
@@ -550,7 +582,10 @@ impl<'c> Renderer<'c> {
         }
         let t = &self.res.targets;
         let wide = self.settings.look.color16;
-        if (t.width, t.height) != (win.width, win.height) || t.aovs != self.settings.aovs || t.wide != wide {
+        if (t.width, t.height) != (win.width, win.height)
+            || t.aovs != self.settings.aovs
+            || t.wide != wide
+        {
             self.wait_idle()?;
             let targets = Targets::new(self.ctx, win.width, win.height, self.settings.aovs, wide)?;
             let mut old = std::mem::replace(&mut self.res.targets, targets);
@@ -558,6 +593,7 @@ impl<'c> Renderer<'c> {
         }
         self.settings.camera = cam;
         self.settings.window = window;
+        self.res.globals.params = [0.0, 0.0, win.width as f32, win.height as f32];
         self.res.globals.cam = cam.to_gpu_window(self.res.depth_offset(&cam), window);
         self.res.update_light_view(&self.settings);
         Ok(())
@@ -785,6 +821,11 @@ impl<'c> Renderer<'c> {
         if !on {
             self.res.light_cached = false;
         }
+    }
+
+    /// Whether the light cache is on.
+    pub fn light_cache(&self) -> bool {
+        self.res.light_cache
     }
 
     /// Whether the next frame reuses the light-space structure.
@@ -1105,7 +1146,12 @@ fn background_word(b: crate::settings::Background) -> [f32; 4] {
     use crate::settings::Background;
     match b {
         Background::Gradient => [0.13, 0.14, 0.17, 0.0],
-        Background::Color(c) => [c[0] as f32 / 255.0, c[1] as f32 / 255.0, c[2] as f32 / 255.0, 1.0],
+        Background::Color(c) => [
+            c[0] as f32 / 255.0,
+            c[1] as f32 / 255.0,
+            c[2] as f32 / 255.0,
+            1.0,
+        ],
         Background::Transparent => [0.0, 0.0, 0.0, 2.0],
     }
 }

@@ -1,5 +1,5 @@
 //! Images larger than one device allocation (8K on lavapipe's 128 MiB
-//! `maxStorageBufferRange`, or supersampled ones), rendered in tiles with
+//! `maxStorageBufferRange`), rendered in tiles with
 //! the same camera. A tile's buffers hold a window of the image: the tile
 //! and a margin around it as wide as the screen-space passes reach (SSDO
 //! taps, the blur, the screen-space shadow march), so every kept pixel sees
@@ -77,12 +77,12 @@ pub fn plan(
         None => {
             // the window of a tile of side s spans at most s + 2 margin + ALIGN
             let fit = (max_pixels as f64).sqrt() as u64;
-            let s = fit.saturating_sub(2 * margin as u64 + ALIGN as u64) / ALIGN as u64
-                * ALIGN as u64;
+            let s =
+                fit.saturating_sub(2 * margin as u64 + ALIGN as u64) / ALIGN as u64 * ALIGN as u64;
             if s == 0 {
                 return Err(Error::DeviceLimit(format!(
                     "the screen-space passes reach {margin} px, more than a tile of this \
-                     device can hold ({max_pixels} px per buffer): lower --ssaa or --width/--height"
+                     device can hold ({max_pixels} px per buffer): lower --width/--height"
                 )));
             }
             s.min(u32::MAX as u64) as u32
@@ -206,8 +206,9 @@ impl<'a> Renderer<'a> {
     /// this device or `forced_tile` asks for a tile side, and reads it back.
     /// The pass times are summed over the tiles.
     pub fn render_image(&mut self, forced_tile: Option<u32>) -> Result<(Image, PassTimes)> {
-        self.render_image_with(forced_tile, true)
-            .map(|(i, t)| (i.unwrap_or_else(|| unreachable_image()), t))
+        let (img, t) = self.render_image_with(forced_tile, true)?;
+        let img = img.ok_or_else(|| Error::Internal("render_image read nothing".into()))?;
+        Ok((img, t))
     }
 
     /// `render_image` that reads an untiled frame back only when `read`
@@ -262,7 +263,7 @@ impl<'a> Renderer<'a> {
         self.set_light_cache(true);
         let result = (|| {
             for tile in &tiles {
-                self.set_window(Some(tile.window))?;
+                self.set_tile(tile.window, tile.kept)?;
                 let t = self.render_frame()?;
                 accumulate(&mut sum, &t);
                 let color = self.read_color()?;
@@ -289,19 +290,6 @@ impl<'a> Renderer<'a> {
     }
 }
 
-fn unreachable_image() -> Image {
-    // render_image_with(.., true) always reads
-    Image {
-        width: 0,
-        height: 0,
-        color: Vec::new(),
-        wide: false,
-        vis: Vec::new(),
-        aov: None,
-        tiles: 0,
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -314,16 +302,20 @@ mod tests {
             for tl in &tiles {
                 assert_eq!(tl.window.x % ALIGN, 0);
                 assert_eq!(tl.window.y % ALIGN, 0);
-                assert!(tl.window.fits(&crate::camera::Camera::new(
-                    glam::DVec3::ZERO,
-                    glam::DVec3::NEG_Z,
-                    glam::DVec3::Y,
-                    1.0,
-                    None,
-                    w,
-                    h
-                )
-                .unwrap()));
+                assert!(
+                    tl.window.fits(
+                        &crate::camera::Camera::new(
+                            glam::DVec3::ZERO,
+                            glam::DVec3::NEG_Z,
+                            glam::DVec3::Y,
+                            1.0,
+                            None,
+                            w,
+                            h
+                        )
+                        .unwrap()
+                    )
+                );
                 let (k, wi) = (tl.kept, tl.window);
                 // the margin is there wherever the image goes on
                 assert!(k.x - wi.x >= m.min(k.x));
