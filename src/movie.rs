@@ -206,7 +206,14 @@ pub fn render_trajectory(
     let mut settings = resolve(&scene)?;
     settings.aovs |= matches!(args.aov, Aov::Shadow | Aov::Ao);
     let base = settings.camera;
-    let mut renderer = Renderer::new(ctx, &scene, settings)?;
+    // supersampling (colour only) and tiles as `render` does them
+    let n = if args.aov == Aov::Color {
+        settings.ssaa.max(1)
+    } else {
+        1
+    };
+    let tile = settings.tile_size;
+    let mut renderer = Renderer::new_windowed(ctx, &scene, settings, tile)?;
 
     // Reader thread: frames (PBC applied) through a short queue.
     let (tx, rx) = std::sync::mpsc::sync_channel::<Result<(usize, Frame)>>(2);
@@ -281,9 +288,10 @@ pub fn render_trajectory(
             // the range, for the same reason as the camera)
             r.set_camera(camera_for(&base, fitted, k, args.orbit_deg)?)?;
             lap(&mut t_upload);
-            let times = r.render_frame()?;
+            let (img, times) = run::render_supersampled(r, n, tile, true)?;
             lap(&mut t_render);
-            let image = run::aov_image(r, args.aov)?;
+            let img = img.ok_or_else(|| Error::Internal("no image read back".into()))?;
+            let image = run::image_aov(&img, args.aov);
             lap(&mut t_back);
             if let Some(m) = movie.as_mut() {
                 m.push(&image)?;

@@ -198,18 +198,12 @@ impl Inner {
         })?);
         let mut settings = options.options.resolve(&options.axes, &scene)?;
         settings.aovs = matches!(options.aov, Aov::Shadow | Aov::Ao);
-        // (one Vulkan frame per render() call here: supersampling and tiles
-        // are the CLI's render loop, not yet the module's)
-        if settings.ssaa > 1 || settings.tile_size.is_some() {
-            return Err(sphereshade::Error::Input(
-                "ssaa and tile_size are not supported by the Python module yet: use `sphereshade render`".into(),
-            ));
-        }
         // SAFETY: the renderer's borrow of the context is extended to
         // 'static; the context is boxed, never moved out while the renderer
         // lives, and `drop` / `close` drop the renderer first.
         let ctx_ref: &'static Context = unsafe { &*(ctx.as_ref() as *const Context) };
-        let renderer = RustRenderer::new(ctx_ref, &scene, settings)?;
+        let tile = settings.tile_size;
+        let renderer = RustRenderer::new_windowed(ctx_ref, &scene, settings, tile)?;
         Ok(Inner {
             renderer: Some(renderer),
             ctx: Some(ctx),
@@ -237,8 +231,13 @@ impl Inner {
     fn render(&mut self) -> Result<AovImage, sphereshade::Error> {
         let aov = self.options.aov;
         let r = self.renderer_mut()?;
-        let times = r.render_frame()?;
-        let image = sphereshade::run::aov_image(r, aov)?;
+        // as `render` does it: supersampling (colour only) and tiles
+        let s = r.settings();
+        let n = if aov == Aov::Color { s.ssaa.max(1) } else { 1 };
+        let tile = s.tile_size;
+        let (img, times) = sphereshade::run::render_supersampled(r, n, tile, true)?;
+        let img = img.ok_or_else(|| sphereshade::Error::Internal("no image read back".into()))?;
+        let image = sphereshade::run::image_aov(&img, aov);
         self.timings = times.iter().map(|(n, t)| (n.to_string(), *t)).collect();
         Ok(image)
     }

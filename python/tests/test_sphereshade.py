@@ -71,6 +71,21 @@ def test_arrays_render_like_the_cli(tmp_path, aov):
     assert sphereshade.image_sha256(img) == json.loads(js.read_text())["image_sha256"]
 
 
+def test_publication_options_render_like_the_cli(tmp_path):
+    # supersampling, tiles, a transparent background and outlines take the
+    # CLI's render path too
+    p, r = spheres()
+    xyzr = tmp_path / "s.xyzr"
+    write_xyzr(xyzr, p, r, None)
+    png = tmp_path / "cli.png"
+    opts = ["--ssaa", "2", "--tile-size", "32", "--background", "transparent", "--outline", "1"]
+    run_cli(["render", str(xyzr), "--width", "96", "--height", "72", *opts, "--out", str(png)])
+    img = sphereshade.render(p, r, width=96, height=72, ssaa=2, tile_size=32,
+                             background="transparent", outline=1)
+    assert sphereshade.encode_png(img) == png.read_bytes()
+    assert 0 < (img[..., 3] == 0).sum() < img.shape[0] * img.shape[1]
+
+
 def test_trajectory_loop_equals_fresh_renders():
     p, r = spheres(300)
     frames = [p + np.float32(0.7 * k) * np.sin(p).astype(np.float32) for k in range(3)]
