@@ -120,6 +120,11 @@ fn bad_options_are_named() {
         (vec!["--view-dir", "0,0,0"], "--view-dir"),
         (vec!["--issm-t", "lots"], "--issm-t"),
         (vec!["--replicate", "1000x1000x1000"], "--replicate"),
+        (vec!["--ssaa", "5"], "--ssaa"),
+        (vec!["--outline", "-1"], "--outline"),
+        (vec!["--tile-size", "4"], "--tile-size"),
+        (vec!["--png-depth", "12"], "--png-depth"),
+        (vec!["--aov", "id", "--png-depth", "16"], "--png-depth 16"),
     ] {
         let mut a = vec!["render", "--out", png.to_str().unwrap()];
         a.extend(SMALL);
@@ -129,9 +134,36 @@ fn bad_options_are_named() {
         assert!(stderr(&o).contains(needle), "{args:?}: {}", stderr(&o));
     }
     // clap rejects malformed values with its usage exit code
-    let o = run(&["render", "--out", png.to_str().unwrap(), "--light", "1,2"]);
-    assert_ne!(o.status.code(), Some(0));
-    assert!(stderr(&o).contains("--light"));
+    for (flag, value) in [
+        ("--light", "1,2"),
+        ("--background", "1,2"),
+        ("--fog", "5,1"),
+    ] {
+        let o = run(&["render", "--out", png.to_str().unwrap(), flag, value]);
+        assert_ne!(o.status.code(), Some(0));
+        assert!(stderr(&o).contains(flag), "{flag}: {}", stderr(&o));
+    }
+    assert!(!png.exists());
+    // an EXR holds every layer; --aov is for PNGs
+    let exr = tmp("opt.exr");
+    let mut a = vec!["render", "--out", exr.to_str().unwrap(), "--aov", "id"];
+    a.extend(SMALL);
+    let o = run(&a);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        stderr(&o).contains("--aov applies to PNG"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!exr.exists());
+    // the window has one sample per pixel
+    let o = run(&["view", "--ssaa", "2"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        stderr(&o).contains("--ssaa and --tile-size apply to `render`"),
+        "{}",
+        stderr(&o)
+    );
 }
 
 #[test]

@@ -33,6 +33,18 @@ fn resolve(
     o.resolve(&axes, scene).expect("options")
 }
 
+/// The default modes (ISSM soft shadows, semantic SSDO) at w x h.
+fn defaults(scene: &Scene, w: u32, h: u32) -> RenderSettings {
+    resolve(
+        scene,
+        w,
+        h,
+        ShadowMode::IssmSoft,
+        SsdoMode::Semantic,
+        |_| {},
+    )
+}
+
 fn render(scene: &Scene, settings: RenderSettings, aov: Aov) -> AovImage {
     let ctx = validated_context();
     let out = run::render_run(&ctx, scene, "test", settings, aov, 0, 1, 0.0)
@@ -127,14 +139,7 @@ fn tiled_renders_equal_untiled_bytes() {
 fn a_window_without_margin_differs() {
     let ctx = validated_context();
     let scene = load_data("1tii.pdb");
-    let whole = resolve(
-        &scene,
-        256,
-        200,
-        ShadowMode::IssmSoft,
-        SsdoMode::Semantic,
-        |_| {},
-    );
+    let whole = defaults(&scene, 256, 200);
     let mut r = sphereshade::render::Renderer::new(&ctx, &scene, whole).unwrap();
     r.render_frame().unwrap();
     let full = r.read_color().unwrap();
@@ -401,14 +406,7 @@ fn outlines_follow_silhouettes() {
 #[test]
 fn sixteen_bit_colour_matches_eight_bit() {
     let scene = load_data("1tii.pdb");
-    let s8 = resolve(
-        &scene,
-        160,
-        120,
-        ShadowMode::IssmSoft,
-        SsdoMode::Semantic,
-        |_| {},
-    );
+    let s8 = defaults(&scene, 160, 120);
     let mut s16 = s8.clone();
     s16.look.color16 = true;
     let a = render(&scene, s8, Aov::Color);
@@ -434,14 +432,7 @@ fn sixteen_bit_colour_matches_eight_bit() {
 fn exr_layers_equal_the_png_aovs() {
     use exr::prelude::*;
     let scene = load_data("1tii.pdb");
-    let s = resolve(
-        &scene,
-        160,
-        120,
-        ShadowMode::IssmSoft,
-        SsdoMode::Semantic,
-        |_| {},
-    );
+    let s = defaults(&scene, 160, 120);
     let ctx = validated_context();
     let (layers, _) = run::render_layers(&ctx, &scene, "test", s.clone(), 0.0).unwrap();
     assert_no_validation_messages(&ctx);

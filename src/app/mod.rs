@@ -589,6 +589,12 @@ pub fn run(cmd: ViewCmd) -> Result<Exit> {
     if cmd.frames == Some(0) {
         return Err(Error::Input("--frames must be at least 1".into()));
     }
+    if cmd.options.ssaa > 1 || cmd.options.tile_size.is_some() {
+        return Err(Error::Input(
+            "--ssaa and --tile-size apply to `render` (the window shows one sample per pixel)"
+                .into(),
+        ));
+    }
     let (w, h) = (cmd.axes.width, cmd.axes.height);
     if w == 0 || h == 0 || w > 16384 || h > 16384 {
         return Err(Error::Input(
