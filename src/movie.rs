@@ -288,7 +288,7 @@ pub fn render_trajectory(
             // the range, for the same reason as the camera)
             r.set_camera(camera_for(&base, fitted, k, args.orbit_deg)?)?;
             lap(&mut t_upload);
-            let (img, times) = run::render_supersampled(r, n, tile, true)?;
+            let (img, times) = run::render_supersampled(r, n, tile, true, &mut |_, _| {})?;
             lap(&mut t_render);
             let img = img.ok_or_else(|| Error::Internal("no image read back".into()))?;
             let image = run::image_aov(&img, args.aov);

@@ -283,10 +283,12 @@ pub fn render_supersampled(
     n: u32,
     tile: Option<u32>,
     read: bool,
+    progress: &mut dyn FnMut(usize, usize),
 ) -> Result<(Option<crate::render::tiles::Image>, PassTimes)> {
     if n <= 1 {
-        return r.render_image_with(tile, read);
+        return r.render_image_with(tile, read, progress);
     }
+    let samples = (n * n) as usize;
     let base = r.settings().clone();
     let cache = r.light_cache();
     r.set_light_cache(true);
@@ -299,7 +301,11 @@ pub fn render_supersampled(
             for sx in 0..n {
                 let off = |k: u32| (k as f64 + 0.5) / n as f64 - 0.5;
                 r.set_camera(base.shifted(off(sx), off(sy)).camera)?;
-                let (img, t) = r.render_image(tile)?;
+                let k = (sy * n + sx) as usize;
+                let (img, t) = r.render_image_with(tile, true, &mut |done, tiles| {
+                    progress(k * tiles + done, samples * tiles)
+                })?;
+                let img = img.ok_or_else(|| Error::Internal("no image read back".into()))?;
                 for &(name, ms) in &t.passes {
                     match sum.passes.iter_mut().find(|(p, _)| *p == name) {
                         Some(e) => e.1 += ms,
@@ -318,6 +324,52 @@ pub fn render_supersampled(
     r.set_light_cache(cache);
     r.set_camera(base.camera)?;
     result
+}
+
+/// Progress of a frame made of several steps (tiles x sub-pixel samples)
+/// on stderr: updated in place on a terminal, a line every 10 % in a log;
+/// silent for one-step frames.
+pub struct StepProgress {
+    what: &'static str,
+    tty: bool,
+    started: Instant,
+    last_tenth: usize,
+}
+
+impl StepProgress {
+    pub fn new(what: &'static str) -> Self {
+        StepProgress {
+            what,
+            tty: std::io::stderr().is_terminal(),
+            started: Instant::now(),
+            last_tenth: 0,
+        }
+    }
+
+    pub fn tick(&mut self, done: usize, total: usize) {
+        if total <= 1 {
+            return;
+        }
+        if done == 1 {
+            self.started = Instant::now();
+            self.last_tenth = 0;
+        }
+        let s = self.started.elapsed().as_secs_f64();
+        let eta = s / done as f64 * (total - done) as f64;
+        let line = format!(
+            "{}: {done}/{total} tiles x samples, {s:.1} s, ETA {eta:.0} s",
+            self.what
+        );
+        if self.tty {
+            eprint!("\r\x1b[K{line}");
+            if done == total {
+                eprint!("\r\x1b[K");
+            }
+        } else if done * 10 / total > self.last_tenth {
+            self.last_tenth = done * 10 / total;
+            eprintln!("{line}");
+        }
+    }
 }
 
 /// The AOV of a whole image (tiled or not, supersampled or not).
@@ -391,7 +443,7 @@ pub fn render_layers(
     let (w, h) = (cam.width, cam.height);
     let n = settings.ssaa.max(1);
     let color_words = if n > 1 {
-        render_supersampled(&mut r, n, tile, true)?
+        render_supersampled(&mut r, n, tile, true, &mut |_, _| {})?
             .0
             .map(|i| i.color)
             .unwrap_or_default()
@@ -534,14 +586,16 @@ pub fn render_run_with(
     };
     let tile = settings.tile_size;
     let mut r = Renderer::new_windowed(ctx, scene, settings, tile)?;
+    let mut progress = StepProgress::new("rendering");
     for _ in 0..warmup {
-        render_supersampled(&mut r, n, tile, false)?;
+        render_supersampled(&mut r, n, tile, false, &mut |d, t| progress.tick(d, t))?;
     }
     let mut times = Vec::new();
     let mut last = None;
     for k in 0..frames.max(1) {
         before(&mut r, k)?;
-        let (img, t) = render_supersampled(&mut r, n, tile, k + 1 == frames.max(1))?;
+        let read = k + 1 == frames.max(1);
+        let (img, t) = render_supersampled(&mut r, n, tile, read, &mut |d, t| progress.tick(d, t))?;
         times.push(t);
         last = img.or(last);
     }

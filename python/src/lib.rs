@@ -235,7 +235,7 @@ impl Inner {
         let s = r.settings();
         let n = if aov == Aov::Color { s.ssaa.max(1) } else { 1 };
         let tile = s.tile_size;
-        let (img, times) = sphereshade::run::render_supersampled(r, n, tile, true)?;
+        let (img, times) = sphereshade::run::render_supersampled(r, n, tile, true, &mut |_, _| {})?;
         let img = img.ok_or_else(|| sphereshade::Error::Internal("no image read back".into()))?;
         let image = sphereshade::run::image_aov(&img, aov);
         self.timings = times.iter().map(|(n, t)| (n.to_string(), *t)).collect();

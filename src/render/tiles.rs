@@ -206,26 +206,34 @@ impl<'a> Renderer<'a> {
     /// this device or `forced_tile` asks for a tile side, and reads it back.
     /// The pass times are summed over the tiles.
     pub fn render_image(&mut self, forced_tile: Option<u32>) -> Result<(Image, PassTimes)> {
-        let (img, t) = self.render_image_with(forced_tile, true)?;
+        let (img, t) = self.render_image_with(forced_tile, true, &mut |_, _| {})?;
         let img = img.ok_or_else(|| Error::Internal("render_image read nothing".into()))?;
         Ok((img, t))
     }
 
-    /// `render_image` that reads an untiled frame back only when `read`
-    /// (measured frames before the last need no pixels; tiles always do).
-    pub fn render_image_with(
-        &mut self,
-        forced_tile: Option<u32>,
-        read: bool,
-    ) -> Result<(Option<Image>, PassTimes)> {
+    /// The tiles `render_image` renders for this image.
+    pub fn tile_plan(&self, forced_tile: Option<u32>) -> Result<Vec<Tile>> {
         let cam = self.settings.camera;
-        let tiles = plan(
+        plan(
             cam.width,
             cam.height,
             self.tile_margin(),
             max_window_pixels(self.ctx),
             forced_tile,
-        )?;
+        )
+    }
+
+    /// `render_image` that reads an untiled frame back only when `read`
+    /// (measured frames before the last need no pixels; tiles always do),
+    /// calling `on_tile(done, tiles)` after each tile.
+    pub fn render_image_with(
+        &mut self,
+        forced_tile: Option<u32>,
+        read: bool,
+        on_tile: &mut dyn FnMut(usize, usize),
+    ) -> Result<(Option<Image>, PassTimes)> {
+        let cam = self.settings.camera;
+        let tiles = self.tile_plan(forced_tile)?;
         let aovs = self.settings.aovs;
         let wide = self.settings.look.color16;
         if tiles.len() == 1 {
@@ -233,6 +241,7 @@ impl<'a> Renderer<'a> {
                 self.set_window(None)?;
             }
             let times = self.render_frame()?;
+            on_tile(1, 1);
             if !read {
                 return Ok((None, times));
             }
@@ -262,7 +271,7 @@ impl<'a> Renderer<'a> {
         // the light structure is built by the first tile, reused by the rest
         self.set_light_cache(true);
         let result = (|| {
-            for tile in &tiles {
+            for (k, tile) in tiles.iter().enumerate() {
                 self.set_tile(tile.window, tile.kept)?;
                 let t = self.render_frame()?;
                 accumulate(&mut sum, &t);
@@ -281,6 +290,7 @@ impl<'a> Renderer<'a> {
                 if let Some(a) = image.aov.as_mut() {
                     place(a, cam.width, tile, &self.read_aov()?);
                 }
+                on_tile(k + 1, tiles.len());
             }
             Ok::<_, Error>(())
         })();
