@@ -240,9 +240,95 @@ mod quiet_panics {
     }
 }
 
+/// The index of a file of self-delimiting frames (XTC, TRR): one entry per
+/// complete frame, the atom count they share, and what ended the index
+/// early (a cut or corrupt frame, or a frame with another atom count).
+pub(crate) struct FrameIndex<E> {
+    pub name: String,
+    pub file: std::io::BufReader<std::fs::File>,
+    pub entries: Vec<E>,
+    pub atoms: usize,
+    pub damage: Option<TrajError>,
+}
+
+/// Builds a [`FrameIndex`] by walking the frame headers: `header(file, pos,
+/// len)` reads the header of the frame at byte `pos` and gives (atoms,
+/// frame size in bytes, entry), or the reason it cannot. `format` names
+/// the file kind in the error for an empty file.
+pub(crate) fn index_frames<E>(
+    path: &Path,
+    format: &str,
+    mut header: impl FnMut(
+        &mut std::io::BufReader<std::fs::File>,
+        u64,
+        u64,
+    ) -> Result<(usize, u64, E), String>,
+) -> Result<FrameIndex<E>, TrajError> {
+    let name = path.display().to_string();
+    let io = |source| TrajError::Io {
+        path: name.clone(),
+        source,
+    };
+    let f = std::fs::File::open(path).map_err(io)?;
+    let len = f.metadata().map_err(io)?.len();
+    let mut file = std::io::BufReader::new(f);
+    let mut entries = Vec::new();
+    let mut atoms = None;
+    let mut damage = None;
+    let mut pos = 0u64;
+    while pos < len {
+        let frame = entries.len();
+        let bad = |msg: String| TrajError::Frame {
+            path: name.clone(),
+            frame,
+            offset: pos,
+            msg,
+        };
+        match header(&mut file, pos, len) {
+            Ok((n, size, entry)) => {
+                if let Some(a) = atoms
+                    && a != n
+                {
+                    damage = Some(bad(format!("{n} atoms, the frames before have {a}")));
+                    break;
+                }
+                atoms = Some(n);
+                entries.push(entry);
+                pos += size;
+            }
+            Err(msg) => {
+                damage = Some(bad(msg));
+                break;
+            }
+        }
+    }
+    let atoms = atoms.ok_or_else(|| match damage.take() {
+        Some(d) => d,
+        None => TrajError::Invalid(format!("{name}: empty {format} file")),
+    })?;
+    Ok(FrameIndex {
+        name,
+        file,
+        entries,
+        atoms,
+        damage,
+    })
+}
+
 /// Big-endian XDR reading for XTC/TRR headers.
 pub(crate) mod xdr {
     use std::io::Read;
+
+    /// A header read error as its message ("the file ends inside the frame
+    /// header" for a cut file).
+    pub fn header_error(e: std::io::Error) -> String {
+        match e.kind() {
+            std::io::ErrorKind::UnexpectedEof => {
+                "the file ends inside the frame header".to_string()
+            }
+            _ => e.to_string(),
+        }
+    }
 
     pub fn i32(r: &mut impl Read) -> std::io::Result<i32> {
         let mut b = [0u8; 4];

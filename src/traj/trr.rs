@@ -27,54 +27,13 @@ const MAGIC: i32 = 1993;
 
 impl Trr {
     pub fn open(path: &Path) -> Result<Self, TrajError> {
-        let name = path.display().to_string();
-        let io = |source| TrajError::Io {
-            path: name.clone(),
-            source,
-        };
-        let f = std::fs::File::open(path).map_err(io)?;
-        let len = f.metadata().map_err(io)?.len();
-        let mut file = BufReader::new(f);
-        let mut index = Vec::new();
-        let mut atoms = None;
-        let mut damage = None;
-        let mut pos = 0u64;
-        while pos < len {
-            let frame = index.len();
-            let bad = |msg: String| TrajError::Frame {
-                path: name.clone(),
-                frame,
-                offset: pos,
-                msg,
-            };
-            match header(&mut file, pos, len) {
-                Ok((n, size, entry)) => {
-                    if let Some(a) = atoms
-                        && a != n
-                    {
-                        damage = Some(bad(format!("{n} atoms, the frames before have {a}")));
-                        break;
-                    }
-                    atoms = Some(n);
-                    index.push(entry);
-                    pos += size;
-                }
-                Err(msg) => {
-                    damage = Some(bad(msg));
-                    break;
-                }
-            }
-        }
-        let atoms = atoms.ok_or_else(|| match damage.take() {
-            Some(d) => d,
-            None => TrajError::Invalid(format!("{name}: empty TRR file")),
-        })?;
+        let ix = super::index_frames(path, "TRR", header)?;
         Ok(Trr {
-            path: name,
-            file,
-            index,
-            atoms,
-            damage,
+            path: ix.name,
+            file: ix.file,
+            index: ix.entries,
+            atoms: ix.atoms,
+            damage: ix.damage,
         })
     }
 }
@@ -85,10 +44,7 @@ fn header(
     pos: u64,
     len: u64,
 ) -> Result<(usize, u64, Entry), String> {
-    let e = |e: std::io::Error| match e.kind() {
-        std::io::ErrorKind::UnexpectedEof => "the file ends inside the frame header".to_string(),
-        _ => e.to_string(),
-    };
+    let e = xdr::header_error;
     file.seek(SeekFrom::Start(pos)).map_err(e)?;
     let magic = xdr::i32(file).map_err(e)?;
     if magic != MAGIC {

@@ -21,54 +21,15 @@ const MAGIC_2023: i32 = 2023;
 
 impl Xtc {
     pub fn open(path: &Path) -> Result<Self, TrajError> {
-        let name = path.display().to_string();
-        let io = |source| TrajError::Io {
-            path: name.clone(),
-            source,
-        };
-        let f = std::fs::File::open(path).map_err(io)?;
-        let len = f.metadata().map_err(io)?.len();
-        let mut file = BufReader::new(f);
-        let mut offsets = Vec::new();
-        let mut atoms = None;
-        let mut damage = None;
-        let mut pos = 0u64;
-        while pos < len {
-            let frame = offsets.len();
-            let bad = |msg: String| TrajError::Frame {
-                path: name.clone(),
-                frame,
-                offset: pos,
-                msg,
-            };
-            match header_size(&mut file, pos, len) {
-                Ok((n, size)) => {
-                    if let Some(a) = atoms
-                        && a != n
-                    {
-                        damage = Some(bad(format!("{n} atoms, the frames before have {a}")));
-                        break;
-                    }
-                    atoms = Some(n);
-                    offsets.push(pos);
-                    pos += size;
-                }
-                Err(msg) => {
-                    damage = Some(bad(msg));
-                    break;
-                }
-            }
-        }
-        let atoms = atoms.ok_or_else(|| match damage.take() {
-            Some(d) => d,
-            None => TrajError::Invalid(format!("{name}: empty XTC file")),
+        let ix = super::index_frames(path, "XTC", |f, pos, len| {
+            header_size(f, pos, len).map(|(n, size)| (n, size, pos))
         })?;
         Ok(Xtc {
-            path: name,
-            file,
-            offsets,
-            atoms,
-            damage,
+            path: ix.name,
+            file: ix.file,
+            offsets: ix.entries,
+            atoms: ix.atoms,
+            damage: ix.damage,
             raw: molly::Frame::default(),
         })
     }
@@ -80,10 +41,7 @@ fn header_size(
     pos: u64,
     len: u64,
 ) -> Result<(usize, u64), String> {
-    let e = |e: std::io::Error| match e.kind() {
-        std::io::ErrorKind::UnexpectedEof => "the file ends inside the frame header".to_string(),
-        _ => e.to_string(),
-    };
+    let e = xdr::header_error;
     file.seek(SeekFrom::Start(pos)).map_err(e)?;
     let magic = xdr::i32(file).map_err(e)?;
     if magic != MAGIC_1995 && magic != MAGIC_2023 {
