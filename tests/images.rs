@@ -35,14 +35,12 @@ fn resolve(
 
 /// The default modes (ISSM soft shadows, semantic SSDO) at w x h.
 fn defaults(scene: &Scene, w: u32, h: u32) -> RenderSettings {
-    resolve(
-        scene,
-        w,
-        h,
-        ShadowMode::IssmSoft,
-        SsdoMode::Semantic,
-        |_| {},
-    )
+    defaults_with(scene, w, h, |_| {})
+}
+
+/// The default modes with options edited.
+fn defaults_with(scene: &Scene, w: u32, h: u32, edit: impl Fn(&mut Options)) -> RenderSettings {
+    resolve(scene, w, h, ShadowMode::IssmSoft, SsdoMode::Semantic, edit)
 }
 
 fn render(scene: &Scene, settings: RenderSettings, aov: Aov) -> AovImage {
@@ -234,16 +232,9 @@ fn supersampled_alpha_follows_exact_coverage() {
 #[test]
 fn transparent_background_alpha_is_exact() {
     let scene = load_data("1tii.pdb");
-    let s = resolve(
-        &scene,
-        200,
-        150,
-        ShadowMode::IssmSoft,
-        SsdoMode::Semantic,
-        |o| {
-            o.background = Background::Transparent;
-        },
-    );
+    let s = defaults_with(&scene, 200, 150, |o| {
+        o.background = Background::Transparent;
+    });
     let img = render(&scene, s.clone(), Aov::Color);
     let ids = render(&scene, s, Aov::Id);
     let (img, ids) = (rgba(&img), rgba(&ids));
@@ -266,16 +257,9 @@ fn transparent_background_alpha_is_exact() {
 #[test]
 fn background_colour_and_fog() {
     let scene = load_data("1tii.pdb");
-    let s = resolve(
-        &scene,
-        160,
-        120,
-        ShadowMode::IssmSoft,
-        SsdoMode::Semantic,
-        |o| {
-            o.background = Background::Color([10, 200, 30]);
-        },
-    );
+    let s = defaults_with(&scene, 160, 120, |o| {
+        o.background = Background::Color([10, 200, 30]);
+    });
     let plain = render(&scene, s.clone(), Aov::Color);
     let ids = render(&scene, s, Aov::Id);
     let mut bg = 0;
@@ -286,17 +270,10 @@ fn background_colour_and_fog() {
         }
     }
     assert!(bg > 1000);
-    let fogged = resolve(
-        &scene,
-        160,
-        120,
-        ShadowMode::IssmSoft,
-        SsdoMode::Semantic,
-        |o| {
-            o.background = Background::Color([10, 200, 30]);
-            o.fog = Some(Fog([-1e6, -1e5]));
-        },
-    );
+    let fogged = defaults_with(&scene, 160, 120, |o| {
+        o.background = Background::Color([10, 200, 30]);
+        o.fog = Some(Fog([-1e6, -1e5]));
+    });
     let fogged = render(&scene, fogged, Aov::Color);
     for p in rgba(&fogged).pixels() {
         let d: i32 = p.0[..3]
@@ -309,17 +286,10 @@ fn background_colour_and_fog() {
     }
     // and fog between the front and the back darkens nothing toward black:
     // the far half of the molecule moves toward the background
-    let half = resolve(
-        &scene,
-        160,
-        120,
-        ShadowMode::IssmSoft,
-        SsdoMode::Semantic,
-        |o| {
-            o.background = Background::Color([255, 255, 255]);
-            o.fog = Some(Fog([-5.0, 30.0]));
-        },
-    );
+    let half = defaults_with(&scene, 160, 120, |o| {
+        o.background = Background::Color([255, 255, 255]);
+        o.fog = Some(Fog([-5.0, 30.0]));
+    });
     let half = render(&scene, half, Aov::Color);
     let plain_l: f64 = rgba(&plain).pixels().map(|p| p.0[1] as f64).sum();
     let half_l: f64 = rgba(&half).pixels().map(|p| p.0[1] as f64).sum();
@@ -533,14 +503,7 @@ fn exr_layers_equal_the_png_aovs() {
 #[test]
 fn supersampling_keeps_the_look() {
     let scene = load_data("pdb3p3w.pdb");
-    let s1 = resolve(
-        &scene,
-        200,
-        150,
-        ShadowMode::IssmSoft,
-        SsdoMode::Semantic,
-        |o| o.view_height = Some(40.0),
-    );
+    let s1 = defaults_with(&scene, 200, 150, |o| o.view_height = Some(40.0));
     let mut s2 = s1.clone();
     s2.ssaa = 2;
     let a = render(&scene, s1.clone(), Aov::Color);
