@@ -77,16 +77,14 @@ fn main() -> anyhow::Result<()> {
                 width,
                 height
             );
-            let model = cmd.out_dir.join(format!("{name}.dat"));
-            let mut buf = Vec::new();
-            let how = tachyon::TachyonLight {
-                ao_samples: Some(64),
-                white: false,
-            };
-            tachyon::write_scene(&mut buf, &scene, &settings.camera, settings.light, how)?;
-            std::fs::write(&model, buf)?;
-            let (_, _, reference) =
-                tachyon::render(&model, &cmd.out_dir.join(format!("{name}.ppm")))?;
+            let reference = tachyon::reference_image(
+                &scene,
+                &settings.camera,
+                settings.light,
+                &cmd.out_dir,
+                &name,
+            )
+            .map_err(anyhow::Error::msg)?;
             let ours: Vec<[u8; 3]> = img.pixels().map(|p| p.0).collect();
             let covered = vec![true; ours.len()];
             tachyon::look_stats(width, height, &ours, &covered, &reference)

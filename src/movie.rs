@@ -206,12 +206,8 @@ pub fn render_trajectory(
     let mut settings = resolve(&scene)?;
     settings.aovs |= matches!(args.aov, Aov::Shadow | Aov::Ao);
     let base = settings.camera;
-    // supersampling (colour only) and tiles as `render` does them
-    let n = if args.aov == Aov::Color {
-        settings.ssaa.max(1)
-    } else {
-        1
-    };
+    // supersampling and tiles as `render` does them
+    let n = settings.ssaa_for(args.aov);
     let tile = settings.tile_size;
     let mut renderer = Renderer::new_windowed(ctx, &scene, settings, tile)?;
 

@@ -219,6 +219,8 @@ pub struct Accumulator {
     acc: Vec<[f32; 4]>,
     samples: u32,
     wide: bool,
+    /// 8-bit code -> linear value.
+    lut8: Vec<f32>,
 }
 
 impl Accumulator {
@@ -227,11 +229,12 @@ impl Accumulator {
             acc: vec![[0.0; 4]; pixels],
             samples: 0,
             wide,
+            lut8: (0..256).map(|v| (v as f32 / 255.0).powf(2.2)).collect(),
         }
     }
 
     pub fn add(&mut self, words: &[u32]) {
-        let lut8: Vec<f32> = (0..256).map(|v| (v as f32 / 255.0).powf(2.2)).collect();
+        let lut8 = &self.lut8;
         for (i, a) in self.acc.iter_mut().enumerate() {
             let c = if self.wide {
                 let (x, y) = (words[2 * i], words[2 * i + 1]);

@@ -21,6 +21,15 @@ fn c64(s: &Sphere) -> DVec3 {
     DVec3::new(s.center[0] as f64, s.center[1] as f64, s.center[2] as f64)
 }
 
+/// The point pixel (x, y) of `cam` sees on the sphere (c, r) it shows (the
+/// visibility buffer's id): the near hit of its ray in f64 (the ray's
+/// origin for a miss, which f32 rounding can give at a silhouette).
+pub fn visible_point(cam: &crate::camera::Camera, x: u32, y: u32, c: DVec3, r: f64) -> DVec3 {
+    let (o, d) = cam.ray(x, y);
+    let (t, _) = ray_sphere(o, d, c, r).unwrap_or((0.0, 0.0));
+    o + t * d
+}
+
 /// Ray-sphere intersection in a cancellation-free form. Returns the near hit
 /// distance and the squared gap to the silhouette (r^2 - miss distance^2).
 pub fn ray_sphere(o: DVec3, d: DVec3, c: DVec3, r: f64) -> Option<(f64, f64)> {

@@ -306,13 +306,7 @@ pub fn render_supersampled(
                     progress(k * tiles + done, samples * tiles)
                 })?;
                 let img = img.ok_or_else(|| Error::Internal("no image read back".into()))?;
-                for &(name, ms) in &t.passes {
-                    match sum.passes.iter_mut().find(|(p, _)| *p == name) {
-                        Some(e) => e.1 += ms,
-                        None => sum.passes.push((name, ms)),
-                    }
-                }
-                sum.total_ms += t.total_ms;
+                sum.add(&t);
                 acc.add(&img.color);
                 last = Some(img);
             }
@@ -441,7 +435,7 @@ pub fn render_layers(
     let (img, times) = r.render_image(tile)?;
     let cam = s1.camera;
     let (w, h) = (cam.width, cam.height);
-    let n = settings.ssaa.max(1);
+    let n = settings.ssaa_for(Aov::Color);
     let color_words = if n > 1 {
         render_supersampled(&mut r, n, tile, true, &mut |_, _| {})?
             .0
@@ -486,9 +480,8 @@ pub fn render_layers(
             sp.center[1] as f64,
             sp.center[2] as f64,
         );
-        let (o, d) = cam.ray(i as u32 % w, i as u32 / w);
-        let (t, _) = crate::reference::ray_sphere(o, d, c, sp.radius as f64).unwrap_or((0.0, 0.0));
-        let p = o + t * d;
+        let p =
+            crate::reference::visible_point(&cam, i as u32 % w, i as u32 / w, c, sp.radius as f64);
         let nrm = (p - c).normalize_or_zero();
         for k in 0..3 {
             normal[k][i] = nrm[k] as f32;
@@ -577,13 +570,7 @@ pub fn render_run_with(
 ) -> Result<RunOutcome> {
     let mut settings = settings;
     settings.aovs |= matches!(aov, Aov::Shadow | Aov::Ao);
-    // only the colour is supersampled (DESIGN.md): the other AOVs keep one
-    // sample per pixel centre
-    let n = if aov == Aov::Color {
-        settings.ssaa.max(1)
-    } else {
-        1
-    };
+    let n = settings.ssaa_for(aov);
     let tile = settings.tile_size;
     let mut r = Renderer::new_windowed(ctx, scene, settings, tile)?;
     let mut progress = StepProgress::new("rendering");

@@ -188,6 +188,16 @@ impl RenderSettings {
         s
     }
 
+    /// Sub-pixel samples per axis for `aov`: `ssaa` for the colour, 1 for
+    /// the others (they keep one sample per pixel centre, DESIGN.md).
+    pub fn ssaa_for(&self, aov: Aov) -> u32 {
+        if aov == Aov::Color {
+            self.ssaa.max(1)
+        } else {
+            1
+        }
+    }
+
     /// The pixels a frame's buffers hold.
     pub fn window(&self) -> crate::camera::Window {
         self.window

@@ -236,20 +236,8 @@ pub fn compare_look(
     let color = r.read_color().map_err(|e| e.to_string())?;
     let vis = r.read_vis().map_err(|e| e.to_string())?;
     drop(r);
-    let model = work_dir.join(format!("{name}.dat"));
-    let mut buf = Vec::new();
-    let how = TachyonLight {
-        ao_samples: Some(64),
-        white: false,
-    };
-    write_scene(&mut buf, scene, &cam, light, how).map_err(|e| e.to_string())?;
-    std::fs::write(&model, buf).map_err(|e| format!("{}: {e}", model.display()))?;
-    let (tw, th, reference) =
-        render(&model, &work_dir.join(format!("{name}.ppm"))).map_err(|e| e.to_string())?;
+    let reference = reference_image(scene, &cam, light, work_dir, name)?;
     let (w, h) = (cam.width, cam.height);
-    if (tw, th) != (w, h) {
-        return Err(format!("tachyon wrote {tw}x{th}, not {w}x{h}"));
-    }
     let ours: Vec<[u8; 3]> = color
         .iter()
         .map(|c| {
@@ -259,6 +247,34 @@ pub fn compare_look(
         .collect();
     let covered: Vec<bool> = vis.iter().map(|&k| k != crate::gpu::VIS_EMPTY).collect();
     Ok(look_stats(w, h, &ours, &covered, &reference))
+}
+
+/// Tachyon's image of `scene` seen by `cam` with the key light `light`,
+/// hard shadows and 64-sample sky-light AO, in the scene's colours: the
+/// reference of the look comparison. The model and the PPM are written to
+/// `work_dir` as `NAME.dat` / `NAME.ppm`.
+pub fn reference_image(
+    scene: &Scene,
+    cam: &Camera,
+    light: DVec3,
+    work_dir: &Path,
+    name: &str,
+) -> Result<Vec<[u8; 3]>, String> {
+    let model = work_dir.join(format!("{name}.dat"));
+    let mut buf = Vec::new();
+    let how = TachyonLight {
+        ao_samples: Some(64),
+        white: false,
+    };
+    write_scene(&mut buf, scene, cam, light, how).map_err(|e| e.to_string())?;
+    std::fs::write(&model, buf).map_err(|e| format!("{}: {e}", model.display()))?;
+    let (tw, th, reference) =
+        render(&model, &work_dir.join(format!("{name}.ppm"))).map_err(|e| e.to_string())?;
+    let (w, h) = (cam.width, cam.height);
+    if (tw, th) != (w, h) {
+        return Err(format!("tachyon wrote {tw}x{th}, not {w}x{h}"));
+    }
+    Ok(reference)
 }
 
 /// The statistics over the pixels covered in `covered` and in the

@@ -233,7 +233,7 @@ impl Inner {
         let r = self.renderer_mut()?;
         // as `render` does it: supersampling (colour only) and tiles
         let s = r.settings();
-        let n = if aov == Aov::Color { s.ssaa.max(1) } else { 1 };
+        let n = s.ssaa_for(aov);
         let tile = s.tile_size;
         let (img, times) = sphereshade::run::render_supersampled(r, n, tile, true, &mut |_, _| {})?;
         let img = img.ok_or_else(|| sphereshade::Error::Internal("no image read back".into()))?;

@@ -401,18 +401,7 @@ impl<'c> Renderer<'c> {
             (attrs.len() * 32) as u64,
         )?);
         attr_buf.upload(ctx, 0, bytemuck::cast_slice(&attrs))?;
-        let win = settings.window();
-        if !win.fits(&cam) {
-            return Err(Error::Input(format!(
-                "window {win:?} is not inside the {}x{} image",
-                cam.width, cam.height
-            )));
-        }
-        if settings.window.is_some() && settings.raster == RasterMode::Graphics {
-            return Err(Error::Input(
-                "tiles need --raster compute (the graphics baseline draws whole images)".into(),
-            ));
-        }
+        let win = checked_window(&cam, settings.window, settings.raster)?;
         let targets = ctx.guard(Targets::new(
             ctx,
             win.width,
@@ -550,7 +539,7 @@ impl<'c> Renderer<'c> {
     ) -> Result<()> {
         self.resize_window(self.settings.camera, Some(window))?;
         let reach = self.res.ssdo_params(&self.settings).blur_radius.max(0) as u32
-            + self.outline_reach()
+            + self.res.outline_px(&self.settings)
             + crate::render::tiles::ALIGN;
         let lo = |k: u32, w: u32| k.saturating_sub(reach).max(w) - w;
         let hi = |k: u32, n: u32, w: u32, size: u32| (k + n + reach - w).min(size);
@@ -563,23 +552,8 @@ impl<'c> Renderer<'c> {
         Ok(())
     }
 
-    fn outline_reach(&self) -> u32 {
-        self.res.outline_px(&self.settings)
-    }
-
     fn resize_window(&mut self, cam: Camera, window: Option<crate::camera::Window>) -> Result<()> {
-        let win = window.unwrap_or(crate::camera::Window::whole(&cam));
-        if !win.fits(&cam) {
-            return Err(Error::Input(format!(
-                "window {win:?} is not inside the {}x{} image",
-                cam.width, cam.height
-            )));
-        }
-        if window.is_some() && self.settings.raster == RasterMode::Graphics {
-            return Err(Error::Input(
-                "tiles need --raster compute (the graphics baseline draws whole images)".into(),
-            ));
-        }
+        let win = checked_window(&cam, window, self.settings.raster)?;
         let t = &self.res.targets;
         let wide = self.settings.look.color16;
         if (t.width, t.height) != (win.width, win.height)
@@ -1015,11 +989,8 @@ impl<'c> Renderer<'c> {
                 let s = self.res.geom[(k & 0xFFFF_FFFF) as usize];
                 let win = self.settings.window();
                 let (x, y) = (i as u32 % win.width + win.x, i as u32 / win.width + win.y);
-                let (o, d) = cam.ray(x, y);
                 let c = glam::DVec3::new(s[0] as f64, s[1] as f64, s[2] as f64);
-                let (t, _) =
-                    crate::reference::ray_sphere(o, d, c, s[3] as f64).unwrap_or((0.0, 0.0));
-                let p = o + t * d;
+                let p = crate::reference::visible_point(cam, x, y, c, s[3] as f64);
                 [
                     p.x as f32,
                     p.y as f32,
@@ -1138,6 +1109,28 @@ impl<'c> Renderer<'c> {
             .ssdo_on()
             .then(|| self.res.level_choice(&self.settings.camera))
     }
+}
+
+/// The window a frame's buffers hold (all of the image for None), checked:
+/// inside the image, and only with the compute rasterizer.
+fn checked_window(
+    cam: &Camera,
+    window: Option<crate::camera::Window>,
+    raster: RasterMode,
+) -> Result<crate::camera::Window> {
+    let win = window.unwrap_or(crate::camera::Window::whole(cam));
+    if !win.fits(cam) {
+        return Err(Error::Input(format!(
+            "window {win:?} is not inside the {}x{} image",
+            cam.width, cam.height
+        )));
+    }
+    if window.is_some() && raster == RasterMode::Graphics {
+        return Err(Error::Input(
+            "tiles need --raster compute (the graphics baseline draws whole images)".into(),
+        ));
+    }
+    Ok(win)
 }
 
 /// The shader's background word: rgb (display-encoded) and the mode in a

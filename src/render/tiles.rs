@@ -120,17 +120,6 @@ pub fn plan(
     Ok(tiles)
 }
 
-/// Adds `t`'s pass times to `sum` (by pass name, in order of appearance).
-fn accumulate(sum: &mut PassTimes, t: &PassTimes) {
-    for &(name, ms) in &t.passes {
-        match sum.passes.iter_mut().find(|(n, _)| *n == name) {
-            Some(e) => e.1 += ms,
-            None => sum.passes.push((name, ms)),
-        }
-    }
-    sum.total_ms += t.total_ms;
-}
-
 /// Copies the `kept` pixels of a `window`-sized buffer into the image.
 fn place<T: Copy>(dst: &mut [T], width: u32, tile: &Tile, src: &[T]) {
     let (k, w) = (tile.kept, tile.window);
@@ -274,7 +263,7 @@ impl<'a> Renderer<'a> {
             for (k, tile) in tiles.iter().enumerate() {
                 self.set_tile(tile.window, tile.kept)?;
                 let t = self.render_frame()?;
-                accumulate(&mut sum, &t);
+                sum.add(&t);
                 let color = self.read_color()?;
                 if wide {
                     place::<[u32; 2]>(

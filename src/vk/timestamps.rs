@@ -15,6 +15,21 @@ pub struct PassTimes {
     pub total_ms: f64,
 }
 
+impl PassTimes {
+    /// Adds `other`'s times (by pass name, new names in order of
+    /// appearance): the cost of an image made of several frames (tiles,
+    /// sub-pixel samples).
+    pub fn add(&mut self, other: &PassTimes) {
+        for &(name, ms) in &other.passes {
+            match self.passes.iter_mut().find(|(n, _)| *n == name) {
+                Some(e) => e.1 += ms,
+                None => self.passes.push((name, ms)),
+            }
+        }
+        self.total_ms += other.total_ms;
+    }
+}
+
 impl<'a> IntoIterator for &'a PassTimes {
     type Item = &'a (&'static str, f64);
     type IntoIter = std::slice::Iter<'a, (&'static str, f64)>;
