@@ -1,23 +1,28 @@
 #version 460
-// Separable bilateral blur (seed 001) of the per-pixel SSDO result (ambient
-// visibility, bounce, screen-space key-light visibility; pack_ao), which
-// also recombines its 2x2 interleaved direction sets. AXIS (specialization
-// constant 1) picks the direction: one shader, two pipelines. Weights:
-// Gaussian in pixels x Gaussian in view depth x normal agreement^8 (three squarings) x
-// (semantic) same region at the active level, all exact per pixel (depth
-// key, sphere, attributes), so edges between spheres stay sharp even when
+// Separable bilateral blur (seed 001) of the SSDO result (ambient
+// visibility, bounce, screen-space key-light visibility; pack_ao). AXIS
+// (specialization constant 1) picks the direction: one shader, two
+// pipelines. Weights: Gaussian in taps x Gaussian in view depth x normal
+// agreement^8 (three squarings) x (semantic) same region at the active
+// level. HALF: one value per 2x2 block, the weights from the blocks'
+// records (ssdo_record.glsl: one fetch per tap; shade.comp upsamples the
+// result); else one per pixel, the weights exact per pixel (depth key,
+// sphere, attributes), so edges between spheres stay sharp even when
 // spheres are only a few pixels wide. The centre tap has weight 1.
 #include "ssdo_common.glsl"
+#include "ssdo_record.glsl"
 #include "tiles.glsl"
 
 layout(local_size_x_id = 0) in;
 layout(constant_id = 1) const uint AXIS = 0;
 layout(constant_id = 2) const bool SEMANTIC = true;
-// Taps on each side, in pixels: a constant so the loop unrolls and its
+// Taps on each side, in blocks: a constant so the loop unrolls and its
 // spatial weights fold (lavapipe runs a loop to its slowest lane).
 layout(constant_id = 3) const int RADIUS = 2;
+layout(constant_id = 4) const bool HALF = true;
 
 layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
+layout(set = 0, binding = 1) uniform usamplerBuffer recordTex;
 layout(set = 0, binding = 2) uniform usamplerBuffer inTex;
 layout(set = 0, binding = 3) writeonly buffer Out { uint outv[]; };
 layout(set = 0, binding = 4) uniform usamplerBuffer visTex;
@@ -26,58 +31,69 @@ layout(set = 0, binding = 6) uniform usamplerBuffer attrTex;
 
 layout(push_constant) uniform Push {
     float sigma_z;   // depth tolerance (world units)
-    uint level;      // hierarchy level of the region test
-    uint pad0, pad1;
+    uint level;      // hierarchy level of the region test (per pixel)
+    uint level_b;    // HALF: region test at the records' level b (else a)
+    uint pad0;
 } pc;
 
-// The surface at pixel j with key texel v: view distance, normal, region.
-void surface_at(uint j, uvec2 v, out float z, out vec3 n, out uint region) {
+// What the weights compare at tap j: covered, view distance, normal, region.
+bool geometry(uint j, out float z, out vec3 n, out uint region) {
+    if (HALF) {
+        Record r = unpack_record(texelFetch(recordTex, int(j)));
+        z = r.z;
+        n = r.n;
+        region = pc.level_b != 0u ? r.region_b : r.region_a;
+        return r.covered;
+    }
+    uvec2 v = texelFetch(visTex, int(j)).xy;
+    bool cov = v.x != NO_SPHERE;
+    v.x = cov ? v.x : 0u;  // (a valid sphere for the fetches below)
     z = key_view_z(g.cam, j, uintBitsToFloat(v.y));
     vec4 sp = texelFetch(sphereTex, int(v.x));
     n = normalize(point_at(g.cam, image_px(g.cam, j), z) - sp.xyz);
     region = g.counts.w != 0u ? v.x : (SEMANTIC ? texelFetch(attrTex, int(2u * v.x))[pc.level] : 0u);
+    return cov;
 }
 
 void main() {
-    uint w = g.cam.dims.x, h = g.cam.dims.y;
-    uvec2 px;
-    if (!tile_pixel(w, h, px) || !IN_ACTIVE(px)) return;
-    uint i = px.y * w + px.x;
-    uvec2 v0 = texelFetch(visTex, int(i)).xy;
+    uint hw = HALF ? g.counts.y : g.cam.dims.x, hh = HALF ? g.counts.z : g.cam.dims.y;
+    uvec2 b;
+    if (!tile_pixel(hw, hh, b) || !(HALF ? IN_ACTIVE_BLOCK(b) : IN_ACTIVE(b))) return;
+    uint i = b.y * hw + b.x;
+    float z0;
+    vec3 n0;
+    uint reg0;
     uint centre = texelFetch(inTex, int(i)).x;
-    if (v0.x == NO_SPHERE) {
+    if (!geometry(i, z0, n0, reg0)) {
         outv[i] = centre;
         return;
     }
-    float z0;
-    vec3 n0;
-    uint r0;
-    surface_at(i, v0, z0, n0, r0);
+    // Per pixel, without a hierarchy, every sphere is its own region (the
+    // blur keeps to the sphere). Per block the regions are the
+    // representatives': there, without a hierarchy, as in plain mode,
+    // depth and normal alone keep the edges.
+    bool regions = SEMANTIC && (!HALF || g.counts.w == 0u);
     ivec2 step = AXIS == 0u ? ivec2(1, 0) : ivec2(0, 1);
-    const float sigma_px = max(float(RADIUS) * 0.5, 0.5);
+    const float sigma = max(float(RADIUS) * 0.5, 0.5);
     vec2 acc_v = vec2(0.0);
     float acc_s = 0.0, wsum = 0.0;
     vec3 acc_b = vec3(0.0);
     // Straight-line taps (a clamped fetch and a zero weight instead of
     // `continue`): lavapipe would run every skipped path anyway.
     for (int k = -RADIUS; k <= RADIUS; ++k) {
-        ivec2 t = ivec2(px) + k * step;
-        bool inside = t.x >= 0 && t.y >= 0 && t.x < int(w) && t.y < int(h);
-        t = clamp(t, ivec2(0), ivec2(int(w) - 1, int(h) - 1));
-        uint j = uint(t.y) * w + uint(t.x);
-        uvec2 vj = texelFetch(visTex, int(j)).xy;
-        bool ok = inside && vj.x != NO_SPHERE;
-        vj.x = ok ? vj.x : v0.x;  // (a valid sphere for the fetches below)
+        ivec2 t = ivec2(b) + k * step;
+        bool inside = t.x >= 0 && t.y >= 0 && t.x < int(hw) && t.y < int(hh);
+        t = clamp(t, ivec2(0), ivec2(int(hw) - 1, int(hh) - 1));
+        uint j = uint(t.y) * hw + uint(t.x);
         float zj;
         vec3 nj;
         uint rj;
-        surface_at(j, vj, zj, nj, rj);
-        ok = ok && (!SEMANTIC || rj == r0);
+        bool ok = geometry(j, zj, nj, rj) && inside && (!regions || rj == reg0);
         float dz = (zj - z0) / pc.sigma_z;
         float c = max(dot(n0, nj), 0.0);
         c *= c;
         c *= c;
-        float wk = exp(-0.5 * float(k * k) / (sigma_px * sigma_px) - 0.5 * dz * dz) * c * c;
+        float wk = exp(-0.5 * float(k * k) / (sigma * sigma) - 0.5 * dz * dz) * c * c;
         if (k == 0) wk = 1.0;  // folds: k is a constant after unrolling
         wk = ok ? wk : 0.0;
         vec2 vv;

@@ -3,8 +3,9 @@
 // The one full-resolution pass over the frame after the rasterizer: the
 // visible surface rebuilt from (pixel ray, sphere id), the key-light lookup
 // of the active technique (compiled in per variant), the pixel's SSDO
-// result, and three-point lighting with a tone map into the colour buffer. The shadow and ao AOVs (unorm16 each) go to a
-// second buffer when AOVS is set. Background pixels only write the background.
+// result (per pixel, or upsampled from the 2x2 blocks), and three-point
+// lighting with a tone map into the colour buffer. The shadow and ao AOVs
+// (unorm16 each) go to a second buffer when AOVS is set. Background pixels only write the background.
 //
 // Shadow rule of the ISSM paper: shadowed areas keep ambient and a fraction
 // of the key's diffuse term, and lose its specular term.
@@ -22,12 +23,15 @@ layout(constant_id = 6) const bool ISSM_CORE_ONLY = false;  // lookup_issm.glsl
 layout(constant_id = 7) const bool OUTLINE = false;  // --outline: silhouette lines
 // RGBA16 colour (--png-depth 16): two words per pixel, R|G<<16, B|A<<16.
 layout(constant_id = 8) const bool WIDE = false;
+// The SSDO result is per 2x2 block (spheres large on screen): upsample it.
+layout(constant_id = 9) const bool AO_HALF = false;
 
 layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
 layout(set = 0, binding = 1) uniform usamplerBuffer visTex;
 layout(set = 0, binding = 2) uniform samplerBuffer sphereTex;
 layout(set = 0, binding = 3) uniform usamplerBuffer attrTex;
-layout(set = 0, binding = 5) uniform usamplerBuffer aoTex;  // per pixel, pack_ao
+layout(set = 0, binding = 4) uniform usamplerBuffer recordTex;  // per 2x2 block, ssdo_record.glsl
+layout(set = 0, binding = 5) uniform usamplerBuffer aoTex;  // per pixel or 2x2 block, pack_ao
 layout(set = 0, binding = 6) writeonly buffer Color { uint color[]; };
 layout(set = 0, binding = 7) writeonly buffer Aov { uint aov[]; };
 
@@ -38,11 +42,13 @@ layout(push_constant) uniform Push {
     float fog_far;        // fog_far <= fog_near: no fog
     float edge_dz;        // a neighbour nearer by more than this is an edge
     uint level;           // hierarchy level whose region changes are edges
-    uint pad0, pad1;
+    float ao_sigma_z;     // depth tolerance of the SSDO upsample
+    uint ao_level_b;      // the upsample's region test at the records' level b
 } pc;
 
 #include "lookup.glsl"
 #include "ssdo_common.glsl"
+#include "ssdo_record.glsl"
 #include "tiles.glsl"
 
 vec3 linear_to_srgb(vec3 c) { return pow(clamp(c, 0.0, 1.0), vec3(1.0 / 2.2)); }
@@ -114,6 +120,51 @@ bool on_outline(uvec2 px, bool cov, float z, uint region) {
     return false;
 }
 
+// The SSDO result at a pixel from the half-resolution blocks: the four
+// nearest block centres, bilinear weights x the blur's depth, normal and
+// region agreement with the pixel's exact surface. The pixel's own block is
+// always among them (its record is covered: this pixel is), and a small
+// floor on the agreement keeps the sum positive where no block shows this
+// surface (a sphere too small to be any block's representative).
+void ssdo_at(uvec2 px, float z, vec3 n, uint id, out vec2 v, out vec3 bounce, out float screen_vis) {
+    uint hw = g.counts.y, hh = g.counts.z;
+    bool regions = g.counts.w == 0u;
+    uint reg = regions ? region_hash(texelFetch(attrTex, int(2u * id))[pc.level]) : 0u;
+    vec2 f = (vec2(px) - 0.5) * 0.5;
+    vec2 b0 = floor(f);
+    vec2 fr = f - b0;
+    v = vec2(0.0);
+    bounce = vec3(0.0);
+    screen_vis = 0.0;
+    float wsum = 0.0;
+    for (int k = 0; k < 4; ++k) {
+        ivec2 o = ivec2(k & 1, k >> 1);
+        ivec2 bk = clamp(ivec2(b0) + o, ivec2(0), ivec2(int(hw) - 1, int(hh) - 1));
+        uint j = uint(bk.y) * hw + uint(bk.x);
+        Record q = unpack_record(texelFetch(recordTex, int(j)));
+        vec2 bw = mix(1.0 - fr, fr, vec2(o));
+        float dz = (q.z - z) / pc.ao_sigma_z;
+        float c = max(dot(n, q.n), 0.0);
+        c *= c;
+        c *= c;
+        bool same = !regions || (pc.ao_level_b != 0u ? q.region_b : q.region_a) == reg;
+        float agree = exp(-0.5 * dz * dz) * c * c * (same ? 1.0 : 0.0);
+        float wk = q.covered ? bw.x * bw.y * (agree + 1e-3) : 0.0;
+        vec2 vv;
+        vec3 bb;
+        float sv;
+        unpack_ao(texelFetch(aoTex, int(j)).x, vv, bb, sv);
+        v += wk * vv;
+        bounce += wk * bb;
+        screen_vis += wk * sv;
+        wsum += wk;
+    }
+    float inv = 1.0 / max(wsum, 1e-12);
+    v *= inv;
+    bounce *= inv;
+    screen_vis *= inv;
+}
+
 void main() {
     uint w = g.cam.dims.x, h = g.cam.dims.y;
     uvec2 px;
@@ -140,10 +191,12 @@ void main() {
 
     vec4 amb = vec4(1.0, 0.0, 0.0, 0.0);
     float screen_vis = 1.0;
+    float z = view_z(g.cam, s.p);
     if (AO) {
         vec2 v;
         vec3 bounce;
-        unpack_ao(texelFetch(aoTex, int(i)).x, v, bounce, screen_vis);
+        if (AO_HALF) ssdo_at(px, z, n, s.id, v, bounce, screen_vis);
+        else unpack_ao(texelFetch(aoTex, int(i)).x, v, bounce, screen_vis);
         amb = vec4(v.x * v.y, bounce);
     }
 #if defined(SHADOW_SCREEN)
@@ -173,7 +226,6 @@ void main() {
            + vec3(0.25 * spec * vis_key) + vec3(rim * ao);
     c = filmic(c);
     float alpha = 1.0;
-    float z = view_z(g.cam, s.p);
     if (pc.fog_far > pc.fog_near) {
         // depth cue toward the background (display-linear), or toward
         // transparency over a transparent one

@@ -1,14 +1,15 @@
 #version 460
 // Semantic screen-space directional occlusion with one indirect bounce
-// (seed 001). Occluders are looked up in the half-resolution records of
-// ssdo_prep.comp (one fetch per tap, a vector gather on lavapipe); the
-// receivers are every pixel at full resolution, rebuilt exactly from
-// (pixel ray, sphere id). Directions come from the sample table (a uniform
-// buffer: Halton + Malley, made once on the CPU), rotated about the normal
-// by a 4x4 interleaved pattern over 2x2 blocks; with INTERLEAVE the block's
-// DIRS directions are split among its 4 pixels and the blur recombines
-// them. The occluder test uses the exact depth of the pixel a sample
-// projects to (its depth key); regions, normal and reflected light come
+// (seed 001). With HALF (spheres large on screen) one receiver per 2x2
+// block, the block's representative pixel (ssdo_prep.comp); the blur
+// (blur.comp) runs on the blocks and shade.comp upsamples with depth,
+// normal and region weights. Else every pixel is a receiver (small spheres:
+// the AO changes from pixel to pixel). Receivers are rebuilt exactly from
+// (pixel ray, sphere id). Directions come from the
+// sample table (a uniform buffer: Halton + Malley, made once on the CPU),
+// rotated about the normal by a 4x4 pattern over the blocks. The occluder
+// test uses the exact depth of the full-resolution pixel a sample projects
+// to (its depth key); regions, normal and reflected light come
 // from its block's record. Per direction:
 // - near radius: one sample point; far radius: a fixed-step march along the
 //   direction up to the far radius (the paper's occluder search), the first
@@ -20,7 +21,7 @@
 // - visibility = V_near * V_far (multiplying visibilities, not occlusion);
 // - bounce (Ritschel et al.): sum over far occluders of
 //   (albedo/pi) * L_direct(Q) * A_s * cos_s * cos_r / d^2, A_s = pi r^2 / N.
-// Output per pixel (ssdo_common.glsl pack_ao): near and far visibility
+// Output per receiver (ssdo_common.glsl pack_ao): near and far visibility
 // (V = V_near * V_far after the blur), the incoming bounce, and the block's
 // screen-space key-light visibility.
 #include "shared.glsl"
@@ -29,14 +30,13 @@ layout(local_size_x_id = 0) in;
 layout(constant_id = 1) const bool SEMANTIC = true;
 layout(constant_id = 2) const uint DIRS = 12;
 layout(constant_id = 3) const uint STEPS = 4;
-// Interleaved: each pixel of a 2x2 block takes a quarter of the DIRS
-// directions (large spheres on screen); else every pixel takes all of them
-// (small spheres: the AO changes from pixel to pixel, measured in notes).
-layout(constant_id = 4) const bool INTERLEAVE = true;
 // Perspective camera: the taps work in world space. Orthographic (the
 // default): in view space, where a tap's projection and the occluder's
 // position are two multiply-adds each instead of dot products and divides.
-layout(constant_id = 5) const bool PERSP = false;
+layout(constant_id = 4) const bool PERSP = false;
+// Half resolution: one receiver per 2x2 block (spheres large on screen,
+// where the AO is smooth over a block); else one per pixel.
+layout(constant_id = 5) const bool HALF = true;
 
 layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
 layout(set = 0, binding = 1) uniform usamplerBuffer recordTex;
@@ -119,40 +119,42 @@ const float BAYER4[16] = float[](0.0, 8.0, 2.0, 10.0, 12.0, 4.0, 14.0, 6.0,
 
 void main() {
     uint w = g.cam.dims.x, h = g.cam.dims.y;
-    uvec2 px;
-    if (!tile_pixel(w, h, px) || !IN_ACTIVE(px)) return;
-    uint i = px.y * w + px.x;
+    // HALF: one receiver per block, its representative pixel; else every
+    // pixel (whose block record gives the screen-space key visibility).
+    uvec2 cell;
+    if (HALF ? !tile_pixel(g.counts.y, g.counts.z, cell) || !IN_ACTIVE_BLOCK(cell)
+             : !tile_pixel(w, h, cell) || !IN_ACTIVE(cell)) return;
+    uvec2 blk = HALF ? cell : cell / SSDO_BLOCK;
+    Record own = record_at(blk);
+    uvec2 px = HALF ? SSDO_BLOCK * blk + own.sub : cell;
+    uint out_index = HALF ? blk.y * g.counts.y + blk.x : px.y * w + px.x;
     Surface s;
-    if (!surface_of(i, s)) {
-        ao[i] = pack_ao(vec2(1.0), vec3(0.0), 1.0);
+    if (!own.covered || !surface_of(px.y * w + px.x, s)) {
+        ao[out_index] = pack_ao(vec2(1.0), vec3(0.0), 1.0);
         return;
     }
-    uvec2 own = px / SSDO_BLOCK;
-    float screen_vis = record_at(own).visibility;
-    uint ra, rb;
-    if (g.counts.w != 0u) {
-        // No hierarchy: every sphere is its own region.
-        ra = region_hash(s.id);
-        rb = ra;
-    } else {
-        uvec4 regions = texelFetch(attrTex, int(2u * s.id));
-        ra = region_hash(regions[pc.level_a]);
-        rb = region_hash(regions[pc.level_b]);
+    uint ra = own.region_a, rb = own.region_b;
+    if (!HALF) {
+        // the pixel's own sphere, which need not be its block's
+        if (g.counts.w != 0u) {
+            // No hierarchy: every sphere is its own region.
+            ra = region_hash(s.id);
+            rb = ra;
+        } else {
+            uvec4 regions = texelFetch(attrTex, int(2u * s.id));
+            ra = region_hash(regions[pc.level_a]);
+            rb = region_hash(regions[pc.level_b]);
+        }
     }
     vec3 x = to_space(s.p), n = dir_to_space(s.n);
-    // Interleaved: one rotation per block (its 4 pixels split the set);
-    // else one per pixel.
-    uvec2 cell = INTERLEAVE ? own : px;
+    // One rotation of the table per receiver, a 4x4 pattern the blur averages.
     float rot = (BAYER4[(cell.y & 3u) * 4u + (cell.x & 3u)] + 0.5) / 16.0;
-    uint slot = INTERLEAVE ? (px.x & 1u) + 2u * (px.y & 1u) : 0u;
     mat3 frame = rotated_frame(tangent_frame(n), rot);
-    const uint MINE = INTERLEAVE ? DIRS / 4u : DIRS;
-    const uint STRIDE = INTERLEAVE ? 4u : 1u;
     float occ_near = 0.0, occ_far = 0.0;
     vec3 bounce = vec3(0.0);
     float area = 3.14159265 * pc.r_far * pc.r_far / float(DIRS);
-    for (uint kk = 0u; kk < MINE; ++kk) {
-        vec4 t = samples[STRIDE * kk + slot];
+    for (uint kk = 0u; kk < DIRS; ++kk) {
+        vec4 t = samples[kk];
         vec3 dir = frame * t.xyz;
         // near: one sample at a Halton-distributed distance
         float lam = fract(t.w + rot) * 0.8 + 0.2;
@@ -195,8 +197,7 @@ void main() {
             bounce += wgt * q.radiance * (area * cs * cr / d2) / 3.14159265;
         }
     }
-    vec2 v = vec2(1.0 - occ_near / float(MINE), 1.0 - occ_far / float(MINE));
-    // Interleaved, each pixel saw a quarter of the directions: its bounce
-    // sum is scaled to the whole set. The receiver's albedo is applied in shade.
-    ao[i] = pack_ao(v, pc.bounce * float(STRIDE) * bounce, screen_vis);
+    vec2 v = vec2(1.0 - occ_near / float(DIRS), 1.0 - occ_far / float(DIRS));
+    // (the receiver's albedo is applied in shade)
+    ao[out_index] = pack_ao(v, pc.bounce * bounce, own.visibility);
 }

@@ -22,6 +22,9 @@ bool tile_origin(uint w, uint h, out uvec2 origin) {
 // ACTIVE_RECT in shared.glsl; needs `Globals g`).
 #define IN_ACTIVE(px) (float(px.x) >= ACTIVE_RECT(g).x && float(px.y) >= ACTIVE_RECT(g).y && float(px.x) < ACTIVE_RECT(g).z && float(px.y) < ACTIVE_RECT(g).w)
 
+// Whether 2x2 block b (half resolution) overlaps the active rectangle.
+#define IN_ACTIVE_BLOCK(b) (float(2u * b.x + 1u) >= ACTIVE_RECT(g).x && float(2u * b.y + 1u) >= ACTIVE_RECT(g).y && float(2u * b.x) < ACTIVE_RECT(g).z && float(2u * b.y) < ACTIVE_RECT(g).w)
+
 // The pixel this invocation shades in a w x h image, or false past the edge.
 bool tile_pixel(uint w, uint h, out uvec2 px) {
     uvec2 origin;

@@ -11,6 +11,7 @@ use sphereshade::camera::Camera;
 use sphereshade::gpu::Globals;
 use sphereshade::passes::blur::{Axis, BlurIo, BlurPass, BlurPush};
 use sphereshade::passes::spirv;
+use sphereshade::passes::ssdo::Record;
 use sphereshade::render::{Renderer, level_choice};
 use sphereshade::scene::{self, Scene, Sphere};
 use sphereshade::settings::{ShadowMode, SsdoMode};
@@ -232,20 +233,29 @@ fn flat_layer_is_open_crevice_is_occluded_and_semantic_ignores_own_region() {
 
 #[test]
 fn bilateral_blur_keeps_depth_edges_and_smooths_flat_areas() {
-    // A 64x32 frame: the left half a flat layer at view distance 0 with
-    // noisy ambient visibility around 0.2, the right half 50 units behind
-    // with visibility around 0.9 (depth keys in the visibility buffer).
+    // Per pixel (depth keys in the visibility buffer) and per 2x2 block
+    // (records as ssdo_prep packs them).
+    for half in [false, true] {
+        blur_keeps_edges(half);
+    }
+}
+
+/// A 64x32 grid of pixels or blocks: the left half a flat layer at view
+/// distance 0 with noisy ambient visibility around 0.2, the right half 50
+/// units behind with visibility around 0.9; every normal faces the camera.
+fn blur_keeps_edges(half: bool) {
     let ctx = validated_context();
     let (w, h) = (64u32, 32u32);
     let n = (w * h) as usize;
+    let k = if half { 2 } else { 1 };
     let cam = Camera::new(
         DVec3::ZERO,
         DVec3::new(0.0, 0.0, -1.0),
         DVec3::Y,
-        32.0,
+        32.0 * k as f64,
         None,
-        w,
-        h,
+        k * w,
+        k * h,
     )
     .expect("camera");
     let offset = 100.0;
@@ -254,10 +264,14 @@ fn bilateral_blur_keeps_depth_edges_and_smooths_flat_areas() {
         light: cam.to_gpu(offset),
         ..Default::default()
     };
-    let (hw, hh) = (w / 2, h / 2);
-    globals.counts = [1, hw, hh, 0];
+    globals.counts = if half {
+        [1, w, h, 0]
+    } else {
+        [1, w / 2, h / 2, 0]
+    };
     // the active rectangle: every pixel
-    globals.params = [0.0, 0.0, w as f32, h as f32];
+    globals.params = [0.0, 0.0, (k * w) as f32, (k * h) as f32];
+    let mut records = vec![[0u32; 4]; n];
     let mut vis = vec![0u64; n + 64];
     let mut amb = vec![0.0f32; n];
     let mut ao_in = vec![0u32; n];
@@ -270,8 +284,19 @@ fn bilateral_blur_keeps_depth_edges_and_smooths_flat_areas() {
         for x in 0..w {
             let i = (y * w + x) as usize;
             let left = x < w / 2;
-            let key = (if left { 0.0f32 } else { 50.0 }) + offset as f32;
-            vis[i] = (key.to_bits() as u64) << 32; // sphere id 0
+            let z = if left { 0.0f32 } else { 50.0 };
+            vis[i] = ((z + offset as f32).to_bits() as u64) << 32; // sphere id 0
+            records[i] = Record {
+                z,
+                normal: [0.0, 0.0, 1.0],
+                region_a: 0,
+                region_b: 0,
+                sub: [0, 0],
+                radiance: [0.0; 3],
+                visibility: 1.0,
+                covered: true,
+            }
+            .pack();
             amb[i] = if left { 0.2 } else { 0.9 } + 0.2 * noise();
             // pack_ao: near visibility, far visibility 1, no bounce
             ao_in[i] = (amb[i].clamp(0.0, 1.0) * 255.0 + 0.5) as u32 | (255 << 8) | (15 << 28);
@@ -300,9 +325,10 @@ fn bilateral_blur_keeps_depth_edges_and_smooths_flat_areas() {
         up("ao in", bytemuck::cast_slice(&ao_in), st),
         up("ao tmp", &vec![0u8; n * 4], st),
         up("ao out", &vec![0u8; n * 4], st),
+        up("records", bytemuck::cast_slice(&records), st),
         up("vis", bytemuck::cast_slice(&vis), st),
         // Sphere 0, far behind the layers along the view axis: every normal
-        // the blur rebuilds from it faces the camera (a flat layer).
+        // the per-pixel blur rebuilds from it faces the camera (a flat layer).
         up(
             "spheres",
             bytemuck::cast_slice(&[0.0f32, 0.0, -1e5, 1.0]),
@@ -315,7 +341,8 @@ fn bilateral_blur_keeps_depth_edges_and_smooths_flat_areas() {
     let push = BlurPush {
         sigma_z: 1.0,
         level: 0,
-        pad: [0; 2],
+        level_b: 0,
+        pad: 0,
     };
     ctx.one_shot_passes("blur", |rec| {
         let b = &bufs;
@@ -325,13 +352,14 @@ fn bilateral_blur_keeps_depth_edges_and_smooths_flat_areas() {
         ] {
             let io = BlurIo {
                 globals: &b[0],
-                vis: &b[4],
-                spheres: &b[5],
-                attrs: &b[6],
+                records: &b[4],
+                vis: &b[5],
+                spheres: &b[6],
+                attrs: &b[7],
                 input,
                 output,
             };
-            blur.record(rec, axis, false, 4, &io, &push, (w, h))?;
+            blur.record(rec, axis, false, (2, half), &io, &push, (w, h))?;
         }
         Ok(())
     })
@@ -354,7 +382,7 @@ fn bilateral_blur_keeps_depth_edges_and_smooths_flat_areas() {
         v.iter().map(|x| (x - m) * (x - m)).sum::<f32>() / v.len() as f32
     };
     let (edge_l, edge_r) = (mean(&col(w / 2 - 1, &out)), mean(&col(w / 2, &out)));
-    eprintln!("edge means after blur: left {edge_l:.3} right {edge_r:.3}");
+    eprintln!("half {half}: edge means after blur: left {edge_l:.3} right {edge_r:.3}");
     assert!(
         (edge_l - 0.2).abs() < 0.05 && (edge_r - 0.9).abs() < 0.05,
         "the blur bled across the depth edge"

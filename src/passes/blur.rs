@@ -1,7 +1,7 @@
-//! Separable bilateral blur (`blur_h`, `blur_v`) of the per-pixel SSDO
-//! result, which also recombines its interleaved direction sets: one
-//! shader, the axis and the semantic region test are specialization
-//! constants. See glsl/blur.comp.
+//! Separable bilateral blur (`blur_h`, `blur_v`) of the half-resolution
+//! SSDO result, weighted by the blocks' records: one shader, the axis and
+//! the semantic region test are specialization constants. See
+//! glsl/blur.comp.
 
 use super::shade::{Variants, tile_grid};
 use super::spirv;
@@ -16,14 +16,18 @@ use bytemuck::{Pod, Zeroable};
 pub struct BlurPush {
     /// Depth tolerance (world units).
     pub sigma_z: f32,
-    /// Hierarchy level of the region test.
+    /// Hierarchy level of the per-pixel region test.
     pub level: u32,
-    pub pad: [u32; 2],
+    /// Half resolution: 1 = the region test compares the records' level-b
+    /// regions, 0 = level a.
+    pub level_b: u32,
+    pub pad: u32,
 }
 
-/// The blur radii (taps on each side) the SSDO tap sets use; one pipeline
-/// pair per radius, made up front so zooming never compiles.
-pub const BLUR_RADII: [i32; 2] = [2, 4];
+/// The blur radii (taps on each side, in pixels or in blocks) the SSDO tap
+/// sets use; one pipeline pair per radius and resolution, made up front so
+/// zooming never compiles.
+pub const BLUR_RADII: [i32; 1] = [2];
 
 /// Which axis a blur dispatch runs along.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -41,8 +45,9 @@ impl Axis {
     }
 }
 
-const BINDINGS: [Binding; 6] = [
+const BINDINGS: [Binding; 7] = [
     uniform("GlobalsBlock"),
+    texel("recordTex", Format::R32G32B32A32_UINT),
     texel("inTex", Format::R32_UINT),
     wo("Out"),
     texel("visTex", Format::R32G32_UINT),
@@ -58,6 +63,7 @@ pub struct BlurPass {
 /// What one blur dispatch reads and writes.
 pub struct BlurIo<'a> {
     pub globals: &'a Buffer,
+    pub records: &'a Buffer,
     pub vis: &'a Buffer,
     pub spheres: &'a Buffer,
     pub attrs: &'a Buffer,
@@ -70,45 +76,53 @@ impl BlurPass {
         Self::default()
     }
 
-    fn constants(axis: Axis, semantic: bool, radius: i32) -> [u32; 3] {
+    fn constants(axis: Axis, semantic: bool, radius: i32, half: bool) -> [u32; 4] {
         [
             (axis == Axis::Vertical) as u32,
             semantic as u32,
             radius as u32,
+            half as u32,
         ]
     }
 
     pub fn prepare(&mut self, ctx: &Context, semantic: bool) -> Result<()> {
         for radius in BLUR_RADII {
-            for axis in [Axis::Horizontal, Axis::Vertical] {
-                self.variants.ensure(
-                    ctx,
-                    axis.name(),
-                    spirv::BLUR_COMP,
-                    &BINDINGS,
-                    std::mem::size_of::<BlurPush>() as u32,
-                    &Self::constants(axis, semantic, radius),
-                )?;
+            for half in [false, true] {
+                for axis in [Axis::Horizontal, Axis::Vertical] {
+                    self.variants.ensure(
+                        ctx,
+                        axis.name(),
+                        spirv::BLUR_COMP,
+                        &BINDINGS,
+                        std::mem::size_of::<BlurPush>() as u32,
+                        &Self::constants(axis, semantic, radius, half),
+                    )?;
+                }
             }
         }
         Ok(())
     }
 
-    /// Blurs `input` into `output` along `axis`, as the pass `axis.name()`.
+    /// Blurs `input` into `output` along `axis`, as the pass `axis.name()`:
+    /// per 2x2 block when `half` (`size` is then the half-resolution grid),
+    /// else per pixel.
     #[allow(clippy::too_many_arguments)]
     pub fn record(
         &self,
         rec: &mut Recorder,
         axis: Axis,
         semantic: bool,
-        radius: i32,
+        (radius, half): (i32, bool),
         io: &BlurIo,
         push: &BlurPush,
         size: (u32, u32),
     ) -> Result<()> {
         let pipe = self
             .variants
-            .get(spirv::BLUR_COMP, &Self::constants(axis, semantic, radius))
+            .get(
+                spirv::BLUR_COMP,
+                &Self::constants(axis, semantic, radius, half),
+            )
             .ok_or_else(|| Error::Internal("blur: pipeline not prepared".into()))?;
         rec.pass(axis.name(), |p| {
             p.dispatch(
@@ -117,6 +131,7 @@ impl BlurPass {
                 tile_grid(size.0, size.1),
                 &[
                     ("GlobalsBlock", io.globals),
+                    ("recordTex", io.records),
                     ("inTex", io.input),
                     ("Out", io.output),
                     ("visTex", io.vis),

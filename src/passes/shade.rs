@@ -29,7 +29,10 @@ pub struct ShadePush {
     pub edge_dz: f32,
     /// Hierarchy level whose region changes make lines.
     pub level: u32,
-    pub pad: [u32; 2],
+    /// Depth tolerance (world units) of the SSDO upsample.
+    pub ao_sigma_z: f32,
+    /// 1: the upsample compares regions at the records' level b, 0: level a.
+    pub ao_level_b: u32,
 }
 
 /// The frame's screen-space inputs of `shade` and `ssdo_prep`.
@@ -137,6 +140,8 @@ pub struct ShadeMode {
     pub kind: LookupKind,
     pub soft: bool,
     pub ao: bool,
+    /// The SSDO result is per 2x2 block: upsample it.
+    pub ao_half: bool,
     pub swap_rb: bool,
     /// Write the shadow and ao AOVs.
     pub aovs: bool,
@@ -149,7 +154,7 @@ pub struct ShadeMode {
 }
 
 impl ShadeMode {
-    fn constants(&self) -> [u32; 8] {
+    fn constants(&self) -> [u32; 9] {
         let use_shadow = !matches!(self.kind, LookupKind::None | LookupKind::Screen);
         [
             self.soft as u32,
@@ -160,11 +165,17 @@ impl ShadeMode {
             self.core_only as u32,
             self.outline as u32,
             self.wide as u32,
+            self.ao_half as u32,
         ]
     }
 }
 
-const SHADE_OUTPUTS: [Binding; 3] = [texel("aoTex", Format::R32_UINT), wo("Color"), wo("Aov")];
+const SHADE_OUTPUTS: [Binding; 4] = [
+    texel("aoTex", Format::R32_UINT),
+    texel("recordTex", Format::R32G32B32A32_UINT),
+    wo("Color"),
+    wo("Aov"),
+];
 
 impl ShadePass {
     pub const NAME: &'static str = "shade";
@@ -194,8 +205,8 @@ impl ShadePass {
         )
     }
 
-    /// `shade` into `color` and `aov`, reading the SSDO result `ao` (bound
-    /// even without SSDO; unread then).
+    /// `shade` into `color` and `aov`, upsampling the half-resolution SSDO
+    /// result `ao` with its `records` (bound even without SSDO; unread then).
     #[allow(clippy::too_many_arguments)]
     pub fn record(
         &self,
@@ -203,7 +214,7 @@ impl ShadePass {
         io: &ScreenInputs,
         lookup: &Lookup,
         mode: ShadeMode,
-        ao: &Buffer,
+        (ao, records): (&Buffer, &Buffer),
         (color, aov): (&Buffer, &Buffer),
         push: &ShadePush,
         (w, h): (u32, u32),
@@ -218,6 +229,7 @@ impl ShadePass {
             ("sphereTex", io.spheres),
             ("attrTex", io.attrs),
             ("aoTex", ao),
+            ("recordTex", records),
             ("Color", color),
             ("Aov", aov),
         ];

@@ -1,10 +1,11 @@
 //! Semantic SSDO with one bounce at half resolution (seed 001):
 //! `ssdo_prep` picks one representative pixel per 2x2 block and packs its
 //! record (glsl/ssdo_record.glsl: view distance, octahedral normal, region
-//! hashes, the key light it reflects): the occluders. `ssdo` runs for every
-//! pixel, taking a quarter of the sample table's directions (interleaved
-//! over the block; the table is a uniform buffer made once here), and the
-//! blur (passes/blur.rs) recombines them. See glsl/ssdo.comp.
+//! hashes, the key light it reflects). `ssdo` runs for every pixel when
+//! spheres are small on screen, else once per block for its representative,
+//! over the sample table's directions (a uniform buffer made once here);
+//! the blur (passes/blur.rs) smooths the result and shade upsamples the
+//! blocks'. See glsl/ssdo.comp.
 
 use super::shade::{SURFACE_BINDINGS, ScreenInputs, Variants, tile_grid, variant};
 use super::shadows::Lookup;
@@ -39,14 +40,13 @@ pub struct SsdoPush {
     pub pad: [u32; 2],
 }
 
-/// Tap counts: directions, far-search steps per direction, and whether the
-/// directions are interleaved over 2x2 blocks (a quarter per pixel; then a
-/// multiple of 4).
+/// Tap counts per receiver (directions, far-search steps per direction)
+/// and whether the receivers are the 2x2 blocks (else every pixel).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Taps {
     pub dirs: u32,
     pub steps: u32,
-    pub interleave: bool,
+    pub half: bool,
     /// Perspective camera: taps step along the pixel rays; orthographic
     /// ones step in view space, which needs no division per tap.
     pub perspective: bool,
@@ -58,8 +58,8 @@ impl Taps {
             semantic as u32,
             self.dirs,
             self.steps,
-            self.interleave as u32,
             self.perspective as u32,
+            self.half as u32,
         ]
     }
 }
@@ -159,11 +159,7 @@ impl SsdoPass {
         semantic: bool,
         taps: Taps,
     ) -> Result<()> {
-        if taps.dirs as usize > TABLE_SIZE
-            || (taps.interleave && !taps.dirs.is_multiple_of(4))
-            || taps.dirs == 0
-            || taps.steps == 0
-        {
+        if taps.dirs as usize > TABLE_SIZE || taps.dirs == 0 || taps.steps == 0 {
             return Err(Error::Internal(format!("ssdo: bad tap counts {taps:?}")));
         }
         self.prep.ensure(
@@ -215,7 +211,8 @@ impl SsdoPass {
         })
     }
 
-    /// `ssdo`: ambient visibility + bounce per pixel into `ao`.
+    /// `ssdo`: ambient visibility + bounce per receiver into `ao`; `size`
+    /// is the receivers' grid (half resolution with `taps.half`).
     #[allow(clippy::too_many_arguments)]
     pub fn record_ssdo(
         &self,

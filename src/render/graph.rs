@@ -60,16 +60,16 @@ pub const PASSES: &[(&str, &str)] = &[
     ),
     (
         "ssdo",
-        "every covered pixel (the receiver rebuilt exactly); directions from a sample table in a uniform buffer (Halton + Malley), rotated per pixel; a near sample and a far fixed-step search per direction (visibilities multiplied); a tap reads the 4-byte depth word of the visibility key (exact occluder depth) and only the first occluder's block record (regions, normal, reflected light for the bounce); occluder = closer to the viewer and (semantic) in another region at the active hierarchy level, blended between two levels by zoom. Spheres under 16 px: 8 directions × (1 + 5) for every pixel; larger: 12 interleaved over 2x2 blocks (3 per pixel); the choice and counts measured against a ray-traced AO",
+        "receivers rebuilt exactly from (pixel ray, sphere id): every covered pixel when spheres are under 16 px on screen, else one per 2x2 block (its representative); 8 directions from a sample table in a uniform buffer (Halton + Malley), rotated per receiver; a near sample and a far 5-step search per direction (visibilities multiplied); a tap reads the 4-byte depth word of the visibility key (exact occluder depth) and only the first occluder's block record (regions, normal, reflected light for the bounce); occluder = closer to the viewer and (semantic) in another region at the active hierarchy level, blended between two levels by zoom; counts and the size threshold measured against a ray-traced AO",
     ),
     (
         "blur_h",
-        "separable bilateral blur at full resolution of the packed 4-byte SSDO result (near/far visibility, bounce, screen-space shadow), weights from each tap's exact depth, normal and region; recombines the interleaved sets; horizontal, into the colour buffer (free until `shade`)",
+        "separable bilateral blur (2 taps each side) of the packed 4-byte SSDO result (near/far visibility, bounce, screen-space shadow): per pixel with weights from each tap's exact depth, normal and region, or per block with the blocks' records; horizontal, into the colour buffer (free until `shade`)",
     ),
     ("blur_v", "the same, vertical, back into the SSDO result"),
     (
         "shade",
-        "full resolution, covered pixels: surface from (pixel ray, sphere id); key-light lookup compiled in per technique (ISSM: exact light-ray tests against the spheres of the 3x3 patch (t = 1) or (2t+1)², soft `(1 - s'/s_eff)^x`; deep: exact transmittance walk of the texel's list; sm-pcf: biased PCF; osm: interpolated optical depth; none+SSDO: screen-space march); the pixel's SSDO result; key (5 % of its diffuse kept in full shadow), sky light × ambient visibility, occluded fill and rim, half the bounce, a filmic curve on the luminance (hue kept) into the colour buffer; the shadow and ao AOVs (unorm16) only when asked for",
+        "full resolution, covered pixels: surface from (pixel ray, sphere id); key-light lookup compiled in per technique (ISSM: exact light-ray tests against the spheres of the 3x3 patch (t = 1) or (2t+1)², soft `(1 - s'/s_eff)^x`; deep: exact transmittance walk of the texel's list; sm-pcf: biased PCF; osm: interpolated optical depth; none+SSDO: screen-space march); the pixel's SSDO result (per block: upsampled from the 4 nearest blocks, bilinear × depth, normal and region agreement); key (5 % of its diffuse kept in full shadow), sky light × ambient visibility, occluded fill and rim, half the bounce, a filmic curve on the luminance (hue kept) into the colour buffer; the shadow and ao AOVs (unorm16) only when asked for",
     ),
 ];
 
@@ -156,14 +156,20 @@ impl Resources {
         };
         let half = t.half();
         let ssdo = self.ssdo.as_ref().filter(|_| settings.ssdo_on());
+        let ssdo_params = self.ssdo_params(settings);
         if let Some(st) = ssdo {
-            let p = self.ssdo_params(settings);
+            let p = &ssdo_params;
             let semantic = settings.ssdo == SsdoMode::Semantic;
             st.pass
                 .record_prep(rec, &screen, &lookup, &t.records, &p.prep, half)?;
-            let size = (t.width, t.height);
+            // receivers: the blocks, or every pixel
+            let grid = if p.taps.half {
+                half
+            } else {
+                (t.width, t.height)
+            };
             st.pass.record_ssdo(
-                rec, &screen, &t.records, &t.ao, &p.ssdo, semantic, p.taps, size,
+                rec, &screen, &t.records, &t.ao, &p.ssdo, semantic, p.taps, grid,
             )?;
             if settings.blur {
                 for (axis, input, output) in [
@@ -173,14 +179,16 @@ impl Resources {
                 ] {
                     let io = BlurIo {
                         globals,
+                        records: &t.records,
                         vis: &t.vis,
                         spheres: &self.spheres,
                         attrs: &self.attrs,
                         input,
                         output,
                     };
+                    let shape = (p.blur_radius, p.taps.half);
                     st.blur
-                        .record(rec, axis, semantic, p.blur_radius, &io, &p.blur, size)?;
+                        .record(rec, axis, semantic, shape, &io, &p.blur, grid)?;
                 }
             }
         }
@@ -190,7 +198,7 @@ impl Resources {
             &screen,
             &lookup,
             self.shade_mode(settings, &lookup),
-            &t.ao,
+            (&t.ao, &t.records),
             (&t.color, &t.aov),
             &ShadePush {
                 // Lighting rule (issue 4, after the ISSM paper): a fully
@@ -206,7 +214,8 @@ impl Resources {
                     let c = self.level_choice(cam);
                     if c.blend >= 0.5 { c.level_b } else { c.level_a }
                 },
-                pad: [0; 2],
+                ao_sigma_z: ssdo_params.blur.sigma_z,
+                ao_level_b: ssdo_params.blur.level_b,
             },
             (t.width, t.height),
         )

@@ -93,37 +93,52 @@ pub(crate) struct SsdoParams {
     pub screen: ShadowParams,
 }
 
-/// SSDO taps when spheres are large on screen: 12 directions interleaved
-/// over 2x2 blocks (3 per pixel) x (1 near + 4 far steps), blurred 4 px
-/// each side to recombine them.
+impl SsdoParams {
+    /// How far (pixels) a pixel's SSDO value reaches back through the blur
+    /// and the upsample: each blur axis reads `blur_radius` pixels, or
+    /// blocks, then the upsample the blocks next to the pixel's own.
+    pub fn blur_reach_px(&self) -> u32 {
+        let r = self.blur_radius.max(0) as u32;
+        if self.taps.half {
+            crate::gpu::consts::SSDO_BLOCK * (r + 2)
+        } else {
+            r
+        }
+    }
+}
+
+/// SSDO taps when spheres are large on screen: per 2x2 block (the AO is
+/// smooth over a block there), 8 directions x (1 near + 5 far steps),
+/// blurred 2 blocks each side and upsampled. Spearman with the ray-traced
+/// AO (tests/ao.rs scene at 1280x960, radius ~30 px): 12 x (1+4) 0.937,
+/// 8 x (1+4) 0.935, 8 x (1+5) 0.938; per pixel (before) 0.936.
 pub const SSDO_TAPS_LARGE: (Taps, i32) = (
-    Taps {
-        dirs: 12,
-        steps: 4,
-        interleave: true,
-        perspective: false,
-    },
-    4,
-);
-/// ... and when they are small (typical radius under
-/// [`SSDO_SMALL_RADIUS_PX`] pixels): 8 directions x (1 + 5 steps) for
-/// every pixel, blurred 2 px each side.
-pub const SSDO_TAPS_SMALL: (Taps, i32) = (
     Taps {
         dirs: 8,
         steps: 5,
-        interleave: false,
+        half: true,
         perspective: false,
     },
     2,
 );
-/// Below this typical sphere radius on screen (pixels) the AO changes too
-/// much from pixel to pixel for interleaving. Spearman rank correlation
-/// with the ray-traced reference (tests/ao.rs scene, 8-bit AO AOV):
-/// radius ~6 px: all-8 0.912, interleaved-12 0.870 (a0b2d65: 0.910);
-/// ~12 px: 0.927 vs 0.911 (0.926); ~24 px: 0.933 vs 0.935 (0.933). With
-/// f32 AO at 320x240 (tests/ao.rs): 8 x (1+4) 0.912, 8 x (1+5) 0.916,
-/// 8 x (1+6) 0.918, 12 x (1+4) 0.914; a0b2d65 0.915.
+/// ... and when they are small (typical radius under
+/// [`SSDO_SMALL_RADIUS_PX`] pixels): per pixel, 8 directions x (1 + 5
+/// steps), blurred 2 px each side.
+pub const SSDO_TAPS_SMALL: (Taps, i32) = (
+    Taps {
+        dirs: 8,
+        steps: 5,
+        half: false,
+        perspective: false,
+    },
+    2,
+);
+/// Below this typical sphere radius on screen (pixels) the small set: per
+/// block the AO loses the pixel-to-pixel creases of small spheres.
+/// Spearman of the ao AOV with the ray-traced reference (tests/ao.rs
+/// scene), per block vs per pixel: radius ~8 px 0.865 vs 0.929, ~16 px
+/// 0.922 vs 0.938, ~30 px 0.937 vs 0.936; 9x the atoms at ~3 px 0.623 vs
+/// 0.871.
 pub const SSDO_SMALL_RADIUS_PX: f64 = 16.0;
 
 /// Everything on the GPU except the frame slots.
@@ -281,7 +296,8 @@ impl Resources {
                 } else {
                     choice.level_a
                 },
-                pad: [0; 2],
+                level_b: (choice.blend >= 0.5) as u32,
+                pad: 0,
             },
             screen: ShadowParams {
                 f0: [
@@ -312,6 +328,7 @@ impl Resources {
             kind: lookup.kind,
             soft: lookup.soft,
             ao: settings.ssdo_on(),
+            ao_half: settings.ssdo_on() && self.ssdo_params(settings).taps.half,
             swap_rb: self.bgra,
             aovs: settings.aovs,
             core_only: lookup.core_only(),
@@ -538,7 +555,7 @@ impl<'c> Renderer<'c> {
         kept: crate::camera::Window,
     ) -> Result<()> {
         self.resize_window(self.settings.camera, Some(window))?;
-        let reach = self.res.ssdo_params(&self.settings).blur_radius.max(0) as u32
+        let reach = self.res.ssdo_params(&self.settings).blur_reach_px()
             + self.res.outline_px(&self.settings)
             + crate::render::tiles::ALIGN;
         let lo = |k: u32, w: u32| k.saturating_sub(reach).max(w) - w;
@@ -1101,6 +1118,12 @@ impl<'c> Renderer<'c> {
     /// reach of its occlusion (the AO reference uses the same).
     pub fn ssdo_far_radius(&self) -> f64 {
         self.res.ssdo_params(&self.settings).ssdo.r_far as f64
+    }
+
+    /// Whether SSDO runs per 2x2 block for the current camera (spheres
+    /// large on screen) rather than per pixel.
+    pub fn ssdo_per_block(&self) -> bool {
+        self.res.ssdo_params(&self.settings).taps.half
     }
 
     /// The semantic level choice of this frame, when SSDO runs.

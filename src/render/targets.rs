@@ -1,9 +1,11 @@
 //! The screen-sized buffers of a frame, allocated for one image size and
 //! reallocated (nothing else) when it changes. Full resolution: the
 //! visibility buffer (8 B/px), colour (4 B/px, also the blur's scratch:
-//! SSDO and blur run before shade writes colour), the SSDO result
-//! (4 B/px); the SSDO records at half resolution (16 B per 2x2 block =
-//! 4 B/px): 20 B/px; the shadow|ao AOVs when asked for (4 B/px more).
+//! SSDO and blur run before shade writes colour), the SSDO result (4 B/px;
+//! per pixel when spheres are small on screen, else only its first quarter
+//! is used, per 2x2 block); the SSDO records at half resolution (16 B per
+//! 2x2 block = 4 B/px): 20 B/px; the shadow|ao AOVs when asked for (4 B/px
+//! more).
 
 use crate::error::Result;
 use crate::passes::raster;
@@ -24,7 +26,7 @@ pub struct Targets {
     pub aovs: bool,
     /// The colour buffer holds RGBA16 (two words per pixel).
     pub wide: bool,
-    /// SSDO records (half resolution) and result (full).
+    /// SSDO records (half resolution) and result (full, or half).
     pub records: Buffer,
     pub ao: Buffer,
 }

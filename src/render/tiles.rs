@@ -187,8 +187,8 @@ impl<'a> Renderer<'a> {
             ppu *= dist / near.max(1e-3 * dist);
         }
         let px = (reach * ppu).ceil().min(1e6) as u32;
-        // + both blur passes' radius, the block and rounding slack
-        px + p.blur_radius.max(0) as u32 + outline + 2 * ALIGN
+        // + the blur's and upsample's reach, the block and rounding slack
+        px + p.blur_reach_px() + outline + 2 * ALIGN
     }
 
     /// Renders the whole image, in tiles when one window cannot hold it on
