@@ -6,9 +6,10 @@
 // agreement^8 (three squarings) x (semantic) same region at the active
 // level. HALF: one value per 2x2 block, the weights from the blocks'
 // records (ssdo_record.glsl: one fetch per tap; shade.comp upsamples the
-// result); else one per pixel, the weights exact per pixel (depth key,
-// sphere, attributes), so edges between spheres stay sharp even when
-// spheres are only a few pixels wide. The centre tap has weight 1.
+// result); else one per pixel, the weights from the pixels' edge keys
+// (blur_key: view distance and region in 4 bytes, written by ssdo.comp),
+// so edges between spheres stay sharp even when spheres are only a few
+// pixels wide. The centre tap has weight 1.
 #include "ssdo_common.glsl"
 #include "ssdo_record.glsl"
 #include "tiles.glsl"
@@ -25,15 +26,12 @@ layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
 layout(set = 0, binding = 1) uniform usamplerBuffer recordTex;
 layout(set = 0, binding = 2) uniform usamplerBuffer inTex;
 layout(set = 0, binding = 3) writeonly buffer Out { uint outv[]; };
-layout(set = 0, binding = 4) uniform usamplerBuffer visTex;
-layout(set = 0, binding = 5) uniform samplerBuffer sphereTex;
-layout(set = 0, binding = 6) uniform usamplerBuffer attrTex;
+layout(set = 0, binding = 4) uniform usamplerBuffer keyTex;  // per pixel: blur_key
 
 layout(push_constant) uniform Push {
     float sigma_z;   // depth tolerance (world units)
-    uint level;      // hierarchy level of the region test (per pixel)
     uint level_b;    // HALF: region test at the records' level b (else a)
-    uint pad0;
+    uint pad0, pad1;
 } pc;
 
 // What the weights compare at tap j: covered, view distance, normal, region.
@@ -45,14 +43,13 @@ bool geometry(uint j, out float z, out vec3 n, out uint region) {
         region = pc.level_b != 0u ? r.region_b : r.region_a;
         return r.covered;
     }
-    uvec2 v = texelFetch(visTex, int(j)).xy;
-    bool cov = v.x != NO_SPHERE;
-    v.x = cov ? v.x : 0u;  // (a valid sphere for the fetches below)
-    z = key_view_z(g.cam, j, uintBitsToFloat(v.y));
-    vec4 sp = texelFetch(sphereTex, int(v.x));
-    n = normalize(point_at(g.cam, image_px(g.cam, j), z) - sp.xyz);
-    region = g.counts.w != 0u ? v.x : (SEMANTIC ? texelFetch(attrTex, int(2u * v.x))[pc.level] : 0u);
-    return cov;
+    // Per pixel: the edge key ssdo.comp wrote; no normal (spheres are a
+    // few pixels wide here: depth and region keep the edges).
+    uint k = texelFetch(keyTex, int(j)).x;
+    z = blur_key_z(k);
+    n = vec3(0.0, 0.0, 1.0);
+    region = blur_key_region(k);
+    return k != BLUR_KEY_BACKGROUND;
 }
 
 void main() {

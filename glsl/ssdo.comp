@@ -48,6 +48,8 @@ layout(set = 0, binding = 6) uniform usamplerBuffer attrTex;
 // The visibility buffer as 32-bit words: a tap reads only the depth half
 // of a key (a one-component gather; background keys are all ones).
 layout(set = 0, binding = 7) uniform usamplerBuffer visWordTex;
+// Per pixel (not HALF): the blur's edge key of each pixel (blur_key).
+layout(set = 0, binding = 8) writeonly buffer Keys { uint keys[]; };
 
 layout(push_constant) uniform Push {
     float r_near;
@@ -56,7 +58,8 @@ layout(push_constant) uniform Push {
     float bounce;  // bounce strength
     uint level_a;
     uint level_b;
-    uint pad0, pad1;
+    uint blur_level_b;  // the blur's region test at level b (else a)
+    uint pad1;
 } pc;
 
 #include "surface.glsl"
@@ -131,6 +134,7 @@ void main() {
     Surface s;
     if (!own.covered || !surface_of(px.y * w + px.x, s)) {
         ao[out_index] = pack_ao(vec2(1.0), vec3(0.0), 1.0);
+        if (!HALF) keys[out_index] = BLUR_KEY_BACKGROUND;
         return;
     }
     uint ra = own.region_a, rb = own.region_b;
@@ -146,6 +150,7 @@ void main() {
             rb = region_hash(regions[pc.level_b]);
         }
     }
+    if (!HALF) keys[out_index] = blur_key(view_z(g.cam, s.p), pc.blur_level_b != 0u ? rb : ra);
     vec3 x = to_space(s.p), n = dir_to_space(s.n);
     // One rotation of the table per receiver, a 4x4 pattern the blur averages.
     float rot = (BAYER4[(cell.y & 3u) * 4u + (cell.x & 3u)] + 0.5) / 16.0;

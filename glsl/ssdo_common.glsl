@@ -76,6 +76,15 @@ void unpack_ao(uint u, out vec2 v, out vec3 bounce, out float screen_vis) {
     screen_vis = float(u >> 28) / 15.0;
 }
 
+// The per-pixel blur's edge key in one word: the view distance's float
+// with its low 12 mantissa bits replaced by a 12-bit hash of the region at
+// the blur's level (relative depth error under 2^-11). A tap then reads 4
+// bytes instead of the visibility key, the sphere and its attributes.
+const uint BLUR_KEY_BACKGROUND = 0xFFFFFFFFu;  // (a NaN: no real distance)
+uint blur_key(float z, uint region) { return (floatBitsToUint(z) & 0xFFFFF000u) | (region & 0xFFFu); }
+float blur_key_z(uint k) { return uintBitsToFloat(k & 0xFFFFF000u); }
+uint blur_key_region(uint k) { return k & 0xFFFu; }
+
 float hash12(uvec2 p) {
     uint h = p.x * 1664525u + p.y * 1013904223u;
     h ^= h >> 16; h *= 0x7feb352du; h ^= h >> 15; h *= 0x846ca68bu; h ^= h >> 16;

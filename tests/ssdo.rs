@@ -233,8 +233,8 @@ fn flat_layer_is_open_crevice_is_occluded_and_semantic_ignores_own_region() {
 
 #[test]
 fn bilateral_blur_keeps_depth_edges_and_smooths_flat_areas() {
-    // Per pixel (depth keys in the visibility buffer) and per 2x2 block
-    // (records as ssdo_prep packs them).
+    // Per pixel (edge keys as ssdo packs them) and per 2x2 block (records
+    // as ssdo_prep packs them).
     for half in [false, true] {
         blur_keeps_edges(half);
     }
@@ -272,7 +272,7 @@ fn blur_keeps_edges(half: bool) {
     // the active rectangle: every pixel
     globals.params = [0.0, 0.0, (k * w) as f32, (k * h) as f32];
     let mut records = vec![[0u32; 4]; n];
-    let mut vis = vec![0u64; n + 64];
+    let mut keys = vec![0u32; n];
     let mut amb = vec![0.0f32; n];
     let mut ao_in = vec![0u32; n];
     let mut seed = 12345u32;
@@ -285,7 +285,7 @@ fn blur_keeps_edges(half: bool) {
             let i = (y * w + x) as usize;
             let left = x < w / 2;
             let z = if left { 0.0f32 } else { 50.0 };
-            vis[i] = ((z + offset as f32).to_bits() as u64) << 32; // sphere id 0
+            keys[i] = z.to_bits() & 0xFFFF_F000; // blur_key, region 0
             records[i] = Record {
                 z,
                 normal: [0.0, 0.0, 1.0],
@@ -326,23 +326,14 @@ fn blur_keeps_edges(half: bool) {
         up("ao tmp", &vec![0u8; n * 4], st),
         up("ao out", &vec![0u8; n * 4], st),
         up("records", bytemuck::cast_slice(&records), st),
-        up("vis", bytemuck::cast_slice(&vis), st),
-        // Sphere 0, far behind the layers along the view axis: every normal
-        // the per-pixel blur rebuilds from it faces the camera (a flat layer).
-        up(
-            "spheres",
-            bytemuck::cast_slice(&[0.0f32, 0.0, -1e5, 1.0]),
-            st,
-        ),
-        up("attrs", &[0u8; 32], st),
+        up("keys", bytemuck::cast_slice(&keys), st),
     ];
     let mut blur = BlurPass::new();
     blur.prepare(&ctx, false).expect("pipelines");
     let push = BlurPush {
         sigma_z: 1.0,
-        level: 0,
         level_b: 0,
-        pad: 0,
+        pad: [0; 2],
     };
     ctx.one_shot_passes("blur", |rec| {
         let b = &bufs;
@@ -353,9 +344,7 @@ fn blur_keeps_edges(half: bool) {
             let io = BlurIo {
                 globals: &b[0],
                 records: &b[4],
-                vis: &b[5],
-                spheres: &b[6],
-                attrs: &b[7],
+                keys: &b[5],
                 input,
                 output,
             };

@@ -16,12 +16,10 @@ use bytemuck::{Pod, Zeroable};
 pub struct BlurPush {
     /// Depth tolerance (world units).
     pub sigma_z: f32,
-    /// Hierarchy level of the per-pixel region test.
-    pub level: u32,
     /// Half resolution: 1 = the region test compares the records' level-b
-    /// regions, 0 = level a.
+    /// regions, 0 = level a (per pixel, the keys hold the right one).
     pub level_b: u32,
-    pub pad: u32,
+    pub pad: [u32; 2],
 }
 
 /// The blur radii (taps on each side, in pixels or in blocks) the SSDO tap
@@ -45,14 +43,12 @@ impl Axis {
     }
 }
 
-const BINDINGS: [Binding; 7] = [
+const BINDINGS: [Binding; 5] = [
     uniform("GlobalsBlock"),
     texel("recordTex", Format::R32G32B32A32_UINT),
     texel("inTex", Format::R32_UINT),
     wo("Out"),
-    texel("visTex", Format::R32G32_UINT),
-    texel("sphereTex", Format::R32G32B32A32_SFLOAT),
-    texel("attrTex", Format::R32G32B32A32_UINT),
+    texel("keyTex", Format::R32_UINT),
 ];
 
 #[derive(Default)]
@@ -64,9 +60,8 @@ pub struct BlurPass {
 pub struct BlurIo<'a> {
     pub globals: &'a Buffer,
     pub records: &'a Buffer,
-    pub vis: &'a Buffer,
-    pub spheres: &'a Buffer,
-    pub attrs: &'a Buffer,
+    /// The per-pixel edge keys (ssdo's `Keys`).
+    pub keys: &'a Buffer,
     pub input: &'a Buffer,
     pub output: &'a Buffer,
 }
@@ -134,9 +129,7 @@ impl BlurPass {
                     ("recordTex", io.records),
                     ("inTex", io.input),
                     ("Out", io.output),
-                    ("visTex", io.vis),
-                    ("sphereTex", io.spheres),
-                    ("attrTex", io.attrs),
+                    ("keyTex", io.keys),
                 ],
             );
             Ok(())

@@ -37,7 +37,9 @@ pub struct SsdoPush {
     pub bounce: f32,
     pub level_a: u32,
     pub level_b: u32,
-    pub pad: [u32; 2],
+    /// The per-pixel blur compares regions at level b (else a): the keys'.
+    pub blur_level_b: u32,
+    pub pad: u32,
 }
 
 /// Tap counts per receiver (directions, far-search steps per direction)
@@ -108,7 +110,7 @@ pub struct SsdoPass {
 }
 
 const PREP_OUTPUT: Binding = wo("Records");
-const SSDO_BINDINGS: [Binding; 8] = [
+const SSDO_BINDINGS: [Binding; 9] = [
     uniform("GlobalsBlock"),
     texel("recordTex", Format::R32G32B32A32_UINT),
     uniform("SampleTable"),
@@ -117,6 +119,7 @@ const SSDO_BINDINGS: [Binding; 8] = [
     texel("sphereTex", Format::R32G32B32A32_SFLOAT),
     texel("attrTex", Format::R32G32B32A32_UINT),
     texel("visWordTex", Format::R32_UINT),
+    wo("Keys"),
 ];
 
 impl SsdoPass {
@@ -211,7 +214,8 @@ impl SsdoPass {
         })
     }
 
-    /// `ssdo`: ambient visibility + bounce per receiver into `ao`; `size`
+    /// `ssdo`: ambient visibility + bounce per receiver into `ao` (and per
+    /// pixel the blur's edge keys into `keys`); `size`
     /// is the receivers' grid (half resolution with `taps.half`).
     #[allow(clippy::too_many_arguments)]
     pub fn record_ssdo(
@@ -219,7 +223,7 @@ impl SsdoPass {
         rec: &mut Recorder,
         io: &ScreenInputs,
         records: &Buffer,
-        ao: &Buffer,
+        (ao, keys): (&Buffer, &Buffer),
         push: &SsdoPush,
         semantic: bool,
         taps: Taps,
@@ -243,6 +247,7 @@ impl SsdoPass {
                     ("sphereTex", io.spheres),
                     ("attrTex", io.attrs),
                     ("visWordTex", io.vis),
+                    ("Keys", keys),
                 ],
             );
             Ok(())

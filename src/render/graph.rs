@@ -60,11 +60,11 @@ pub const PASSES: &[(&str, &str)] = &[
     ),
     (
         "ssdo",
-        "receivers rebuilt exactly from (pixel ray, sphere id): every covered pixel when spheres are under 16 px on screen, else one per 2x2 block (its representative); 8 directions from a sample table in a uniform buffer (Halton + Malley), rotated per receiver; a near sample and a far 5-step search per direction (visibilities multiplied); a tap reads the 4-byte depth word of the visibility key (exact occluder depth) and only the first occluder's block record (regions, normal, reflected light for the bounce); occluder = closer to the viewer and (semantic) in another region at the active hierarchy level, blended between two levels by zoom; counts and the size threshold measured against a ray-traced AO",
+        "receivers rebuilt exactly from (pixel ray, sphere id): every covered pixel when spheres are under 16 px on screen, else one per 2x2 block (its representative); 8 directions from a sample table in a uniform buffer (Halton + Malley), rotated per receiver; a near sample and a far 5-step search per direction (visibilities multiplied); a tap reads the 4-byte depth word of the visibility key (exact occluder depth) and only the first occluder's block record (regions, normal, reflected light for the bounce); occluder = closer to the viewer and (semantic) in another region at the active hierarchy level, blended between two levels by zoom; per pixel it also writes the blur's edge key; counts and the size threshold measured against a ray-traced AO",
     ),
     (
         "blur_h",
-        "separable bilateral blur (2 taps each side) of the packed 4-byte SSDO result (near/far visibility, bounce, screen-space shadow): per pixel with weights from each tap's exact depth, normal and region, or per block with the blocks' records; horizontal, into the colour buffer (free until `shade`)",
+        "separable bilateral blur (2 taps each side) of the packed 4-byte SSDO result (near/far visibility, bounce, screen-space shadow): per pixel with weights from 4-byte edge keys `ssdo` writes (view distance, region hash), or per block from the blocks' records (depth, normal, region); horizontal, into the colour buffer (free until `shade`)",
     ),
     ("blur_v", "the same, vertical, back into the SSDO result"),
     (
@@ -169,7 +169,14 @@ impl Resources {
                 (t.width, t.height)
             };
             st.pass.record_ssdo(
-                rec, &screen, &t.records, &t.ao, &p.ssdo, semantic, p.taps, grid,
+                rec,
+                &screen,
+                &t.records,
+                (&t.ao, &t.keys),
+                &p.ssdo,
+                semantic,
+                p.taps,
+                grid,
             )?;
             if settings.blur {
                 for (axis, input, output) in [
@@ -180,9 +187,7 @@ impl Resources {
                     let io = BlurIo {
                         globals,
                         records: &t.records,
-                        vis: &t.vis,
-                        spheres: &self.spheres,
-                        attrs: &self.attrs,
+                        keys: &t.keys,
                         input,
                         output,
                     };

@@ -282,7 +282,8 @@ impl Resources {
                 bounce: 1.0,
                 level_a: choice.level_a,
                 level_b: choice.level_b,
-                pad: [0; 2],
+                blur_level_b: (choice.blend >= 0.5) as u32,
+                pad: 0,
             },
             taps: Taps {
                 perspective: cam.fov_deg.is_some(),
@@ -291,13 +292,8 @@ impl Resources {
             blur_radius: taps.1,
             blur: BlurPush {
                 sigma_z: (0.5 * r).max(px) as f32,
-                level: if choice.blend >= 0.5 {
-                    choice.level_b
-                } else {
-                    choice.level_a
-                },
                 level_b: (choice.blend >= 0.5) as u32,
-                pad: 0,
+                pad: [0; 2],
             },
             screen: ShadowParams {
                 f0: [

@@ -3,9 +3,9 @@
 //! visibility buffer (8 B/px), colour (4 B/px, also the blur's scratch:
 //! SSDO and blur run before shade writes colour), the SSDO result (4 B/px;
 //! per pixel when spheres are small on screen, else only its first quarter
-//! is used, per 2x2 block); the SSDO records at half resolution (16 B per
-//! 2x2 block = 4 B/px): 20 B/px; the shadow|ao AOVs when asked for (4 B/px
-//! more).
+//! is used, per 2x2 block) and the per-pixel blur's edge keys (4 B/px); the
+//! SSDO records at half resolution (16 B per 2x2 block = 4 B/px): 24 B/px;
+//! the shadow|ao AOVs when asked for (4 B/px more).
 
 use crate::error::Result;
 use crate::passes::raster;
@@ -29,6 +29,8 @@ pub struct Targets {
     /// SSDO records (half resolution) and result (full, or half).
     pub records: Buffer,
     pub ao: Buffer,
+    /// Per pixel: the blur's edge keys (view distance and region).
+    pub keys: Buffer,
 }
 
 /// Half-resolution size (one block per 2x2 pixels).
@@ -53,6 +55,7 @@ impl Targets {
         let aov = storage("shadow and ao", if aovs { pixels * 4 } else { 4 })?;
         let records = storage("ssdo records", blocks * 16)?;
         let ao = storage("ssdo ao", pixels * 4)?;
+        let keys = storage("ssdo blur keys", pixels * 4)?;
         Ok(Targets {
             width,
             height,
@@ -64,6 +67,7 @@ impl Targets {
             wide,
             records: records.keep(),
             ao: ao.keep(),
+            keys: keys.keep(),
         })
     }
 
@@ -76,7 +80,7 @@ impl Targets {
         (
             self.vis.size,
             self.color.size + self.aov.size,
-            self.records.size + self.ao.size,
+            self.records.size + self.ao.size + self.keys.size,
         )
     }
 
@@ -87,6 +91,7 @@ impl Targets {
             &mut self.aov,
             &mut self.records,
             &mut self.ao,
+            &mut self.keys,
         ] {
             b.destroy(ctx);
         }
