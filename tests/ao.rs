@@ -129,9 +129,12 @@ fn ao_png_correlation() {
             b.push(img.as_raw()[i] as f64);
         }
     }
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
     eprintln!(
-        "{path}: Spearman {:.3} over {} pixels",
+        "{path}: Spearman {:.3} over {} pixels; mean {:.3} (reference {:.3})",
         spearman(&a, &b),
-        a.len()
+        a.len(),
+        mean(&b) / 255.0,
+        mean(&a)
     );
 }

@@ -16,6 +16,8 @@ printf '# two\n-3 0 0 2\n3 0 0 2\n' > "$tmp/two.xyzr"
 scenes=(
   "random:--scene random --atoms 500 --width 96 --height 64"
   "1tii:$here/tests/data/1tii.pdb --width 256 --height 192"
+  # spheres ~16 px in radius: SSDO per 2x2 block
+  "1tii-close:$here/tests/data/1tii.pdb --width 256 --height 192 --view-height 20"
 )
 printf '%-34s %10s %8s\n' case "px>2%" "max"
 for sc in "${scenes[@]}"; do
