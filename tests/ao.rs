@@ -73,6 +73,18 @@ fn per_block_ssdo_ranks_like_ray_traced_ao() {
     );
 }
 
+/// The same per block through the perspective (world-space) tap path.
+#[test]
+fn per_block_ssdo_ranks_like_ray_traced_ao_in_perspective() {
+    let (rho, n) = correlation_at(SsdoMode::Plain, Some(40.0), (1280, 960), 8, true);
+    eprintln!("per-block SSDO (perspective) vs ray-traced AO: Spearman {rho:.3} over {n} pixels");
+    assert!(n > 3000, "too few covered pixels: {n}");
+    assert!(
+        rho >= 0.9,
+        "per-block perspective rank correlation {rho:.3} < 0.9"
+    );
+}
+
 /// Perspective cameras take the world-space tap path (orthographic ones
 /// step in view space): both must rank like the reference.
 #[test]
