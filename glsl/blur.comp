@@ -17,7 +17,7 @@
 layout(local_size_x_id = 0) in;
 layout(constant_id = 1) const uint AXIS = 0;
 layout(constant_id = 2) const bool SEMANTIC = true;
-// Taps on each side, in blocks: a constant so the loop unrolls and its
+// Taps on each side, in pixels or (HALF) blocks: a constant so the loop unrolls and its
 // spatial weights fold (lavapipe runs a loop to its slowest lane).
 layout(constant_id = 3) const int RADIUS = 2;
 layout(constant_id = 4) const bool HALF = true;

@@ -149,8 +149,8 @@ void main() {
             ra = region_hash(regions[pc.level_a]);
             rb = region_hash(regions[pc.level_b]);
         }
+        keys[out_index] = blur_key(view_z(g.cam, s.p), pc.blur_level_b != 0u ? rb : ra);
     }
-    if (!HALF) keys[out_index] = blur_key(view_z(g.cam, s.p), pc.blur_level_b != 0u ? rb : ra);
     vec3 x = to_space(s.p), n = dir_to_space(s.n);
     // One rotation of the table per receiver, a 4x4 pattern the blur averages.
     float rot = (BAYER4[(cell.y & 3u) * 4u + (cell.x & 3u)] + 0.5) / 16.0;

@@ -10,10 +10,6 @@ use sphereshade::reference::{ambient_occlusion, spearman};
 use sphereshade::render::Renderer;
 use sphereshade::settings::{ShadowMode, SsdoMode};
 
-fn correlation(mode: SsdoMode, fov: Option<f64>) -> (f64, usize) {
-    correlation_at(mode, fov, (320, 240), 2, false)
-}
-
 /// At image size `(w, h)`, the reference on every `stride`-th pixel
 /// (`per_block`: the SSDO path this size must take).
 fn correlation_at(
@@ -48,15 +44,28 @@ fn correlation_at(
     (spearman(&a, &b), a.len())
 }
 
+/// Runs `correlation_at` and asserts enough covered pixels and a rank
+/// correlation of at least `min`.
+fn assert_ranks(
+    what: &str,
+    fov: Option<f64>,
+    size: (u32, u32),
+    stride: u32,
+    per_block: bool,
+    min: f64,
+) {
+    let (rho, n) = correlation_at(SsdoMode::Plain, fov, size, stride, per_block);
+    eprintln!("{what} vs ray-traced AO: Spearman {rho:.3} over {n} pixels");
+    assert!(n > 3000, "too few covered pixels: {n}");
+    assert!(rho >= min, "{what} rank correlation {rho:.3} < {min}");
+}
+
 #[test]
 fn plain_ssdo_ranks_like_ray_traced_ao() {
-    let (rho, n) = correlation(SsdoMode::Plain, None);
-    eprintln!("plain SSDO vs ray-traced AO: Spearman {rho:.3} over {n} pixels");
-    assert!(n > 3000, "too few covered pixels: {n}");
     // Measured on lavapipe: 0.929; a0b2d65's full-resolution SSDO: 0.915.
     // The goal is >= 0.85 and no lower than before (0.91 leaves room for
     // other drivers' rounding).
-    assert!(rho >= 0.91, "plain SSDO rank correlation {rho:.3} < 0.91");
+    assert_ranks("plain SSDO", None, (320, 240), 2, false, 0.91);
 }
 
 /// Spheres large on screen (~30 px radius at 1280x960): SSDO per 2x2
@@ -64,24 +73,19 @@ fn plain_ssdo_ranks_like_ray_traced_ao() {
 /// too. Measured 0.938 (the per-pixel path before it, at this size: 0.936).
 #[test]
 fn per_block_ssdo_ranks_like_ray_traced_ao() {
-    let (rho, n) = correlation_at(SsdoMode::Plain, None, (1280, 960), 8, true);
-    eprintln!("per-block SSDO vs ray-traced AO: Spearman {rho:.3} over {n} pixels");
-    assert!(n > 3000, "too few covered pixels: {n}");
-    assert!(
-        rho >= 0.91,
-        "per-block SSDO rank correlation {rho:.3} < 0.91"
-    );
+    assert_ranks("per-block SSDO", None, (1280, 960), 8, true, 0.91);
 }
 
 /// The same per block through the perspective (world-space) tap path.
 #[test]
 fn per_block_ssdo_ranks_like_ray_traced_ao_in_perspective() {
-    let (rho, n) = correlation_at(SsdoMode::Plain, Some(40.0), (1280, 960), 8, true);
-    eprintln!("per-block SSDO (perspective) vs ray-traced AO: Spearman {rho:.3} over {n} pixels");
-    assert!(n > 3000, "too few covered pixels: {n}");
-    assert!(
-        rho >= 0.9,
-        "per-block perspective rank correlation {rho:.3} < 0.9"
+    assert_ranks(
+        "per-block SSDO (perspective)",
+        Some(40.0),
+        (1280, 960),
+        8,
+        true,
+        0.9,
     );
 }
 
@@ -89,12 +93,13 @@ fn per_block_ssdo_ranks_like_ray_traced_ao_in_perspective() {
 /// step in view space): both must rank like the reference.
 #[test]
 fn plain_ssdo_ranks_like_ray_traced_ao_in_perspective() {
-    let (rho, n) = correlation(SsdoMode::Plain, Some(40.0));
-    eprintln!("plain SSDO (perspective) vs ray-traced AO: Spearman {rho:.3} over {n} pixels");
-    assert!(n > 3000, "too few covered pixels: {n}");
-    assert!(
-        rho >= 0.9,
-        "perspective SSDO rank correlation {rho:.3} < 0.9"
+    assert_ranks(
+        "plain SSDO (perspective)",
+        Some(40.0),
+        (320, 240),
+        2,
+        false,
+        0.9,
     );
 }
 

@@ -1,7 +1,8 @@
-//! Separable bilateral blur (`blur_h`, `blur_v`) of the half-resolution
-//! SSDO result, weighted by the blocks' records: one shader, the axis and
-//! the semantic region test are specialization constants. See
-//! glsl/blur.comp.
+//! Separable bilateral blur (`blur_h`, `blur_v`) of the SSDO result, per
+//! pixel (weights from the edge keys `ssdo` writes) or per 2x2 block
+//! (weights from the blocks' records): one shader, the axis, the
+//! resolution and the semantic region test are specialization constants.
+//! See glsl/blur.comp.
 
 use super::shade::{Variants, tile_grid};
 use super::spirv;

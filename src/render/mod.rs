@@ -260,6 +260,8 @@ impl Resources {
         let r = self.typical_radius;
         let px = 1.0 / cam.pixels_per_unit();
         let choice = self.level_choice(cam);
+        // the blur's (and the upsample's) region level: the one weighted more
+        let level_b = choice.blend >= 0.5;
         let taps = if r / px < SSDO_SMALL_RADIUS_PX {
             SSDO_TAPS_SMALL
         } else {
@@ -282,7 +284,7 @@ impl Resources {
                 bounce: 1.0,
                 level_a: choice.level_a,
                 level_b: choice.level_b,
-                blur_level_b: (choice.blend >= 0.5) as u32,
+                blur_level_b: level_b as u32,
                 pad: 0,
             },
             taps: Taps {
@@ -292,7 +294,7 @@ impl Resources {
             blur_radius: taps.1,
             blur: BlurPush {
                 sigma_z: (0.5 * r).max(px) as f32,
-                level_b: (choice.blend >= 0.5) as u32,
+                level_b: level_b as u32,
                 pad: [0; 2],
             },
             screen: ShadowParams {
