@@ -25,6 +25,9 @@ layout(constant_id = 7) const bool OUTLINE = false;  // --outline: silhouette li
 layout(constant_id = 8) const bool WIDE = false;
 // The SSDO result is per 2x2 block (spheres large on screen): upsample it.
 layout(constant_id = 9) const bool AO_HALF = false;
+// The SSDO result is per sphere (spheres a few pixels wide): weight its
+// directions by the pixel's normal (ssdo_common.glsl sphere_ao_at).
+layout(constant_id = 10) const bool AO_SPHERE = false;
 
 layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
 layout(set = 0, binding = 1) uniform usamplerBuffer visTex;
@@ -34,6 +37,7 @@ layout(set = 0, binding = 4) uniform usamplerBuffer recordTex;  // per 2x2 block
 layout(set = 0, binding = 5) uniform usamplerBuffer aoTex;  // per pixel or 2x2 block, pack_ao
 layout(set = 0, binding = 6) writeonly buffer Color { uint color[]; };
 layout(set = 0, binding = 7) writeonly buffer Aov { uint aov[]; };
+layout(set = 0, binding = 8) uniform usamplerBuffer sphereAoTex;  // per sphere (AO_SPHERE)
 
 layout(push_constant) uniform Push {
     float shadow_diffuse; // fraction of key diffuse kept in full shadow
@@ -195,8 +199,22 @@ void main() {
     if (AO) {
         vec2 v;
         vec3 bounce;
-        if (AO_HALF) ssdo_at(px, z, n, s.id, v, bounce, screen_vis);
-        else unpack_ao(texelFetch(aoTex, int(i)).x, v, bounce, screen_vis);
+        if (AO_SPHERE) {
+            // (perspective: the frame about this pixel's ray, nearly the
+            // sphere's that ssdo_sphere.comp used)
+            mat3 b = g.cam.dir.w == 0.0 ? mat3(g.cam.right.xyz, g.cam.up.xyz, g.cam.dir.xyz)
+                                        : sphere_basis(vdir, g.cam.up.xyz);
+            vec3 nc = n * b;
+            sphere_ao_at(texelFetch(sphereAoTex, int(s.id)), s.id, nc, v, bounce);
+#if defined(SHADOW_SCREEN)
+            uvec2 blk = px / SSDO_BLOCK;
+            screen_vis = unpack_record(texelFetch(recordTex, int(blk.y * g.counts.y + blk.x))).visibility;
+#endif
+        } else if (AO_HALF) {
+            ssdo_at(px, z, n, s.id, v, bounce, screen_vis);
+        } else {
+            unpack_ao(texelFetch(aoTex, int(i)).x, v, bounce, screen_vis);
+        }
         amb = vec4(v.x * v.y, bounce);
     }
 #if defined(SHADOW_SCREEN)

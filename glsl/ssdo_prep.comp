@@ -10,12 +10,15 @@
 layout(local_size_x_id = 0) in;
 layout(constant_id = 1) const bool SOFT = false;
 layout(constant_id = 2) const bool ISSM_CORE_ONLY = false;  // lookup_issm.glsl
+// Per-sphere SSDO (ssdo_sphere.comp): mark every sphere seen in the block.
+layout(constant_id = 3) const bool MARK = false;
 
 layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
 layout(set = 0, binding = 1) uniform usamplerBuffer visTex;
 layout(set = 0, binding = 2) uniform samplerBuffer sphereTex;
 layout(set = 0, binding = 3) uniform usamplerBuffer attrTex;
 layout(set = 0, binding = 4) writeonly buffer Records { uvec4 records[]; };
+layout(set = 0, binding = 5) writeonly buffer Flags { uint flags[]; };
 
 layout(push_constant) uniform Push {
     uint level_a;
@@ -47,7 +50,10 @@ void main() {
         uvec2 px = SSDO_BLOCK * b + sub;
         bool inside = px.x < w && px.y < h;
         uint j = min(px.y, h - 1u) * w + min(px.x, w - 1u);
-        bool take = !found && inside && texelFetch(visTex, int(j)).x != NO_SPHERE;
+        uint id = texelFetch(visTex, int(j)).x;
+        // (plain stores: every writer of a sphere's flag writes the same 1)
+        if (MARK && inside && id != NO_SPHERE) flags[id] = 1u;
+        bool take = !found && inside && id != NO_SPHERE;
         pixel = take ? j : pixel;
         r.sub = take ? sub : r.sub;
         found = found || take;

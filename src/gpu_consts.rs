@@ -48,6 +48,14 @@ gpu_constants! {
     /// SSDO block side in pixels: SSDO runs on one representative pixel per
     /// SSDO_BLOCK x SSDO_BLOCK block.
     SSDO_BLOCK: u32 = 2;
+    /// Per-sphere SSDO (spheres a few pixels wide): directions per sphere.
+    SSDO_SPHERE_DIRS: u32 = 32;
+    /// Per-sphere SSDO counters: spheres listed, their workgroups, and the
+    /// band_args words (run, then the three indirect dispatch words).
+    S_LISTED: u32 = 0;
+    S_GROUPS: u32 = 1;
+    S_RUN: u32 = 2;
+    S_ARGS: u32 = 3;
     /// Deep lists: light-space disk enlargement in texels (conservative
     /// footprints: a missed texel would leak light, an extra entry costs one
     /// exact ray test).

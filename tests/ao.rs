@@ -10,24 +10,48 @@ use sphereshade::reference::{ambient_occlusion, spearman};
 use sphereshade::render::Renderer;
 use sphereshade::settings::{ShadowMode, SsdoMode};
 
+/// The SSDO receivers a test expects at its size.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Path {
+    Pixel,
+    Block,
+    /// Per visible sphere (spheres a few pixels wide).
+    Sphere,
+}
+
+/// The first 2,500 atoms of 1TII, replicated `copies` x `copies` x
+/// `copies` (1: as they are).
+fn ao_scene(copies: u32) -> sphereshade::scene::Scene {
+    let mut scene = load_data("1tii.pdb");
+    scene.spheres.truncate(2500);
+    if copies > 1 {
+        scene = scene.replicate([copies; 3]);
+    }
+    scene
+}
+
 /// At image size `(w, h)`, the reference on every `stride`-th pixel
-/// (`per_block`: the SSDO path this size must take).
+/// (`path`: the SSDO receivers this size must take).
 fn correlation_at(
     mode: SsdoMode,
     fov: Option<f64>,
     (w, h): (u32, u32),
     stride: u32,
-    per_block: bool,
+    (copies, path): (u32, Path),
 ) -> (f64, usize) {
     let ctx = validated_context();
-    let mut scene = load_data("1tii.pdb");
-    scene.spheres.truncate(2500);
+    let scene = ao_scene(copies);
     let cam = camera(&scene, w, h, fov);
     let mut s = settings(cam, ShadowMode::None);
     s.ssdo = mode;
     s.blur = true;
     let mut r = Renderer::new(&ctx, &scene, s).expect("renderer");
-    assert_eq!(r.ssdo_per_block(), per_block, "SSDO path at {w}x{h}");
+    let taken = match (r.ssdo_per_block(), r.ssdo_per_sphere()) {
+        (true, _) => Path::Block,
+        (_, true) => Path::Sphere,
+        _ => Path::Pixel,
+    };
+    assert_eq!(taken, path, "SSDO path at {w}x{h}");
     r.render_frame().expect("frame");
     let radius = r.ssdo_far_radius();
     let ao: Vec<f32> = r.read_ambient().expect("ao").iter().map(|a| a[0]).collect();
@@ -51,12 +75,12 @@ fn assert_ranks(
     fov: Option<f64>,
     size: (u32, u32),
     stride: u32,
-    per_block: bool,
+    scene: (u32, Path),
     min: f64,
 ) {
-    let (rho, n) = correlation_at(SsdoMode::Plain, fov, size, stride, per_block);
+    let (rho, n) = correlation_at(SsdoMode::Plain, fov, size, stride, scene);
     eprintln!("{what} vs ray-traced AO: Spearman {rho:.3} over {n} pixels");
-    assert!(n > 3000, "too few covered pixels: {n}");
+    assert!(n > 2000, "too few covered pixels: {n}");
     assert!(rho >= min, "{what} rank correlation {rho:.3} < {min}");
 }
 
@@ -65,7 +89,7 @@ fn plain_ssdo_ranks_like_ray_traced_ao() {
     // Measured on lavapipe: 0.929; a0b2d65's full-resolution SSDO: 0.915.
     // The goal is >= 0.85 and no lower than before (0.91 leaves room for
     // other drivers' rounding).
-    assert_ranks("plain SSDO", None, (320, 240), 2, false, 0.91);
+    assert_ranks("plain SSDO", None, (320, 240), 2, (1, Path::Pixel), 0.91);
 }
 
 /// Spheres large on screen (~30 px radius at 1280x960): SSDO per 2x2
@@ -73,7 +97,14 @@ fn plain_ssdo_ranks_like_ray_traced_ao() {
 /// too. Measured 0.938 (the per-pixel path before it, at this size: 0.936).
 #[test]
 fn per_block_ssdo_ranks_like_ray_traced_ao() {
-    assert_ranks("per-block SSDO", None, (1280, 960), 8, true, 0.91);
+    assert_ranks(
+        "per-block SSDO",
+        None,
+        (1280, 960),
+        8,
+        (1, Path::Block),
+        0.91,
+    );
 }
 
 /// The same per block through the perspective (world-space) tap path.
@@ -84,7 +115,7 @@ fn per_block_ssdo_ranks_like_ray_traced_ao_in_perspective() {
         Some(40.0),
         (1280, 960),
         8,
-        true,
+        (1, Path::Block),
         0.9,
     );
 }
@@ -98,8 +129,37 @@ fn plain_ssdo_ranks_like_ray_traced_ao_in_perspective() {
         Some(40.0),
         (320, 240),
         2,
-        false,
+        (1, Path::Pixel),
         0.9,
+    );
+}
+
+/// Spheres a few pixels wide (27 copies at 320x240: radius ~1.4 px): SSDO
+/// per visible sphere, weighted per pixel by its normal. Measured 0.858;
+/// the per-pixel path at this size 0.827, a0b2d65's 0.823.
+#[test]
+fn per_sphere_ssdo_ranks_like_ray_traced_ao() {
+    assert_ranks(
+        "per-sphere SSDO",
+        None,
+        (320, 240),
+        2,
+        (3, Path::Sphere),
+        0.83,
+    );
+}
+
+/// The same through the perspective (world-space) tap path. Measured
+/// 0.802; the per-pixel path on this scene 0.806, a0b2d65's 0.793.
+#[test]
+fn per_sphere_ssdo_ranks_like_ray_traced_ao_in_perspective() {
+    assert_ranks(
+        "per-sphere SSDO (perspective)",
+        Some(40.0),
+        (320, 240),
+        2,
+        (3, Path::Sphere),
+        0.78,
     );
 }
 
@@ -133,12 +193,24 @@ fn ao_png_correlation() {
     }
     let path = std::env::var("AO_PNG").expect("AO_PNG");
     let img = image::open(&path).expect("png").to_luma8();
-    let cam = camera(&scene, img.width(), img.height(), None);
+    let fov = std::env::var("AO_FOV").ok().map(|s| s.parse().unwrap());
+    let cam = camera(&scene, img.width(), img.height(), fov);
     let typical = 1.7f64; // median vdW radius of 1TII's first 2,500 atoms (C)
     let px = 1.0 / cam.pixels_per_unit();
     let radius = (12.0 * typical).max(8.0 * px);
     let stride: u32 = std::env::var("AO_STRIDE").map_or(2, |s| s.parse().unwrap());
     let reference = ambient_occlusion(&scene.spheres, &cam, radius, 256, stride);
+    if let Ok(out) = std::env::var("AO_REF_OUT") {
+        // the reference as a PNG (white where not traced), to look at
+        let px: Vec<u8> = reference
+            .iter()
+            .map(|v| v.map_or(255, |v| (v * 255.0).round() as u8))
+            .collect();
+        image::GrayImage::from_raw(img.width(), img.height(), px)
+            .expect("size")
+            .save(&out)
+            .expect("write");
+    }
     let (mut a, mut b) = (Vec::new(), Vec::new());
     for (i, v) in reference.iter().enumerate() {
         if let Some(v) = v {

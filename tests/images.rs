@@ -66,7 +66,7 @@ fn rgba(img: &AovImage) -> &image::RgbaImage {
 fn tiled_renders_equal_untiled_bytes() {
     let scene = load_data("1tii.pdb");
     type Edit = fn(&mut Options);
-    let cases: [(&str, ShadowMode, SsdoMode, Edit); 8] = [
+    let cases: [(&str, ShadowMode, SsdoMode, Edit); 10] = [
         ("default", ShadowMode::IssmSoft, SsdoMode::Semantic, |_| {}),
         ("perspective", ShadowMode::Issm, SsdoMode::Plain, |o| {
             o.fov = Some(35.0)
@@ -100,6 +100,22 @@ fn tiled_renders_equal_untiled_bytes() {
                 o.background = Background::Transparent;
             },
         ),
+        (
+            // spheres ~2 px in radius: SSDO per visible sphere
+            "far view",
+            ShadowMode::IssmSoft,
+            SsdoMode::Semantic,
+            |o| o.view_height = Some(170.0),
+        ),
+        (
+            "far view perspective screen shadows",
+            ShadowMode::None,
+            SsdoMode::Plain,
+            |o| {
+                o.view_height = Some(170.0);
+                o.fov = Some(35.0);
+            },
+        ),
     ];
     for (name, shadows, ssdo, edit) in cases {
         let whole = resolve(&scene, 256, 200, shadows, ssdo, edit);
@@ -116,7 +132,7 @@ fn tiled_renders_equal_untiled_bytes() {
         // the close-up's per-block SSDO
         let aovs: &[Aov] = match name {
             "default" | "perspective" => &[Aov::Id, Aov::Depth, Aov::Ao],
-            "close-up ssaa 2 transparent" => &[Aov::Ao],
+            "close-up ssaa 2 transparent" | "far view" => &[Aov::Ao],
             _ => &[],
         };
         for &aov in aovs {

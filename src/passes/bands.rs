@@ -119,17 +119,28 @@ impl BandArgs {
             Grid::Invocations(sphere_count as u64),
             bindings,
         );
-        p.dispatch(
-            &self.pipe,
-            layout,
-            Grid::Groups([1, 1, 1]),
-            &[("Counters", counters)],
-        );
+        self.step(p, counters, layout);
         p.dispatch(
             &pipes.bands,
             push,
             Grid::Indirect(counters, layout.args_offset()),
             bindings,
+        );
+    }
+
+    /// The args step alone: `layout.requested` workgroups into indirect
+    /// dispatch arguments at `layout.args`.
+    pub fn step<'b>(
+        &'b self,
+        p: &mut PassBuilder<'b>,
+        counters: &'b Buffer,
+        layout: &BandCounters,
+    ) {
+        p.dispatch(
+            &self.pipe,
+            layout,
+            Grid::Groups([1, 1, 1]),
+            &[("Counters", counters)],
         );
     }
 

@@ -142,6 +142,8 @@ pub struct ShadeMode {
     pub ao: bool,
     /// The SSDO result is per 2x2 block: upsample it.
     pub ao_half: bool,
+    /// The SSDO result is per sphere: weight it by the pixel's normal.
+    pub ao_sphere: bool,
     pub swap_rb: bool,
     /// Write the shadow and ao AOVs.
     pub aovs: bool,
@@ -154,7 +156,7 @@ pub struct ShadeMode {
 }
 
 impl ShadeMode {
-    fn constants(&self) -> [u32; 9] {
+    fn constants(&self) -> [u32; 10] {
         let use_shadow = !matches!(self.kind, LookupKind::None | LookupKind::Screen);
         [
             self.soft as u32,
@@ -166,15 +168,17 @@ impl ShadeMode {
             self.outline as u32,
             self.wide as u32,
             self.ao_half as u32,
+            self.ao_sphere as u32,
         ]
     }
 }
 
-const SHADE_OUTPUTS: [Binding; 4] = [
+const SHADE_OUTPUTS: [Binding; 5] = [
     texel("aoTex", Format::R32_UINT),
     texel("recordTex", Format::R32G32B32A32_UINT),
     wo("Color"),
     wo("Aov"),
+    texel("sphereAoTex", Format::R32G32B32A32_UINT),
 ];
 
 impl ShadePass {
@@ -206,7 +210,9 @@ impl ShadePass {
     }
 
     /// `shade` into `color` and `aov`, upsampling the half-resolution SSDO
-    /// result `ao` with its `records` (bound even without SSDO; unread then).
+    /// result `ao` with its `records` (bound even without SSDO; unread then),
+    /// or weighting the per-sphere result `sphere_ao` (any buffer when
+    /// unused).
     #[allow(clippy::too_many_arguments)]
     pub fn record(
         &self,
@@ -214,7 +220,7 @@ impl ShadePass {
         io: &ScreenInputs,
         lookup: &Lookup,
         mode: ShadeMode,
-        (ao, records): (&Buffer, &Buffer),
+        (ao, records, sphere_ao): (&Buffer, &Buffer, &Buffer),
         (color, aov): (&Buffer, &Buffer),
         push: &ShadePush,
         (w, h): (u32, u32),
@@ -232,6 +238,7 @@ impl ShadePass {
             ("recordTex", records),
             ("Color", color),
             ("Aov", aov),
+            ("sphereAoTex", sphere_ao),
         ];
         bufs.extend(lookup.buffers.iter().copied());
         rec.pass(Self::NAME, |p| {

@@ -7,12 +7,14 @@
 //! the blur (passes/blur.rs) smooths the result and shade upsamples the
 //! blocks'. See glsl/ssdo.comp.
 
+use super::bands::{BandArgs, BandCounters, counters_buffer};
 use super::shade::{SURFACE_BINDINGS, ScreenInputs, Variants, tile_grid, variant};
 use super::shadows::Lookup;
-use super::spirv;
+use super::{LOCAL_SIZE, spirv};
 use crate::error::{Error, Result};
-use crate::vk::pipeline::{Binding, texel, uniform, wo};
-use crate::vk::{Buffer, Context, Recorder};
+use crate::gpu::consts::{S_ARGS, S_GROUPS, S_RUN};
+use crate::vk::pipeline::{Binding, PipelineDesc, ro, rw, texel, uniform, wo};
+use crate::vk::{Buffer, ComputePipeline, Context, Grid, Recorder};
 use ash::vk::Format;
 use bytemuck::{Pod, Zeroable};
 
@@ -43,12 +45,15 @@ pub struct SsdoPush {
 }
 
 /// Tap counts per receiver (directions, far-search steps per direction)
-/// and whether the receivers are the 2x2 blocks (else every pixel).
+/// and whether the receivers are the 2x2 blocks (else every pixel), or
+/// the visible spheres (`sphere`: glsl/ssdo_sphere.comp, with
+/// SSDO_SPHERE_DIRS directions and no blur).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Taps {
     pub dirs: u32,
     pub steps: u32,
     pub half: bool,
+    pub sphere: bool,
     /// Perspective camera: taps step along the pixel rays; orthographic
     /// ones step in view space, which needs no division per tap.
     pub perspective: bool,
@@ -63,6 +68,10 @@ impl Taps {
             self.perspective as u32,
             self.half as u32,
         ]
+    }
+
+    fn sphere_constants(&self, semantic: bool) -> [u32; 3] {
+        [semantic as u32, self.steps, self.perspective as u32]
     }
 }
 
@@ -107,9 +116,84 @@ pub struct SsdoPass {
     prep: Variants,
     ssdo: Variants,
     table: Buffer,
+    /// Per-sphere receivers: the list, its dispatch arguments, the pass.
+    list: Option<ComputePipeline>,
+    args: Option<BandArgs>,
+    sphere: Variants,
 }
 
-const PREP_OUTPUT: Binding = wo("Records");
+/// The per-sphere SSDO's buffers, for one sphere count: the flags
+/// ssdo_prep sets, the list of flagged spheres, its counters (words S_*)
+/// and the result, 16 bytes per sphere (ssdo_common.glsl).
+pub struct SphereBuffers {
+    pub spheres: u32,
+    pub flags: Buffer,
+    pub list: Buffer,
+    pub counters: Buffer,
+    pub ao: Buffer,
+}
+
+impl SphereBuffers {
+    pub fn new(ctx: &Context, spheres: u32) -> Result<Self> {
+        let n = spheres.max(1) as u64;
+        let flags = ctx.guard(Buffer::storage(ctx, "ssdo sphere flags", n * 4)?);
+        let list = ctx.guard(Buffer::storage(ctx, "ssdo sphere list", n * 4)?);
+        let counters = ctx.guard(counters_buffer(ctx, "ssdo sphere counters", 32)?);
+        let ao = Buffer::storage(ctx, "ssdo sphere ao", n * 16)?;
+        Ok(SphereBuffers {
+            spheres,
+            flags: flags.keep(),
+            list: list.keep(),
+            counters: counters.keep(),
+            ao,
+        })
+    }
+
+    pub fn bytes(&self) -> u64 {
+        self.flags.size + self.list.size + self.counters.size + self.ao.size
+    }
+
+    pub fn destroy(&mut self, ctx: &Context) {
+        for b in [
+            &mut self.flags,
+            &mut self.list,
+            &mut self.counters,
+            &mut self.ao,
+        ] {
+            b.destroy(ctx);
+        }
+    }
+}
+
+crate::impl_destroy!(SphereBuffers);
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+struct ListPush {
+    sphere_count: u32,
+    group: u32,
+    pad: [u32; 2],
+}
+
+const LIST_COUNTERS: BandCounters = BandCounters {
+    job_capacity: u32::MAX,
+    requested: S_GROUPS,
+    run: S_RUN,
+    args: S_ARGS,
+};
+
+const PREP_OUTPUTS: [Binding; 2] = [wo("Records"), wo("Flags")];
+const LIST_BINDINGS: [Binding; 3] = [ro("Flags"), wo("List"), rw("Counters")];
+const SPHERE_BINDINGS: [Binding; 8] = [
+    uniform("GlobalsBlock"),
+    texel("recordTex", Format::R32G32B32A32_UINT),
+    wo("SphereAo"),
+    ro("List"),
+    ro("Counters"),
+    texel("sphereTex", Format::R32G32B32A32_SFLOAT),
+    texel("attrTex", Format::R32G32B32A32_UINT),
+    texel("visWordTex", Format::R32_UINT),
+];
 const SSDO_BINDINGS: [Binding; 9] = [
     uniform("GlobalsBlock"),
     texel("recordTex", Format::R32G32B32A32_UINT),
@@ -140,6 +224,9 @@ impl SsdoPass {
             prep: Variants::default(),
             ssdo: Variants::default(),
             table: table.keep(),
+            list: None,
+            args: None,
+            sphere: Variants::default(),
         })
     }
 
@@ -149,7 +236,7 @@ impl SsdoPass {
 
     fn prep_bindings(lookup: &Lookup) -> Vec<Binding> {
         let mut b = SURFACE_BINDINGS.to_vec();
-        b.push(PREP_OUTPUT);
+        b.extend_from_slice(&PREP_OUTPUTS);
         b.extend_from_slice(lookup.bindings);
         b
     }
@@ -171,8 +258,34 @@ impl SsdoPass {
             variant(lookup.kind, false),
             &Self::prep_bindings(lookup),
             std::mem::size_of::<PrepPush>() as u32,
-            &[lookup.soft as u32, lookup.core_only() as u32],
+            &Self::prep_constants(lookup, taps),
         )?;
+        if taps.sphere {
+            if self.list.is_none() {
+                self.list = Some(ComputePipeline::new(
+                    ctx,
+                    &PipelineDesc {
+                        name: "ssdo_list",
+                        shader: spirv::SSDO_LIST_COMP,
+                        bindings: &LIST_BINDINGS,
+                        push_size: std::mem::size_of::<ListPush>() as u32,
+                        local_size: LOCAL_SIZE,
+                        constants: &[],
+                    },
+                )?);
+            }
+            if self.args.is_none() {
+                self.args = Some(BandArgs::new(ctx, "ssdo_sphere args")?);
+            }
+            return self.sphere.ensure(
+                ctx,
+                Self::NAME,
+                spirv::SSDO_SPHERE_COMP,
+                &SPHERE_BINDINGS,
+                std::mem::size_of::<SsdoPush>() as u32,
+                &taps.sphere_constants(semantic),
+            );
+        }
         self.ssdo.ensure(
             ctx,
             Self::NAME,
@@ -183,21 +296,33 @@ impl SsdoPass {
         )
     }
 
-    /// `ssdo_prep`: the half-resolution records.
+    fn prep_constants(lookup: &Lookup, taps: Taps) -> [u32; 3] {
+        [
+            lookup.soft as u32,
+            lookup.core_only() as u32,
+            taps.sphere as u32,
+        ]
+    }
+
+    /// `ssdo_prep`: the half-resolution records, and with per-sphere
+    /// receivers the flags of the spheres seen (into `flags`: the sphere
+    /// buffers' then; any buffer the pass may write otherwise).
+    #[allow(clippy::too_many_arguments)]
     pub fn record_prep(
         &self,
         rec: &mut Recorder,
         io: &ScreenInputs,
         lookup: &Lookup,
-        records: &Buffer,
+        (records, flags): (&Buffer, &Buffer),
         push: &PrepPush,
+        taps: Taps,
         half: (u32, u32),
     ) -> Result<()> {
         let pipe = self
             .prep
             .get(
                 variant(lookup.kind, false),
-                &[lookup.soft as u32, lookup.core_only() as u32],
+                &Self::prep_constants(lookup, taps),
             )
             .ok_or_else(|| Error::Internal("ssdo_prep: pipeline not prepared".into()))?;
         let mut bufs = vec![
@@ -206,10 +331,72 @@ impl SsdoPass {
             ("sphereTex", io.spheres),
             ("attrTex", io.attrs),
             ("Records", records),
+            ("Flags", flags),
         ];
         bufs.extend(lookup.buffers.iter().copied());
         rec.pass(Self::PREP_NAME, |p| {
+            if taps.sphere {
+                p.fill(flags, flags.size, 0);
+            }
             p.dispatch(pipe, push, tile_grid(half.0, half.1), &bufs);
+            Ok(())
+        })
+    }
+
+    /// `ssdo` with per-sphere receivers: the flagged spheres listed, the
+    /// list's dispatch arguments, then one invocation per listed sphere
+    /// into `sb.ao`.
+    #[allow(clippy::too_many_arguments)]
+    pub fn record_spheres(
+        &self,
+        rec: &mut Recorder,
+        io: &ScreenInputs,
+        records: &Buffer,
+        sb: &SphereBuffers,
+        push: &SsdoPush,
+        semantic: bool,
+        taps: Taps,
+    ) -> Result<()> {
+        let missing = || Error::Internal("ssdo: per-sphere pipelines not prepared".into());
+        let list = self.list.as_ref().ok_or_else(missing)?;
+        let args = self.args.as_ref().ok_or_else(missing)?;
+        let pipe = self
+            .sphere
+            .get(spirv::SSDO_SPHERE_COMP, &taps.sphere_constants(semantic))
+            .ok_or_else(missing)?;
+        let lp = ListPush {
+            sphere_count: sb.spheres,
+            group: LOCAL_SIZE,
+            pad: [0; 2],
+        };
+        rec.pass(Self::NAME, |p| {
+            p.fill(&sb.counters, sb.counters.size, 0);
+            p.dispatch(
+                list,
+                &lp,
+                Grid::Invocations(sb.spheres as u64),
+                &[
+                    ("Flags", &sb.flags),
+                    ("List", &sb.list),
+                    ("Counters", &sb.counters),
+                ],
+            );
+            args.step(p, &sb.counters, &LIST_COUNTERS);
+            p.dispatch(
+                pipe,
+                push,
+                Grid::Indirect(&sb.counters, LIST_COUNTERS.args_offset()),
+                &[
+                    ("GlobalsBlock", io.globals),
+                    ("recordTex", records),
+                    ("SphereAo", &sb.ao),
+                    ("List", &sb.list),
+                    ("Counters", &sb.counters),
+                    ("sphereTex", io.spheres),
+                    ("attrTex", io.attrs),
+                    ("visWordTex", io.vis),
+                ],
+            );
             Ok(())
         })
     }
@@ -257,6 +444,13 @@ impl SsdoPass {
     pub fn destroy(&mut self, ctx: &Context) {
         self.prep.destroy(ctx);
         self.ssdo.destroy(ctx);
+        self.sphere.destroy(ctx);
+        if let Some(l) = &mut self.list {
+            l.destroy(ctx);
+        }
+        if let Some(a) = &mut self.args {
+            a.destroy(ctx);
+        }
         self.table.destroy(ctx);
     }
 }

@@ -56,11 +56,11 @@ pub const PASSES: &[(&str, &str)] = &[
     ),
     (
         "ssdo_prep",
-        "half resolution: per 2x2 block one representative covered pixel (found from the ids), its surface rebuilt from (pixel ray, sphere id), key-light visibility by the technique's lookup, packed into a 16-byte record (view depth, octahedral normal, region hashes, reflected key light)",
+        "half resolution: per 2x2 block one representative covered pixel (found from the ids), its surface rebuilt from (pixel ray, sphere id), key-light visibility by the technique's lookup, packed into a 16-byte record (view depth, octahedral normal, region hashes, reflected key light); with per-sphere SSDO it also flags every sphere seen",
     ),
     (
         "ssdo",
-        "receivers rebuilt exactly from (pixel ray, sphere id): every covered pixel when spheres are under 16 px on screen, else one per 2x2 block (its representative); 8 directions from a sample table in a uniform buffer (Halton + Malley), rotated per receiver; a near sample and a far 5-step search per direction (visibilities multiplied); a tap reads the 4-byte depth word of the visibility key (exact occluder depth) and only the first occluder's block record (regions, normal, reflected light for the bounce); occluder = closer to the viewer and (semantic) in another region at the active hierarchy level, blended between two levels by zoom; per pixel it also writes the blur's edge key; counts and the size threshold measured against a ray-traced AO",
+        "receivers rebuilt exactly from (pixel ray, sphere id): every covered pixel when spheres are under 16 px on screen, else one per 2x2 block (its representative); under 3 px, per visible sphere instead (the flagged spheres listed with one atomic each, an indirect dispatch): 32 directions spread over the viewer-facing sphere of directions, a far 5-step search from the surface point facing each, 2 bits of occluder weight per direction and the bounce in 16 bytes per sphere, no blur; 8 directions from a sample table in a uniform buffer (Halton + Malley), rotated per receiver; a near sample and a far 5-step search per direction (visibilities multiplied); a tap reads the 4-byte depth word of the visibility key (exact occluder depth) and only the first occluder's block record (regions, normal, reflected light for the bounce); occluder = closer to the viewer and (semantic) in another region at the active hierarchy level, blended between two levels by zoom; per pixel it also writes the blur's edge key; counts and the size threshold measured against a ray-traced AO",
     ),
     (
         "blur_h",
@@ -69,7 +69,7 @@ pub const PASSES: &[(&str, &str)] = &[
     ("blur_v", "the same, vertical, back into the SSDO result"),
     (
         "shade",
-        "full resolution, covered pixels: surface from (pixel ray, sphere id); key-light lookup compiled in per technique (ISSM: exact light-ray tests against the spheres of the 3x3 patch (t = 1) or (2t+1)², soft `(1 - s'/s_eff)^x`; deep: exact transmittance walk of the texel's list; sm-pcf: biased PCF; osm: interpolated optical depth; none+SSDO: screen-space march); the pixel's SSDO result (per block: upsampled from the 4 nearest blocks, bilinear × depth, normal and region agreement); key (5 % of its diffuse kept in full shadow), sky light × ambient visibility, occluded fill and rim, half the bounce, a filmic curve on the luminance (hue kept) into the colour buffer; the shadow and ao AOVs (unorm16) only when asked for",
+        "full resolution, covered pixels: surface from (pixel ray, sphere id); key-light lookup compiled in per technique (ISSM: exact light-ray tests against the spheres of the 3x3 patch (t = 1) or (2t+1)², soft `(1 - s'/s_eff)^x`; deep: exact transmittance walk of the texel's list; sm-pcf: biased PCF; osm: interpolated optical depth; none+SSDO: screen-space march); the pixel's SSDO result (per block: upsampled from the 4 nearest blocks, bilinear × depth, normal and region agreement; per sphere: its 32 directions weighted by the pixel's normal, cosine lobe); key (5 % of its diffuse kept in full shadow), sky light × ambient visibility, occluded fill and rim, half the bounce, a filmic curve on the luminance (hue kept) into the colour buffer; the shadow and ao AOVs (unorm16) only when asked for",
     ),
 ];
 
@@ -160,25 +160,41 @@ impl Resources {
         if let Some(st) = ssdo {
             let p = &ssdo_params;
             let semantic = settings.ssdo == SsdoMode::Semantic;
-            st.pass
-                .record_prep(rec, &screen, &lookup, &t.records, &p.prep, half)?;
+            let spheres = st.spheres.as_ref().filter(|_| p.taps.sphere);
+            // (without per-sphere receivers the flags are not written)
+            let flags = spheres.map_or(&t.keys, |b| &b.flags);
+            st.pass.record_prep(
+                rec,
+                &screen,
+                &lookup,
+                (&t.records, flags),
+                &p.prep,
+                p.taps,
+                half,
+            )?;
+            if let Some(sb) = spheres {
+                st.pass
+                    .record_spheres(rec, &screen, &t.records, sb, &p.ssdo, semantic, p.taps)?;
+            }
             // receivers: the blocks, or every pixel
             let grid = if p.taps.half {
                 half
             } else {
                 (t.width, t.height)
             };
-            st.pass.record_ssdo(
-                rec,
-                &screen,
-                &t.records,
-                (&t.ao, &t.keys),
-                &p.ssdo,
-                semantic,
-                p.taps,
-                grid,
-            )?;
-            if settings.blur {
+            if spheres.is_none() {
+                st.pass.record_ssdo(
+                    rec,
+                    &screen,
+                    &t.records,
+                    (&t.ao, &t.keys),
+                    &p.ssdo,
+                    semantic,
+                    p.taps,
+                    grid,
+                )?;
+            }
+            if settings.blur && spheres.is_none() {
                 for (axis, input, output) in [
                     // colour is free until shade: the blur's scratch
                     (Axis::Horizontal, &t.ao, &t.color),
@@ -198,12 +214,16 @@ impl Resources {
             }
         }
 
+        let sphere_ao = ssdo
+            .and_then(|st| st.spheres.as_ref())
+            .filter(|_| ssdo_params.taps.sphere)
+            .map_or(&t.records, |b| &b.ao);
         self.shade.record(
             rec,
             &screen,
             &lookup,
             self.shade_mode(settings, &lookup),
-            (&t.ao, &t.records),
+            (&t.ao, &t.records, sphere_ao),
             (&t.color, &t.aov),
             &ShadePush {
                 // Lighting rule (issue 4, after the ISSM paper): a fully

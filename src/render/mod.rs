@@ -23,7 +23,7 @@ use crate::passes::shadows::shadow_map::ShadowMap;
 use crate::passes::shadows::{
     self, FrameCheck, Lookup, LookupKind, ShadowParams, ShadowSetup, ShadowTechnique,
 };
-use crate::passes::ssdo::{PrepPush, SsdoPass, SsdoPush, Taps};
+use crate::passes::ssdo::{PrepPush, SphereBuffers, SsdoPass, SsdoPush, Taps};
 use crate::scene::Scene;
 use crate::semantic::{self, LevelChoice};
 use crate::settings::{RasterMode, RenderSettings, ShadowMode, SsdoMode};
@@ -68,16 +68,19 @@ impl Destroy for Kept {
     }
 }
 
-/// The SSDO, screen-space shadow and blur pipelines.
+/// The SSDO, screen-space shadow and blur pipelines, and the per-sphere
+/// receivers' buffers once a frame has used them.
 struct SsdoState {
     pass: SsdoPass,
     blur: BlurPass,
+    spheres: Option<SphereBuffers>,
 }
 
 impl Destroy for SsdoState {
     fn destroy_with(&mut self, ctx: &Context) {
         self.pass.destroy(ctx);
         self.blur.destroy(ctx);
+        self.spheres.destroy_with(ctx);
     }
 }
 
@@ -117,6 +120,7 @@ pub const SSDO_TAPS_LARGE: (Taps, i32) = (
         dirs: 8,
         steps: 5,
         half: true,
+        sphere: false,
         perspective: false,
     },
     2,
@@ -129,10 +133,28 @@ pub const SSDO_TAPS_SMALL: (Taps, i32) = (
         dirs: 8,
         steps: 5,
         half: false,
+        sphere: false,
         perspective: false,
     },
     2,
 );
+/// ... and when they are a few pixels wide (typical radius under
+/// [`SSDO_SPHERE_RADIUS_PX`]): per visible sphere, SSDO_SPHERE_DIRS
+/// directions x (1 near + 5 far steps) from the surface point facing each,
+/// weighted per pixel by its normal in shade; no blur (no per-pixel noise).
+pub const SSDO_TAPS_SPHERE: (Taps, i32) = (
+    Taps {
+        dirs: crate::gpu::consts::SSDO_SPHERE_DIRS,
+        steps: 5,
+        half: false,
+        sphere: true,
+        perspective: false,
+    },
+    0,
+);
+/// Below this typical sphere radius on screen (pixels) SSDO runs per
+/// visible sphere.
+pub const SSDO_SPHERE_RADIUS_PX: f64 = 3.0;
 /// Below this typical sphere radius on screen (pixels) the small set: per
 /// block the AO loses the pixel-to-pixel creases of small spheres.
 /// Spearman of the ao AOV with the ray-traced reference (tests/ao.rs
@@ -262,7 +284,9 @@ impl Resources {
         let choice = self.level_choice(cam);
         // the blur's (and the upsample's) region level: the one weighted more
         let level_b = choice.blend >= 0.5;
-        let taps = if r / px < SSDO_SMALL_RADIUS_PX {
+        let taps = if r / px < SSDO_SPHERE_RADIUS_PX {
+            SSDO_TAPS_SPHERE
+        } else if r / px < SSDO_SMALL_RADIUS_PX {
             SSDO_TAPS_SMALL
         } else {
             SSDO_TAPS_LARGE
@@ -327,6 +351,7 @@ impl Resources {
             soft: lookup.soft,
             ao: settings.ssdo_on(),
             ao_half: settings.ssdo_on() && self.ssdo_params(settings).taps.half,
+            ao_sphere: settings.ssdo_on() && self.ssdo_params(settings).taps.sphere,
             swap_rb: self.bgra,
             aovs: settings.aovs,
             core_only: lookup.core_only(),
@@ -369,6 +394,12 @@ impl Resources {
         {
             let semantic = settings.ssdo == SsdoMode::Semantic;
             st.pass.prepare(ctx, &plain, semantic, taps)?;
+            if taps.sphere && st.spheres.as_ref().map(|b| b.spheres) != Some(self.sphere_count) {
+                if let Some(mut old) = st.spheres.take() {
+                    old.destroy(ctx);
+                }
+                st.spheres = Some(SphereBuffers::new(ctx, self.sphere_count)?);
+            }
             st.blur.prepare(ctx, semantic)?;
         }
         Ok(())
@@ -719,6 +750,7 @@ impl<'c> Renderer<'c> {
             self.res.ssdo = Some(SsdoState {
                 pass: SsdoPass::new(self.ctx)?,
                 blur: BlurPass::new(),
+                spheres: None,
             });
         }
         self.settings.ssdo = mode;
@@ -765,6 +797,9 @@ impl<'c> Renderer<'c> {
         add("visibility", vis + self.res.raster.memory_bytes());
         add("gbuffer", gbuffer);
         add("ssdo", ssdo);
+        if let Some(b) = self.res.ssdo.as_ref().and_then(|s| s.spheres.as_ref()) {
+            add("ssdo_spheres", b.bytes());
+        }
         if let Some(t) = self.res.active_shadow() {
             for (class, bytes) in t.memory() {
                 add(class, bytes);
@@ -1122,6 +1157,12 @@ impl<'c> Renderer<'c> {
     /// large on screen) rather than per pixel.
     pub fn ssdo_per_block(&self) -> bool {
         self.res.ssdo_params(&self.settings).taps.half
+    }
+
+    /// Whether SSDO runs per visible sphere for the current camera
+    /// (spheres a few pixels wide).
+    pub fn ssdo_per_sphere(&self) -> bool {
+        self.res.ssdo_params(&self.settings).taps.sphere
     }
 
     /// The semantic level choice of this frame, when SSDO runs.

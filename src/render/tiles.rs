@@ -170,6 +170,12 @@ impl<'a> Renderer<'a> {
         if self.res.active_shadow().is_none() {
             reach = reach.max(p.screen.f0[0] as f64);
         }
+        if p.taps.sphere {
+            // per-sphere receivers march from a sphere's surface point
+            // facing each direction: up to a diameter from the pixel
+            let r = self.res.geom.iter().map(|g| g[3]).fold(0.0f32, f32::max);
+            reach += 2.0 * r as f64;
+        }
         let mut ppu = cam.pixels_per_unit();
         if cam.fov_deg.is_some() {
             // a world length at view distance z spans dist / z times its
