@@ -92,18 +92,19 @@ float hash12(uvec2 p) {
 }
 
 // Per-sphere SSDO (ssdo_sphere.comp; spheres a few pixels wide on screen):
-// its directions in camera coordinates (right, up, view direction), spread
-// evenly (equal areas) over the directions a visible surface's hemisphere
-// reaches: view-direction component from -1 (toward the viewer) to
-// SPHERE_DIR_ZMAX, on a golden-angle spiral, turned about the view axis by
-// a per-sphere angle. shade.comp weights them by the pixel's normal.
-// Spearman with the ray-traced AO (tests/ao.rs scene, 27 copies, radius
-// ~2 px): 16 directions 0.835, 24 0.850, 32 0.858 (far search only; with
-// a near sample too, 32: 0.869 at twice the gathers of 24).
+// its directions in camera coordinates (right, up, view direction):
+// SSDO_SPHERE_AZIMUTHS azimuths x SPHERE_ELEVATIONS elevation bands of
+// equal area over the directions a visible surface's hemisphere reaches
+// (view-direction component from -1, toward the viewer, to
+// SPHERE_DIR_ZMAX); direction k = azimuth k / E, band k % E. A sphere
+// turns its azimuths by its own angle (sphere_rot / azimuths of a turn);
+// shade.comp weights the directions by the pixel's normal.
+const uint SPHERE_ELEVATIONS = SSDO_SPHERE_DIRS / SSDO_SPHERE_AZIMUTHS;
 const float SPHERE_DIR_ZMAX = 0.25;
-#define SPHERE_Z(k) (-1.0 + (1.0 + SPHERE_DIR_ZMAX) * (float(k) + 0.5) / float(SSDO_SPHERE_DIRS))
-#define SPHERE_DIR(k) vec3(sqrt(1.0 - SPHERE_Z(k) * SPHERE_Z(k)) * cos(6.2831853 * fract(float(k) * 0.61803399)), \
-                           sqrt(1.0 - SPHERE_Z(k) * SPHERE_Z(k)) * sin(6.2831853 * fract(float(k) * 0.61803399)), SPHERE_Z(k))
+#define SPHERE_ZE(e) (-1.0 + (1.0 + SPHERE_DIR_ZMAX) * (float(e) + 0.5) / float(SPHERE_ELEVATIONS))
+#define SPHERE_HE(e) sqrt(1.0 - SPHERE_ZE(e) * SPHERE_ZE(e))
+#define SPHERE_DIR(k) vec3(SPHERE_HE(uint(k) % SPHERE_ELEVATIONS) * cos(6.2831853 * float(uint(k) / SPHERE_ELEVATIONS) / float(SSDO_SPHERE_AZIMUTHS)), \
+                           SPHERE_HE(uint(k) % SPHERE_ELEVATIONS) * sin(6.2831853 * float(uint(k) / SPHERE_ELEVATIONS) / float(SSDO_SPHERE_AZIMUTHS)), SPHERE_ZE(uint(k) % SPHERE_ELEVATIONS))
 const vec3 SPHERE_DIR_TABLE[32] = vec3[](
     SPHERE_DIR(0), SPHERE_DIR(1), SPHERE_DIR(2), SPHERE_DIR(3),
     SPHERE_DIR(4), SPHERE_DIR(5), SPHERE_DIR(6), SPHERE_DIR(7),
@@ -113,7 +114,7 @@ const vec3 SPHERE_DIR_TABLE[32] = vec3[](
     SPHERE_DIR(20), SPHERE_DIR(21), SPHERE_DIR(22), SPHERE_DIR(23),
     SPHERE_DIR(24), SPHERE_DIR(25), SPHERE_DIR(26), SPHERE_DIR(27),
     SPHERE_DIR(28), SPHERE_DIR(29), SPHERE_DIR(30), SPHERE_DIR(31));
-// (the table above is written for this count)
+// (the table above is written for these counts)
 const int SPHERE_DIR_TABLE_CHECK[SSDO_SPHERE_DIRS == 32u ? 1 : -1] = int[](0);
 
 // The camera-like frame (right, up, z) about a view ray z (perspective: the
@@ -123,17 +124,14 @@ mat3 sphere_basis(vec3 z, vec3 up) {
     return mat3(x, cross(x, z), z);
 }
 
+// The sphere's turn of its azimuths (0..1 of the azimuth step) and the
+// offset of its taps along them (0..1 of a step).
 float sphere_rot(uint id) { return hash12(uvec2(id, 0x9E37u)); }
-// cos, sin of the sphere's turn
-vec2 sphere_turn(float rot) { return vec2(cos(6.2831853 * rot), sin(6.2831853 * rot)); }
-// Direction k turned by rot, computed (the table entry turned, up to
-// rounding): on lavapipe a dynamically indexed constant table in a loop
-// with texel fetches made the per-sphere pass 2x slower than this.
-vec3 sphere_dir(uint k, float rot) {
-    float z = SPHERE_Z(k);
-    float phi = 6.2831853 * (fract(float(k) * 0.61803399) + rot);
-    float s = sqrt(1.0 - z * z);
-    return vec3(s * cos(phi), s * sin(phi), z);
+float sphere_jitter(uint id) { return hash12(uvec2(id, 0x51EDu)); }
+// cos, sin of the azimuth turn
+vec2 sphere_turn(float rot) {
+    float a = 6.2831853 * rot / float(SSDO_SPHERE_AZIMUTHS);
+    return vec2(cos(a), sin(a));
 }
 
 // The per-sphere result (RGBA32UI per sphere): the far occluder weight of

@@ -4,9 +4,10 @@
 // pixel there, most of a frame on lavapipe; a sphere of radius 1.5 px
 // covers about 7 pixels). Receivers are the points c + r d_k of each
 // visible sphere (listed by ssdo_list.comp), one per direction d_k of
-// ssdo_common.glsl's sphere_dir: the surface point whose normal is d_k.
+// ssdo_common.glsl's table: the surface point whose normal is d_k.
 // Per direction, as ssdo.comp's far term: a fixed-step search for the
-// first occluder (no near sample: the first step lies within two radii), an occluder being a surface seen closer to the
+// first occluder (no near sample: the first taps lie within two radii),
+// the taps shared by the directions of one azimuth (below), an occluder being a surface seen closer to the
 // viewer than the sample, within the radius, not this sphere, and
 // (semantic) in another region than the sphere; the bounce off the far
 // occluder's lit surface. The per-direction occluder weights go to the
@@ -51,12 +52,19 @@ uvec2 regions_of(uint id) {
     return uvec2(region_hash(r[pc.level_a]), region_hash(r[pc.level_b]));
 }
 
-// Occluder weight of the surface seen at pixel q: its own sphere's regions
-// (one id fetch, then its attributes), not its block record's.
-float occluder_weight(uvec2 own, uvec2 q) {
+// Occluder weight of the surface seen at pixel q, whose block record is
+// rec. Without a hierarchy every sphere is its own region: the pixel's own
+// sphere (one id fetch). With one, the record's regions (as ssdo.comp's
+// taps): the hierarchy's regions span many spheres, and the record is
+// fetched for the bounce anyway (an id and an attribute fetch saved).
+float occluder_weight(uvec2 own, uvec2 q, Record rec) {
     if (!SEMANTIC) return 1.0;
-    uint qid = texelFetch(visWordTex, int(2u * (q.y * g.cam.dims.x + q.x))).x;
-    uvec2 rq = regions_of(qid);
+    uvec2 rq;
+    if (g.counts.w != 0u) {
+        rq = uvec2(region_hash(texelFetch(visWordTex, int(2u * (q.y * g.cam.dims.x + q.x))).x));
+    } else {
+        rq = uvec2(rec.region_a, rec.region_b);
+    }
     return mix(own.x != rq.x ? 1.0 : 0.0, own.y != rq.y ? 1.0 : 0.0, pc.blend);
 }
 
@@ -73,44 +81,72 @@ void main() {
     uvec2 own = SEMANTIC ? regions_of(id) : uvec2(0u);
     mat3 basis = PERSP ? sphere_basis(normalize(sp.xyz - (g.cam.center.xyz - g.cam.dir.w * g.cam.dir.xyz)), g.cam.up.xyz)
                        : mat3(1.0);
-    float rot = sphere_rot(id);
+    float rot = sphere_rot(id), jit = sphere_jitter(id);
+    vec3 zb = basis[2];
     uvec2 word = uvec2(0u);
     vec3 bounce = vec3(0.0);
     // each direction stands for 1/(K/2) of a receiver's hemisphere
     float area = 3.14159265 * pc.r_far * pc.r_far / (0.5 * float(SSDO_SPHERE_DIRS));
-    for (uint k = 0u; k < SSDO_SPHERE_DIRS; ++k) {
-        vec3 d = basis * sphere_dir(k, rot);
-        vec3 x = c + r * d;
-        uvec2 qpx;
-        float qz;
-        vec3 qp;
-        bool found = false;
-        uvec2 fpx = uvec2(0u);
-        vec3 fp = vec3(0.0);
-        for (uint j = 1u; j <= STEPS; ++j) {
-            float tt = (float(j) - 0.5 + 0.5 * rot) / float(STEPS);
-            vec3 sf = x + tt * pc.r_far * d;
-            bool seen = surface_seen(sf, qpx, qz, qp);
-            bool hit = seen && !found && qz < depth_of(sf) && dist2(qp, x) < pc.r_far * pc.r_far
-                    && dist2(qp, c) > self2;
-            if (hit) {
-                found = true;
-                fpx = qpx;
-                fp = qp;
-            }
+    float reach = r + pc.r_far, rf2 = pc.r_far * pc.r_far;
+    // taps start where the lowest elevation's search does (t = r_far / 10)
+    float s_lo = (r + 0.1 * pc.r_far) * SPHERE_HE(0u);
+    for (uint a = 0u; a < SSDO_SPHERE_AZIMUTHS; ++a) {
+        // One screen-space line from the centre per azimuth: every
+        // elevation's ray x_e + t d_e (x_e = c + r d_e) projects onto it
+        // (orthographic exactly; perspective up to the angle between the
+        // sphere's and the tap's lines of sight), at distance (r + t) h_e
+        // from the centre. So a tap on the line serves all elevations: the
+        // seen surface occludes elevation e if it is nearer the viewer
+        // than that ray where the ray crosses the tap's line of sight.
+        float phi = 6.2831853 * (float(a) + rot) / float(SSDO_SPHERE_AZIMUTHS);
+        vec3 u = basis * vec3(cos(phi), sin(phi), 0.0);
+        bool found[SPHERE_ELEVATIONS];
+        vec3 fp[SPHERE_ELEVATIONS];
+        for (uint e = 0u; e < SPHERE_ELEVATIONS; ++e) {
+            found[e] = false;
+            fp[e] = vec3(0.0);
         }
-        float wf = 0.0;
-        if (found) {
-            wf = occluder_weight(own, fpx);
-            // Light bounced off the occluder's directly lit surface.
-            Record q = record_at(fpx / SSDO_BLOCK);
-            float dd = distance(fp, x);
-            vec3 to_x = (x - fp) / max(dd, 1e-4);
-            float cs = max(dot(dir_to_space(q.n), to_x), 0.0), cr = max(dot(d, -to_x), 0.0);
+        bool any = false;
+        uvec2 first = uvec2(0u);
+        for (uint j = 0u; j < STEPS; ++j) {
+            float s = s_lo + (reach - s_lo) * (float(j) + 0.5 * jit) / float(STEPS);
+            vec3 p = c + s * u;
+            uvec2 qpx;
+            float qz;
+            vec3 qp;
+            bool valid = surface_seen(p, qpx, qz, qp) && dist2(qp, c) > self2;
+            bool hit_any = false;
+            for (uint e = 0u; e < SPHERE_ELEVATIONS; ++e) {
+                float h = SPHERE_HE(e), z = SPHERE_ZE(e);
+                float t = s / h - r;
+                vec3 x = c + r * (h * u + z * zb);
+                bool hit = valid && !found[e] && t > 0.1 * pc.r_far && t <= pc.r_far
+                        && qz < depth_of(p + (s * z / h) * zb) && dist2(qp, x) < rf2;
+                found[e] = found[e] || hit;
+                fp[e] = hit ? qp : fp[e];
+                hit_any = hit_any || hit;
+            }
+            first = hit_any && !any ? qpx : first;
+            any = any || hit_any;
+        }
+        // The line's first occluder's record: its regions (semantic) and the
+        // light it reflects, for every elevation it occludes (one fetch per
+        // azimuth, not per direction).
+        Record q = record_at(first / SSDO_BLOCK);
+        float wq = any ? occluder_weight(own, first, q) : 0.0;
+        vec3 qn = dir_to_space(q.n);
+        for (uint e = 0u; e < SPHERE_ELEVATIONS; ++e) {
+            float h = SPHERE_HE(e), z = SPHERE_ZE(e);
+            vec3 d = h * u + z * zb;
+            vec3 x = c + r * d;
+            float wf = found[e] ? wq : 0.0;
+            float dd = distance(fp[e], x);
+            vec3 to_x = (x - fp[e]) / max(dd, 1e-4);
+            float cs = max(dot(qn, to_x), 0.0), cr = max(dot(d, -to_x), 0.0);
             float d2 = max(dd * dd, 0.25 * pc.r_near * pc.r_near);
             bounce += wf * q.radiance * (area * cs * cr / d2) / 3.14159265;
+            word |= sphere_ao_bit(a * SPHERE_ELEVATIONS + e, wf);
         }
-        word |= sphere_ao_bit(k, wf);
     }
     // the mean over the hemisphere a pixel sees: half the directions
     sphere_ao[id] = uvec4(word, sphere_ao_bounce(pc.bounce * bounce * 0.5), 0u);

@@ -48,8 +48,11 @@ gpu_constants! {
     /// SSDO block side in pixels: SSDO runs on one representative pixel per
     /// SSDO_BLOCK x SSDO_BLOCK block.
     SSDO_BLOCK: u32 = 2;
-    /// Per-sphere SSDO (spheres a few pixels wide): directions per sphere.
+    /// Per-sphere SSDO (spheres a few pixels wide): directions per sphere,
+    /// SSDO_SPHERE_AZIMUTHS screen-space lines x the elevations that share
+    /// each line's taps.
     SSDO_SPHERE_DIRS: u32 = 32;
+    SSDO_SPHERE_AZIMUTHS: u32 = 8;
     /// Per-sphere SSDO counters: spheres listed, their workgroups, and the
     /// band_args words (run, then the three indirect dispatch words).
     S_LISTED: u32 = 0;
