@@ -90,6 +90,8 @@ void main() {
     float reach = r + pc.r_far, rf2 = pc.r_far * pc.r_far;
     // taps start where the lowest elevation's search does (t = r_far / 10)
     float s_lo = (r + 0.1 * pc.r_far) * SPHERE_HE(0u);
+    // view depth per unit along the sphere's view axis
+    float zdepth = PERSP ? dot(zb, g.cam.dir.xyz) : 1.0;
     for (uint a = 0u; a < SSDO_SPHERE_AZIMUTHS; ++a) {
         // One screen-space line from the centre per azimuth: every
         // elevation's ray x_e + t d_e (x_e = c + r d_e) projects onto it
@@ -102,9 +104,19 @@ void main() {
         vec3 u = basis * vec3(cos(phi), sin(phi), 0.0);
         bool found[SPHERE_ELEVATIONS];
         vec3 fp[SPHERE_ELEVATIONS];
+        // per elevation: the receiver point, the tap distances along the
+        // line its search covers (t from r_far / 10 to r_far), and its ray's
+        // view depth per unit of that distance
+        vec3 xe[SPHERE_ELEVATIONS];
+        float lo[SPHERE_ELEVATIONS], hi[SPHERE_ELEVATIONS], ke[SPHERE_ELEVATIONS];
         for (uint e = 0u; e < SPHERE_ELEVATIONS; ++e) {
+            float h = SPHERE_HE(e), z = SPHERE_ZE(e);
             found[e] = false;
             fp[e] = vec3(0.0);
+            xe[e] = c + r * (h * u + z * zb);
+            lo[e] = (r + 0.1 * pc.r_far) * h;
+            hi[e] = reach * h;
+            ke[e] = z / h * zdepth;
         }
         bool any = false;
         uvec2 first = uvec2(0u);
@@ -115,13 +127,11 @@ void main() {
             float qz;
             vec3 qp;
             bool valid = surface_seen(p, qpx, qz, qp) && dist2(qp, c) > self2;
+            float dp = depth_of(p);
             bool hit_any = false;
             for (uint e = 0u; e < SPHERE_ELEVATIONS; ++e) {
-                float h = SPHERE_HE(e), z = SPHERE_ZE(e);
-                float t = s / h - r;
-                vec3 x = c + r * (h * u + z * zb);
-                bool hit = valid && !found[e] && t > 0.1 * pc.r_far && t <= pc.r_far
-                        && qz < depth_of(p + (s * z / h) * zb) && dist2(qp, x) < rf2;
+                bool hit = valid && !found[e] && s > lo[e] && s <= hi[e]
+                        && qz < dp + s * ke[e] && dist2(qp, xe[e]) < rf2;
                 found[e] = found[e] || hit;
                 fp[e] = hit ? qp : fp[e];
                 hit_any = hit_any || hit;
