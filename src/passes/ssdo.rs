@@ -296,9 +296,11 @@ impl SsdoPass {
         )
     }
 
+    /// With per-sphere receivers the records feed only the bounce (4 bits a
+    /// channel): their key-light visibility skips the soft penumbra.
     fn prep_constants(lookup: &Lookup, taps: Taps) -> [u32; 3] {
         [
-            lookup.soft as u32,
+            (lookup.soft && !taps.sphere) as u32,
             lookup.core_only() as u32,
             taps.sphere as u32,
         ]
