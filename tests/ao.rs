@@ -227,3 +227,37 @@ fn ao_png_correlation() {
         mean(&a)
     );
 }
+
+/// Without a hierarchy every sphere is its own region, so semantic SSDO
+/// must equal plain on the per-sphere path too (up to collisions of the
+/// 15-bit region hashes), and occlude (not a uniform 1).
+#[test]
+fn per_sphere_semantic_without_hierarchy_equals_plain() {
+    let ctx = validated_context();
+    let mut scene = ao_scene(3);
+    scene.level_names.clear();
+    for s in &mut scene.spheres {
+        s.region = Default::default();
+    }
+    let cam = camera(&scene, 320, 240, None);
+    let ambient = |mode: SsdoMode| {
+        let mut s = settings(cam, ShadowMode::None);
+        s.ssdo = mode;
+        let mut r = Renderer::new(&ctx, &scene, s).expect("renderer");
+        assert!(r.ssdo_per_sphere(), "per-sphere path expected");
+        r.render_frame().expect("frame");
+        let ao: Vec<f32> = r.read_ambient().expect("ao").iter().map(|a| a[0]).collect();
+        ao
+    };
+    let (plain, semantic) = (ambient(SsdoMode::Plain), ambient(SsdoMode::Semantic));
+    assert_no_validation_messages(&ctx);
+    let differ = plain
+        .iter()
+        .zip(&semantic)
+        .filter(|(a, b)| (*a - *b).abs() > 1.0 / 255.0)
+        .count();
+    let occluded = plain.iter().filter(|a| **a < 0.9).count();
+    eprintln!("{differ} of {} pixels differ; {occluded} below 0.9", plain.len());
+    assert!(differ * 200 <= plain.len(), "{differ} pixels differ");
+    assert!(occluded > 1000, "too little occlusion: {occluded}");
+}
