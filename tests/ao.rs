@@ -257,7 +257,10 @@ fn per_sphere_semantic_without_hierarchy_equals_plain() {
         .filter(|(a, b)| (*a - *b).abs() > 1.0 / 255.0)
         .count();
     let occluded = plain.iter().filter(|a| **a < 0.9).count();
-    eprintln!("{differ} of {} pixels differ; {occluded} below 0.9", plain.len());
+    eprintln!(
+        "{differ} of {} pixels differ; {occluded} below 0.9",
+        plain.len()
+    );
     assert!(differ * 200 <= plain.len(), "{differ} pixels differ");
     assert!(occluded > 1000, "too little occlusion: {occluded}");
 }
