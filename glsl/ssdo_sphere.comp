@@ -4,20 +4,21 @@
 // pixel there, most of a frame on lavapipe; a sphere of radius 1.5 px
 // covers about 7 pixels). Receivers are the points c + r d_k of each
 // visible sphere (listed by ssdo_list.comp), one per direction d_k of
-// ssdo_common.glsl's table: the surface point whose normal is d_k.
-// Per direction, as ssdo.comp's far term: a fixed-step search for the
-// first occluder (no near sample: the first taps lie within two radii),
-// the taps shared by the directions of one azimuth (below), an occluder being a surface seen closer to the
-// viewer than the sample, within the radius, not this sphere, and
-// (semantic) in another region than the sphere; the bounce off the far
-// occluder's lit surface. The per-direction occluder weights go to the
-// sphere's word (sphere_ao_bits) and shade.comp weights them by each
-// pixel's normal: per-pixel AO from per-sphere work, without noise to blur.
+// ssdo_common.glsl's set: the surface point whose normal is d_k. Per
+// direction, as ssdo.comp's far term, the first occluder along its ray
+// (no near sample: the first taps lie within two radii), found from taps
+// that the directions of one azimuth share (below). An occluder is a
+// surface seen closer to the viewer than the ray, within the radius, not
+// this sphere, and (semantic) in another region than the sphere; the
+// bounce comes off the line's first occluder's lit surface. The
+// per-direction occluder weights go to the sphere's word (sphere_ao_bit)
+// and shade.comp weights them by each pixel's normal: per-pixel AO from
+// per-sphere work, without noise to blur.
 #include "shared.glsl"
 
 layout(local_size_x_id = 0) in;
 layout(constant_id = 1) const bool SEMANTIC = true;
-layout(constant_id = 2) const uint STEPS = 5;
+layout(constant_id = 2) const uint STEPS = 12;  // taps per azimuth line
 layout(constant_id = 3) const bool PERSP = false;
 
 layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
