@@ -91,15 +91,9 @@ void main() {
     uint ra = own.region_a, rb = own.region_b;
     if (!HALF) {
         // the pixel's own sphere, which need not be its block's
-        if (g.counts.w != 0u) {
-            // No hierarchy: every sphere is its own region.
-            ra = region_hash(s.id);
-            rb = ra;
-        } else {
-            uvec4 regions = texelFetch(attrTex, int(2u * s.id));
-            ra = region_hash(regions[pc.level_a]);
-            rb = region_hash(regions[pc.level_b]);
-        }
+        uvec2 own_regions = regions_of(s.id);
+        ra = own_regions.x;
+        rb = own_regions.y;
         keys[out_index] = blur_key(view_z(g.cam, s.p), pc.blur_level_b != 0u ? rb : ra);
     }
     vec3 x = to_space(s.p), n = dir_to_space(s.n);

@@ -46,13 +46,6 @@ layout(push_constant) uniform Push {
 #include "ssdo_record.glsl"
 #include "ssdo_taps.glsl"
 
-// The receiver's regions (ra, rb) at the two levels of sphere id.
-uvec2 regions_of(uint id) {
-    if (g.counts.w != 0u) return uvec2(region_hash(id));  // no hierarchy: own region
-    uvec4 r = texelFetch(attrTex, int(2u * id));
-    return uvec2(region_hash(r[pc.level_a]), region_hash(r[pc.level_b]));
-}
-
 // Occluder weight of the surface seen at pixel q, whose block record is
 // rec. Without a hierarchy every sphere is its own region: the pixel's own
 // sphere (one id fetch). With one, the record's regions (as ssdo.comp's
@@ -147,9 +140,8 @@ void main() {
         float wq = any ? occluder_weight(own, first, q) : 0.0;
         vec3 qn = dir_to_space(q.n);
         for (uint e = 0u; e < SPHERE_ELEVATIONS; ++e) {
-            float h = SPHERE_HE(e), z = SPHERE_ZE(e);
-            vec3 d = h * u + z * zb;
-            vec3 x = c + r * d;
+            vec3 d = SPHERE_HE(e) * u + SPHERE_ZE(e) * zb;
+            vec3 x = xe[e];
             float wf = found[e] ? wq : 0.0;
             float dd = distance(fp[e], x);
             vec3 to_x = (x - fp[e]) / max(dd, 1e-4);

@@ -1,12 +1,20 @@
 // The SSDO tap helpers shared by the per-pixel/per-block receivers
 // (ssdo.comp) and the per-sphere ones (ssdo_sphere.comp). Needs, before
-// inclusion: `Globals g`, `recordTex`, `visWordTex`, push constants `pc`
+// inclusion: `Globals g`, `recordTex`, `visWordTex`, `attrTex`, push constants `pc`
 // (SsdoPush), the specialization constants SEMANTIC and PERSP, and
 // ssdo_record.glsl.
 #ifndef SSDO_TAPS_GLSL
 #define SSDO_TAPS_GLSL
 
 Record record_at(uvec2 b) { return unpack_record(texelFetch(recordTex, int(b.y * g.counts.y + b.x))); }
+
+// The region hashes of sphere id at the two active levels (needs
+// `attrTex`); without a hierarchy every sphere is its own region.
+uvec2 regions_of(uint id) {
+    if (g.counts.w != 0u) return uvec2(region_hash(id));
+    uvec4 r = texelFetch(attrTex, int(2u * id));
+    return uvec2(region_hash(r[pc.level_a]), region_hash(r[pc.level_b]));
+}
 
 // Occluder weight of a surface with regions (qa, qb) for a receiver (ra, rb).
 float region_weight(uint ra, uint rb, Record q) {

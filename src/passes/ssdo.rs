@@ -44,16 +44,23 @@ pub struct SsdoPush {
     pub pad: u32,
 }
 
-/// Tap counts per receiver (directions, far-search steps per direction)
-/// and whether the receivers are the 2x2 blocks (else every pixel), or
-/// the visible spheres (`sphere`: glsl/ssdo_sphere.comp, with
+/// Who receives SSDO: every covered pixel, one representative pixel per
+/// 2x2 block, or every visible sphere (glsl/ssdo_sphere.comp, with
 /// SSDO_SPHERE_DIRS directions and no blur).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Receivers {
+    Pixel,
+    Block,
+    Sphere,
+}
+
+/// Tap counts per receiver (directions, far-search steps per direction:
+/// per sphere, taps per azimuth line) and the receivers.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Taps {
     pub dirs: u32,
     pub steps: u32,
-    pub half: bool,
-    pub sphere: bool,
+    pub receivers: Receivers,
     /// Perspective camera: taps step along the pixel rays; orthographic
     /// ones step in view space, which needs no division per tap.
     pub perspective: bool,
@@ -66,8 +73,16 @@ impl Taps {
             self.dirs,
             self.steps,
             self.perspective as u32,
-            self.half as u32,
+            self.per_block() as u32,
         ]
+    }
+
+    pub fn per_block(&self) -> bool {
+        self.receivers == Receivers::Block
+    }
+
+    pub fn per_sphere(&self) -> bool {
+        self.receivers == Receivers::Sphere
     }
 
     fn sphere_constants(&self, semantic: bool) -> [u32; 3] {
@@ -260,7 +275,7 @@ impl SsdoPass {
             std::mem::size_of::<PrepPush>() as u32,
             &Self::prep_constants(lookup, taps),
         )?;
-        if taps.sphere {
+        if taps.per_sphere() {
             if self.list.is_none() {
                 self.list = Some(ComputePipeline::new(
                     ctx,
@@ -300,9 +315,9 @@ impl SsdoPass {
     /// channel): their key-light visibility skips the soft penumbra.
     fn prep_constants(lookup: &Lookup, taps: Taps) -> [u32; 3] {
         [
-            (lookup.soft && !taps.sphere) as u32,
+            (lookup.soft && !taps.per_sphere()) as u32,
             lookup.core_only() as u32,
-            taps.sphere as u32,
+            taps.per_sphere() as u32,
         ]
     }
 
@@ -337,7 +352,7 @@ impl SsdoPass {
         ];
         bufs.extend(lookup.buffers.iter().copied());
         rec.pass(Self::PREP_NAME, |p| {
-            if taps.sphere {
+            if taps.per_sphere() {
                 p.fill(flags, flags.size, 0);
             }
             p.dispatch(pipe, push, tile_grid(half.0, half.1), &bufs);
@@ -405,7 +420,7 @@ impl SsdoPass {
 
     /// `ssdo`: ambient visibility + bounce per receiver into `ao` (and per
     /// pixel the blur's edge keys into `keys`); `size`
-    /// is the receivers' grid (half resolution with `taps.half`).
+    /// is the receivers' grid (half resolution per block).
     #[allow(clippy::too_many_arguments)]
     pub fn record_ssdo(
         &self,

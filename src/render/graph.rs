@@ -157,10 +157,13 @@ impl Resources {
         let half = t.half();
         let ssdo = self.ssdo.as_ref().filter(|_| settings.ssdo_on());
         let ssdo_params = self.ssdo_params(settings);
+        // the per-sphere receivers' buffers, when this frame uses them
+        let spheres = ssdo
+            .and_then(|st| st.spheres.as_ref())
+            .filter(|_| ssdo_params.taps.per_sphere());
         if let Some(st) = ssdo {
             let p = &ssdo_params;
             let semantic = settings.ssdo == SsdoMode::Semantic;
-            let spheres = st.spheres.as_ref().filter(|_| p.taps.sphere);
             // (without per-sphere receivers the flags are not written)
             let flags = spheres.map_or(&t.keys, |b| &b.flags);
             st.pass.record_prep(
@@ -177,7 +180,7 @@ impl Resources {
                     .record_spheres(rec, &screen, &t.records, sb, &p.ssdo, semantic, p.taps)?;
             }
             // receivers: the blocks, or every pixel
-            let grid = if p.taps.half {
+            let grid = if p.taps.per_block() {
                 half
             } else {
                 (t.width, t.height)
@@ -207,17 +210,14 @@ impl Resources {
                         input,
                         output,
                     };
-                    let shape = (p.blur_radius, p.taps.half);
+                    let shape = (p.blur_radius, p.taps.per_block());
                     st.blur
                         .record(rec, axis, semantic, shape, &io, &p.blur, grid)?;
                 }
             }
         }
 
-        let sphere_ao = ssdo
-            .and_then(|st| st.spheres.as_ref())
-            .filter(|_| ssdo_params.taps.sphere)
-            .map_or(&t.records, |b| &b.ao);
+        let sphere_ao = spheres.map_or(&t.records, |b| &b.ao);
         self.shade.record(
             rec,
             &screen,

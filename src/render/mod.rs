@@ -23,7 +23,7 @@ use crate::passes::shadows::shadow_map::ShadowMap;
 use crate::passes::shadows::{
     self, FrameCheck, Lookup, LookupKind, ShadowParams, ShadowSetup, ShadowTechnique,
 };
-use crate::passes::ssdo::{PrepPush, SphereBuffers, SsdoPass, SsdoPush, Taps};
+use crate::passes::ssdo::{PrepPush, Receivers, SphereBuffers, SsdoPass, SsdoPush, Taps};
 use crate::scene::Scene;
 use crate::semantic::{self, LevelChoice};
 use crate::settings::{RasterMode, RenderSettings, ShadowMode, SsdoMode};
@@ -102,7 +102,7 @@ impl SsdoParams {
     /// blocks, then the upsample the blocks next to the pixel's own.
     pub fn blur_reach_px(&self) -> u32 {
         let r = self.blur_radius.max(0) as u32;
-        if self.taps.half {
+        if self.taps.per_block() {
             crate::gpu::consts::SSDO_BLOCK * (r + 2)
         } else {
             r
@@ -119,8 +119,7 @@ pub const SSDO_TAPS_LARGE: (Taps, i32) = (
     Taps {
         dirs: 8,
         steps: 5,
-        half: true,
-        sphere: false,
+        receivers: Receivers::Block,
         perspective: false,
     },
     2,
@@ -132,8 +131,7 @@ pub const SSDO_TAPS_SMALL: (Taps, i32) = (
     Taps {
         dirs: 8,
         steps: 5,
-        half: false,
-        sphere: false,
+        receivers: Receivers::Pixel,
         perspective: false,
     },
     2,
@@ -152,8 +150,7 @@ pub const SSDO_TAPS_SPHERE: (Taps, i32) = (
     Taps {
         dirs: crate::gpu::consts::SSDO_SPHERE_DIRS,
         steps: 12,
-        half: false,
-        sphere: true,
+        receivers: Receivers::Sphere,
         perspective: false,
     },
     0,
@@ -355,12 +352,13 @@ impl Resources {
     }
 
     pub(crate) fn shade_mode(&self, settings: &RenderSettings, lookup: &Lookup) -> ShadeMode {
+        let taps = self.ssdo_params(settings).taps;
         ShadeMode {
             kind: lookup.kind,
             soft: lookup.soft,
             ao: settings.ssdo_on(),
-            ao_half: settings.ssdo_on() && self.ssdo_params(settings).taps.half,
-            ao_sphere: settings.ssdo_on() && self.ssdo_params(settings).taps.sphere,
+            ao_half: settings.ssdo_on() && taps.per_block(),
+            ao_sphere: settings.ssdo_on() && taps.per_sphere(),
             swap_rb: self.bgra,
             aovs: settings.aovs,
             core_only: lookup.core_only(),
@@ -403,7 +401,9 @@ impl Resources {
         {
             let semantic = settings.ssdo == SsdoMode::Semantic;
             st.pass.prepare(ctx, &plain, semantic, taps)?;
-            if taps.sphere && st.spheres.as_ref().map(|b| b.spheres) != Some(self.sphere_count) {
+            if taps.per_sphere()
+                && st.spheres.as_ref().map(|b| b.spheres) != Some(self.sphere_count)
+            {
                 if let Some(mut old) = st.spheres.take() {
                     old.destroy(ctx);
                 }
@@ -1162,16 +1162,11 @@ impl<'c> Renderer<'c> {
         self.res.ssdo_params(&self.settings).ssdo.r_far as f64
     }
 
-    /// Whether SSDO runs per 2x2 block for the current camera (spheres
-    /// large on screen) rather than per pixel.
-    pub fn ssdo_per_block(&self) -> bool {
-        self.res.ssdo_params(&self.settings).taps.half
-    }
-
-    /// Whether SSDO runs per visible sphere for the current camera
-    /// (spheres a few pixels wide).
-    pub fn ssdo_per_sphere(&self) -> bool {
-        self.res.ssdo_params(&self.settings).taps.sphere
+    /// Who receives SSDO for the current camera: per 2x2 block (spheres
+    /// large on screen), per pixel, or per visible sphere (a few pixels
+    /// wide).
+    pub fn ssdo_receivers(&self) -> Receivers {
+        self.res.ssdo_params(&self.settings).taps.receivers
     }
 
     /// The semantic level choice of this frame, when SSDO runs.

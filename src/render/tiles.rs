@@ -170,7 +170,7 @@ impl<'a> Renderer<'a> {
         if self.res.active_shadow().is_none() {
             reach = reach.max(p.screen.f0[0] as f64);
         }
-        if p.taps.sphere {
+        if p.taps.per_sphere() {
             // per-sphere receivers march from a sphere's surface point
             // facing each direction: up to a diameter from the pixel
             let r = self.res.geom.iter().map(|g| g[3]).fold(0.0f32, f32::max);
