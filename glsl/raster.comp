@@ -14,6 +14,10 @@ layout(set = 0, binding = 1) readonly buffer Spheres { vec4 spheres[]; };
 layout(set = 0, binding = 2) buffer Vis { uint64_t vis[]; };
 layout(set = 0, binding = 3) buffer Jobs { uvec2 jobs[]; };
 layout(set = 0, binding = 4) buffer Counters { uint counters[]; };
+// The same visibility buffer as 32-bit words: the early-depth load of a
+// key's depth word (lavapipe: a vector gather, where a storage load at
+// per-lane addresses is a scalar loop).
+layout(set = 0, binding = 5) uniform usamplerBuffer visWordTex;
 
 layout(push_constant) uniform Push {
     uint view_index;   // 0 camera, 1 key light
@@ -69,7 +73,7 @@ void visit(uint id, Footprint f, ivec2 t) {
     uint64_t key = vis_key(d, id);
     // (depth bits of positive floats order as unsigned integers; the empty
     // key is all ones; ties go to the atomic, which keeps the smaller id)
-    if (uint(vis[k] >> 32) >= floatBitsToUint(d)) atomicMin(vis[k], key);
+    if (texelFetch(visWordTex, int(2u * k + 1u)).x >= floatBitsToUint(d)) atomicMin(vis[k], key);
 }
 
 // Orthographic: the pixels of row y whose centres can hit the disk of

@@ -5,7 +5,7 @@ use super::bands::{BandArgs, BandCounters, BandPipelines};
 use super::{LOCAL_SIZE, spirv};
 use crate::error::Result;
 use crate::gpu::consts::{R_ARGS, R_BANDS_REQ, R_BANDS_RUN};
-use crate::vk::pipeline::{PipelineDesc, ro, rw, uniform};
+use crate::vk::pipeline::{PipelineDesc, ro, rw, texel, uniform};
 use crate::vk::{Buffer, Context, PassBuilder};
 use bytemuck::{Pod, Zeroable};
 
@@ -80,6 +80,7 @@ impl RasterPass {
                 rw("Vis"),
                 rw("Jobs"),
                 rw("Counters"),
+                texel("visWordTex", ash::vk::Format::R32_UINT),
             ],
             push_size: std::mem::size_of::<RasterPush>() as u32,
             local_size: LOCAL_SIZE,
@@ -139,6 +140,7 @@ impl RasterPass {
                 ("Vis", vis),
                 ("Jobs", &self.jobs),
                 ("Counters", &self.counters),
+                ("visWordTex", vis),
             ],
             sphere_count,
             &self.counters,
