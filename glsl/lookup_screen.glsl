@@ -12,7 +12,7 @@ float key_visibility(Surface s, uint pixel) {
     uint w = g.cam.dims.x, h = g.cam.dims.y;
     vec3 x = s.p + s.n * 1e-3;
     vec3 l = -normalize(g.light_dir.xyz);
-    float rot = hash12(uvec2(image_px(g.cam, pixel)));
+    float rot = hash12(uvec2(s.img));
     vec2 org = vec2(g.cam.dims.zw);
     float march = g.shadow_f0.x, thickness = g.shadow_f0.y;
     uint steps = g.shadow_u.x;
@@ -23,7 +23,7 @@ float key_visibility(Surface s, uint pixel) {
         uint q = uint(px.y) * w + uint(px.x);
         uvec2 v = texelFetch(visTex, int(q)).xy;
         if (v.x == NO_SPHERE || v.x == s.id) continue;
-        float dz = view_z(g.cam, p) - key_view_z(g.cam, q, uintBitsToFloat(v.y));
+        float dz = view_z(g.cam, p) - key_view_z(g.cam, px + org, uintBitsToFloat(v.y));
         if (dz > 0.0 && dz < thickness) return 0.0;
     }
     return 1.0;

@@ -59,7 +59,7 @@ float key_visibility(Surface s, uint pixel) {
     float test_depth = pd - bias;
 
     uint taps = max(g.shadow_u.x, 1u);
-    float phi = taps > 1u ? TWO_PI * hash01(image_index(g.cam, pixel)) : 0.0;
+    float phi = taps > 1u ? TWO_PI * hash01(image_index(g.cam, s.img)) : 0.0;
     int last = int(size) - 1;
     float lit = 0.0;
     for (uint k = 0u; k < taps; ++k) {

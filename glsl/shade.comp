@@ -115,7 +115,7 @@ bool on_outline(uvec2 px, bool cov, float z, uint region) {
             uvec2 v = texelFetch(visTex, int(j)).xy;
             if (v.x == NO_SPHERE) continue;
             if (!cov) return true;
-            float zq = key_view_z(g.cam, j, uintBitsToFloat(v.y));
+            float zq = key_view_z(g.cam, vec2(q + ivec2(g.cam.dims.zw)), uintBitsToFloat(v.y));
             if (z - zq > pc.edge_dz) return true;
             uint rq = region_of(v.x);
             if (g.counts.w == 0u && rq != region && (zq < z || (zq == z && rq < region))) return true;
@@ -175,7 +175,7 @@ void main() {
     if (!tile_pixel(w, h, px) || !IN_ACTIVE(px)) return;
     uint i = px.y * w + px.x;
     Surface s;
-    if (!surface_of(i, s)) {
+    if (!surface_of(px, s)) {
         vec4 bg = background_at(px);
         if (OUTLINE && on_outline(px, false, 0.0, 0u)) bg = vec4(0.0, 0.0, 0.0, 1.0);
         put_color(i, bg);

@@ -57,15 +57,9 @@ struct SphereAttr {
 const uint64_t VIS_EMPTY = 0xFFFFFFFFFFFFFFFFul;
 const uint NO_SPHERE = 0xFFFFFFFFu;
 
-// Image coordinates of buffer pixel i (row-major in the window).
-vec2 image_px(View v, uint i) {
-    return vec2(i % v.dims.x + v.dims.z, i / v.dims.x + v.dims.w);
-}
-
-// Row-major index in the whole image of buffer pixel i (per-pixel noise
-// seeds: the same in a tile as in the untiled image).
-uint image_index(View v, uint i) {
-    vec2 p = image_px(v, i);
+// Row-major index in the whole image of the pixel at image coordinates p
+// (per-pixel noise seeds: the same in a tile as in the untiled image).
+uint image_index(View v, vec2 p) {
     return uint(p.y) * uint(v.right.w) + uint(p.x);
 }
 
@@ -158,13 +152,13 @@ vec3 point_at(View v, vec2 px, float z) {
     return o + t * d;
 }
 
-// View distance (as view_z) of the surface at pixel q from its depth key
-// alone (orthographic: distance from the centre plane + offset;
-// perspective: distance along the ray from the eye).
-float key_view_z(View v, uint q, float key) {
+// View distance (as view_z) of the surface at pixel px (image
+// coordinates) from its depth key alone (orthographic: distance from the
+// centre plane + offset; perspective: distance along the ray from the eye).
+float key_view_z(View v, vec2 px, float key) {
     if (v.dir.w == 0.0) return key - v.depth.x;
     vec3 o, d;
-    view_ray(v, image_px(v, q), o, d);
+    view_ray(v, px, o, d);
     return key * dot(d, v.dir.xyz);
 }
 

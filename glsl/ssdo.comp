@@ -83,7 +83,7 @@ void main() {
     uvec2 px = HALF ? SSDO_BLOCK * blk + own.sub : cell;
     uint out_index = HALF ? blk.y * g.counts.y + blk.x : px.y * w + px.x;
     Surface s;
-    if (!own.covered || !surface_of(px.y * w + px.x, s)) {
+    if (!own.covered || !surface_of(px, s)) {
         ao[out_index] = pack_ao(vec2(1.0), vec3(0.0), 1.0);
         if (!HALF) keys[out_index] = BLUR_KEY_BACKGROUND;
         return;

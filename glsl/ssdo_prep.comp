@@ -60,7 +60,7 @@ void main() {
     }
     uint out_index = b.y * hw + b.x;
     Surface s;
-    if (!found || !surface_of(pixel, s)) {
+    if (!found || !surface_of(SSDO_BLOCK * b + r.sub, s)) {
         records[out_index] = uvec4(floatBitsToUint(RECORD_BACKGROUND), 0u, 0u, 0u);
         return;
     }

@@ -55,8 +55,8 @@ bool surface_seen(vec3 s, out uvec2 q, out float qz, out vec3 qp) {
     q = uvec2(clamp(px, vec2(0.0), vec2(float(w) - 1.0, float(h) - 1.0)));
     uint j = q.y * w + q.x;
     uint depth_bits = texelFetch(visWordTex, int(2u * j + 1u)).x;
-    qz = key_view_z(g.cam, j, uintBitsToFloat(depth_bits));
     vec2 pc2 = vec2(q) + org;
+    qz = key_view_z(g.cam, pc2, uintBitsToFloat(depth_bits));
     qp = PERSP ? point_at(g.cam, pc2, qz)
                : vec3((pc2.x + 0.5 - 0.5 * iw) / ppu, (0.5 * ih - 0.5 - pc2.y) / ppu, qz);
     return inside && depth_bits != 0xFFFFFFFFu;

@@ -13,19 +13,24 @@ struct Surface {
     vec3 n;     // unit normal
     uint id;    // sphere index
     float key;  // depth key of the visibility buffer
+    vec2 img;   // the pixel's image coordinates
 };
 
 bool covered(uint i) { return texelFetch(visTex, int(i)).x != NO_SPHERE; }
 
-// Surface of full-resolution pixel i (false for background).
-bool surface_of(uint i, out Surface s) {
+// Surface of full-resolution pixel q of the buffer window (false for
+// background). Callers pass the pixel, not its index: recovering it with
+// % and / is 8 scalar integer divisions per vector on lavapipe.
+bool surface_of(uvec2 q, out Surface s) {
+    uint i = q.y * g.cam.dims.x + q.x;
+    s.img = vec2(q + g.cam.dims.zw);
     uvec2 v = texelFetch(visTex, int(i)).xy;
     if (v.x == NO_SPHERE) return false;
     s.id = v.x;
     s.key = uintBitsToFloat(v.y);
     vec4 sp = texelFetch(sphereTex, int(s.id));
     vec3 o, d;
-    view_ray(g.cam, image_px(g.cam, i), o, d);
+    view_ray(g.cam, s.img, o, d);
     // Exact hit recomputed relative to the sphere centre for precision.
     vec3 oc = o - sp.xyz;
     float b = dot(oc, d);
