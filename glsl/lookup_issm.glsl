@@ -20,21 +20,25 @@
 // would still run for every pixel.
 layout(set = 0, binding = 16) uniform usamplerBuffer issmTex; // R32UI view: even texels = sphere ids
 
-float occluder_visibility(vec3 p, vec3 dl, vec4 s) {
+// How strongly one occluder shadows p: 1 where the light ray crosses it
+// (full shadow), else the soft penumbra's 1 - s'/s_eff (0 outside it).
+// The shadow strength (1 - s'/s_eff)^x grows with this, so the minimum
+// illumination over the patch is 1 - (max closeness)^x: one pow per pixel,
+// not one per occluder. No sqrt in the hit test: the far hit
+// k + sqrt(r^2 - d^2) is ahead iff k > 0 or p is inside the sphere.
+float occluder_closeness(vec3 p, vec3 dl, vec4 s) {
     vec3 oc = s.xyz - p;
     float k = dot(oc, dl);
-    float d2 = max(dot(oc, oc) - k * k, 0.0);
-    if (d2 < s.w * s.w) {
-        // The ray crosses the sphere; it occludes if the far hit is ahead.
-        return k + sqrt(s.w * s.w - d2) > 0.0 ? 0.0 : 1.0;
-    }
-    if (!SOFT) return 1.0;
-    float soft_s = g.shadow_f0.x, soft_x = g.shadow_f0.y, soft_b = g.shadow_f0.z;
-    if (soft_s <= 0.0 || k <= 0.0) return 1.0;
+    float l2 = dot(oc, oc), r2 = s.w * s.w;
+    float d2 = max(l2 - k * k, 0.0);
+    bool hit = d2 < r2 && (k > 0.0 || l2 < r2);
+    if (!SOFT) return hit ? 1.0 : 0.0;
+    float soft_s = g.shadow_f0.x, soft_b = g.shadow_f0.z;
+    if (hit) return 1.0;
+    if (soft_s <= 0.0 || k <= 0.0) return 0.0;
     float se = soft_s * (1.0 - exp(-k * k / (2.0 * soft_b * soft_b)));
     float gap = sqrt(d2) - s.w;
-    if (gap >= se) return 1.0;
-    return 1.0 - pow(1.0 - gap / se, soft_x);
+    return gap >= se ? 0.0 : 1.0 - gap / se;
 }
 
 // Sphere id stored at light texel t (NO_SPHERE outside or empty): the low
@@ -51,33 +55,29 @@ float key_visibility(Surface s, uint pixel) {
     ivec2 c = ivec2(round(light_uv(L, p) - 0.5));
     int size = int(L.dims.x);
     int t = int(g.shadow_u.x), stride = int(max(g.shadow_u.y, 1u));
-    float v = 1.0;
-    // Neighbouring texels mostly hold the same sphere: remember the last two
-    // ids tested and skip repeats (a min over the same occluder is a no-op).
-    uint last0 = NO_SPHERE, last1 = NO_SPHERE;
+    float m = 0.0; // the largest closeness so far
+    // (Repeated ids are tested again: skipping the last two seen saved
+    // nothing on lavapipe, where a masked lane runs the body anyway.)
     // Dense core: the spheres nearest the light around P's own texel.
-    for (int dy = -1; dy <= 1 && v > 0.0; ++dy) {
+    for (int dy = -1; dy <= 1 && m < 1.0; ++dy) {
         for (int dx = -1; dx <= 1; ++dx) {
             uint id = texel_id(c + ivec2(dx, dy), size);
-            if (id == NO_SPHERE || id == s.id || id == last0 || id == last1) continue;
-            last1 = last0;
-            last0 = id;
-            v = min(v, occluder_visibility(p, dl, texelFetch(sphereTex, int(id))));
+            if (id == NO_SPHERE || id == s.id) continue;
+            m = max(m, occluder_closeness(p, dl, texelFetch(sphereTex, int(id))));
         }
     }
     // The rest of the (2t+1)^2 patch, every `stride` texels: the stride is at
     // most the smallest sphere radius in texels, so every sphere whose disk
     // is visible from the light lands on at least one sample.
     int lim = ISSM_CORE_ONLY ? 0 : (t / stride) * stride;
-    for (int dy = -lim; !ISSM_CORE_ONLY && dy <= lim && v > 0.0; dy += stride) {
+    for (int dy = -lim; !ISSM_CORE_ONLY && dy <= lim && m < 1.0; dy += stride) {
         for (int dx = -lim; dx <= lim; dx += stride) {
             if (abs(dx) <= 1 && abs(dy) <= 1) continue;
             uint id = texel_id(c + ivec2(dx, dy), size);
-            if (id == NO_SPHERE || id == s.id || id == last0 || id == last1) continue;
-            last1 = last0;
-            last0 = id;
-            v = min(v, occluder_visibility(p, dl, texelFetch(sphereTex, int(id))));
+            if (id == NO_SPHERE || id == s.id) continue;
+            m = max(m, occluder_closeness(p, dl, texelFetch(sphereTex, int(id))));
         }
     }
-    return v;
+    if (!SOFT) return 1.0 - m;
+    return m <= 0.0 ? 1.0 : 1.0 - pow(m, g.shadow_f0.y);
 }

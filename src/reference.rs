@@ -228,6 +228,46 @@ pub fn shadow_ray(
     vis
 }
 
+/// The seed's soft key-light visibility of point `p` on sphere `self_id`
+/// (glsl/lookup_issm.glsl, parameters s, x, b), evaluated in f64 against
+/// every other sphere, one occluder at a time: 0 where the ray toward the
+/// light crosses a sphere, else the minimum over occluders ahead of p of
+/// 1 - (1 - gap / s_eff)^x with s_eff = s (1 - exp(-k^2 / 2b^2)).
+pub fn soft_shadow_ray(
+    spheres: &[Sphere],
+    light_dir: DVec3,
+    p: DVec3,
+    self_id: u32,
+    (s, x, b): (f64, f64, f64),
+) -> f64 {
+    let d = -light_dir.normalize();
+    let mut vis = 1.0f64;
+    for (i, sp) in spheres.iter().enumerate() {
+        if i as u32 == self_id {
+            continue;
+        }
+        let r = sp.radius as f64;
+        let oc = c64(sp) - p;
+        let k = oc.dot(d);
+        let d2 = (oc.length_squared() - k * k).max(0.0);
+        if d2 < r * r {
+            if k + (r * r - d2).sqrt() > 0.0 {
+                return 0.0;
+            }
+            continue;
+        }
+        if s <= 0.0 || k <= 0.0 {
+            continue;
+        }
+        let se = s * (1.0 - (-k * k / (2.0 * b * b)).exp());
+        let gap = d2.sqrt() - r;
+        if gap < se {
+            vis = vis.min(1.0 - (1.0 - gap / se).powf(x));
+        }
+    }
+    vis
+}
+
 /// Exact key-light visibility per pixel of `cam` at the reference's visible
 /// points (None for background and ambiguous pixels), with the reference
 /// cast itself (ids). `opacity` 1 gives hard shadows.

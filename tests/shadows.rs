@@ -294,6 +294,66 @@ fn soft_shadow_limits_and_monotonicity() {
     assert_no_validation_messages(&ctx);
 }
 
+/// The soft ISSM against the seed's formula evaluated exactly in f64 over
+/// every sphere (reference::soft_shadow_ray) at the CPU ray caster's
+/// visible points: the lookup takes one pow of the largest closeness over
+/// its patch, the reference the minimum over occluders of each one's
+/// visibility, so this also checks that rewrite.
+#[test]
+fn soft_issm_matches_the_exact_soft_formula() {
+    let ctx = validated_context();
+    let (scene, cam) = ground_scene();
+    let soft = shadow_of(&ctx, &scene, cam, ShadowMode::IssmSoft, 3.0);
+    let tol = 2e-5 * 40.0;
+    let img = reference::cast(&scene.spheres, &cam, tol);
+    let light = DVec3::new(1.0, -1.0, 0.0);
+    let (mut n, mut close, mut sum, mut worst, mut penumbra) =
+        (0usize, 0usize, 0.0f64, 0.0f64, 0usize);
+    for py in 0..cam.height {
+        for px in 0..cam.width {
+            let k = (py * cam.width + px) as usize;
+            let id = img.ids[k];
+            if id == u32::MAX || img.ambiguous[k] {
+                continue;
+            }
+            let sp = &scene.spheres[id as usize];
+            let c = DVec3::new(
+                sp.center[0] as f64,
+                sp.center[1] as f64,
+                sp.center[2] as f64,
+            );
+            let p = reference::visible_point(&cam, px, py, c, sp.radius as f64);
+            let want = reference::soft_shadow_ray(&scene.spheres, light, p, id, (3.0, 2.0, 10.0));
+            let got = soft[k] as f64;
+            let e = (got - want).abs();
+            n += 1;
+            sum += e;
+            worst = worst.max(e);
+            close += (e <= 0.02) as usize;
+            penumbra += (want > 0.02 && want < 0.98) as usize;
+        }
+    }
+    let pct = 100.0 * close as f64 / n as f64;
+    eprintln!(
+        "soft ISSM vs exact formula: {n} pixels ({penumbra} in penumbrae), {pct:.2}% within 0.02, mean |error| {:.4}, worst {worst:.3}",
+        sum / n as f64
+    );
+    assert!(
+        penumbra > n / 20,
+        "too few penumbra pixels to test: {penumbra} of {n}"
+    );
+    assert!(
+        pct >= 98.0,
+        "soft ISSM matches the formula on only {pct:.2}%"
+    );
+    assert!(
+        sum / n as f64 <= 0.01,
+        "mean soft error {:.4}",
+        sum / n as f64
+    );
+    assert_no_validation_messages(&ctx);
+}
+
 #[test]
 fn a_lone_sphere_never_shadows_itself() {
     let ctx = validated_context();
