@@ -18,7 +18,32 @@ struct Push {
 }
 
 const CASES: &[(u32, u32, &str)] = &[
+    (19, 16, "empty: every invocation returns at once"),
     (18, 16, "address arithmetic only, no loads (16 taps)"),
+    (
+        20,
+        16,
+        "uniform texel buffer fetch (r32ui), per-lane address (16 taps)",
+    ),
+    (
+        21,
+        16,
+        "integer division and remainder by a push constant (16 taps)",
+    ),
+    (22, 16, "the same through a float reciprocal (16 taps)"),
+    (
+        23,
+        16,
+        "16 sin steps, straight-line, under a push-constant if no lane takes",
+    ),
+    (24, 16, "the same, taken by every lane"),
+    (
+        25,
+        16,
+        "the same under a specialization-constant if no lane takes",
+    ),
+    (26, 16, "the same as a one-trip loop that no lane enters"),
+    (27, 16, "the one-trip loop, entered by 1 lane in 8"),
     (
         0,
         16,
@@ -122,6 +147,7 @@ fn main() {
                     wo("Dst"),
                     texel("srcTex", ash::vk::Format::R32G32B32A32_SFLOAT),
                     uniform("GlobalsBlock"),
+                    texel("srcWordTex", ash::vk::Format::R32_UINT),
                 ],
                 push_size: 16,
                 local_size: 64,
@@ -150,6 +176,7 @@ fn main() {
                                 ("Dst", &dst),
                                 ("srcTex", &src),
                                 ("GlobalsBlock", &table),
+                                ("srcWordTex", &src),
                             ],
                         );
                         Ok(())

@@ -12,7 +12,6 @@
 // pixels wide. The centre tap has weight 1.
 #include "ssdo_common.glsl"
 #include "ssdo_record.glsl"
-#include "tiles.glsl"
 
 layout(local_size_x_id = 0) in;
 layout(constant_id = 1) const uint AXIS = 0;
@@ -33,6 +32,10 @@ layout(push_constant) uniform Push {
     uint level_b;    // HALF: region test at the records' level b (else a)
     uint pad0, pad1;
 } pc;
+
+#define TILE_LIST_ID 5
+#define TILE_LIST_BINDING 5
+#include "tiles.glsl"
 
 // What the weights compare at tap j: covered, view distance, normal, region.
 bool geometry(uint j, out float z, out vec3 n, out uint region) {
@@ -55,13 +58,13 @@ bool geometry(uint j, out float z, out vec3 n, out uint region) {
 void main() {
     uint hw = HALF ? g.counts.y : g.cam.dims.x, hh = HALF ? g.counts.z : g.cam.dims.y;
     uvec2 b;
-    if (!tile_pixel(hw, hh, b) || !(HALF ? IN_ACTIVE_BLOCK(b) : IN_ACTIVE(b))) return;
+    if (!tile_pixel(hw, hh, HALF, b) || !(HALF ? IN_ACTIVE_BLOCK(b) : IN_ACTIVE(b))) return;
     uint i = b.y * hw + b.x;
     float z0;
     vec3 n0;
     uint reg0;
     uint centre = texelFetch(inTex, int(i)).x;
-    if (!geometry(i, z0, n0, reg0)) {
+    if (TILE_LIST == 2u || !geometry(i, z0, n0, reg0)) {
         outv[i] = centre;
         return;
     }

@@ -23,7 +23,7 @@ float key_visibility(Surface s, uint pixel) {
         uint q = uint(px.y) * w + uint(px.x);
         uvec2 v = texelFetch(visTex, int(q)).xy;
         if (v.x == NO_SPHERE || v.x == s.id) continue;
-        float dz = view_z(g.cam, p) - key_view_z(g.cam, px + org, uintBitsToFloat(v.y));
+        float dz = view_z(g.cam, p) - key_view_z(g.cam, px + org, uintBitsToFloat(v.y), g.cam.dir.w != 0.0);
         if (dz > 0.0 && dz < thickness) return 0.0;
     }
     return 1.0;

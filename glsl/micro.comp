@@ -12,6 +12,7 @@ layout(set = 0, binding = 0) readonly buffer Src { vec4 src[]; };
 layout(set = 0, binding = 1) writeonly buffer Dst { vec4 dst[]; };
 layout(set = 0, binding = 2) uniform samplerBuffer srcTex;
 layout(set = 0, binding = 3) uniform GlobalsBlock { vec4 table[64]; };
+layout(set = 0, binding = 4) uniform usamplerBuffer srcWordTex; // Src as R32UI
 
 layout(push_constant) uniform Push {
     uint n;     // invocations (and source elements)
@@ -26,6 +27,11 @@ shared vec4 tile[64];
 const uint MASK = (1u << 21) - 1u; // source elements: 2^21 >= 1920 x 1080
 uint addr(uint i, uint k) { return (i * 2654435761u + k * 40503u) & MASK; }
 
+// 16 dependent sin steps without a loop (lavapipe checks a loop's mask
+// every iteration, so a loop under a branch says nothing about the branch).
+#define SIN4(x) x = sin(x * 1.0001 + 0.3); x = sin(x * 1.0001 + 0.3); x = sin(x * 1.0001 + 0.3); x = sin(x * 1.0001 + 0.3);
+#define SIN16(x) SIN4(x) SIN4(x) SIN4(x) SIN4(x)
+
 vec4 heavy(vec4 x, uint iters) {
     for (uint j = 0u; j < iters; ++j) x = sin(x * 1.0001 + 0.3);
     return x;
@@ -37,6 +43,7 @@ void main() {
     vec4 acc = vec4(float(i));
     uint wg = gl_WorkGroupID.x + gl_WorkGroupID.y * gl_NumWorkGroups.x;
     uint groups = gl_NumWorkGroups.x * gl_NumWorkGroups.y;
+    if (MODE == 19) return; // the dispatch alone: every invocation returns at once
     if (MODE == 0) {        // storage vec4 load, per-lane address
         for (uint k = 0u; k < pc.taps; ++k) acc += src[addr(i, k)];
     } else if (MODE == 1) { // storage float load, per-lane address
@@ -73,6 +80,23 @@ void main() {
         if ((i & 1u) != 0u) acc = heavy(acc, pc.taps); else acc = heavy(acc.yzwx, pc.taps);
     } else if (MODE == 18) { // the address arithmetic alone (no loads)
         for (uint k = 0u; k < pc.taps; ++k) acc += vec4(float(addr(i, k)));
+    } else if (MODE == 20) { // uniform texel buffer fetch (r32ui), per-lane address
+        for (uint k = 0u; k < pc.taps; ++k) acc.x += float(texelFetch(srcWordTex, int(addr(i, k))).x);
+    } else if (MODE == 21) { // integer division and remainder by a push constant
+        for (uint k = 0u; k < pc.taps; ++k) { uint a = addr(i, k); acc.xy += vec2(float(a / (pc.n >> 10)), float(a % (pc.n >> 10))); }
+    } else if (MODE == 22) { // the same split through a float reciprocal
+        float inv = 1.0 / float(pc.n >> 10);
+        for (uint k = 0u; k < pc.taps; ++k) { uint a = addr(i, k); uint q = uint((float(a) + 0.5) * inv); acc.xy += vec2(float(q), float(a - q * (pc.n >> 10))); }
+    } else if (MODE == 23) { // straight-line code (no loop) under a push-constant if that no lane takes
+        if (pc.flag == 0u) { SIN16(acc) }
+    } else if (MODE == 24) { // the same straight-line code, taken by every lane
+        if (pc.flag != 0u) { SIN16(acc) }
+    } else if (MODE == 25) { // the same under a specialization-constant if that no lane takes
+        if (FLAG == 0u) { SIN16(acc) }
+    } else if (MODE == 26) { // the same as a one-trip loop that no lane enters
+        for (bool once = pc.flag == 0u; once; once = false) { SIN16(acc) }
+    } else if (MODE == 27) { // the one-trip loop, entered by 1 lane in 8
+        for (bool once = (i & 7u) == 0u; once; once = false) { SIN16(acc) }
     } else if (MODE == 12) { // fp16 arithmetic
         f16vec4 h = f16vec4(acc * 1e-6);
         for (uint k = 0u; k < pc.taps * 8u; ++k) h = h * float16_t(0.999) + float16_t(0.001);

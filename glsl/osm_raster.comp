@@ -51,7 +51,7 @@ Footprint band_footprint(uint id) {
     Footprint f;
     f.cv = view_space(L, s.xyz);
     f.r = s.w;
-    f.rect = sphere_rect(L, f.cv, s.w);
+    f.rect = sphere_rect(L, f.cv, s.w, false); // light views are orthographic
     return f;
 }
 

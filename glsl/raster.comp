@@ -49,7 +49,7 @@ Footprint band_footprint(uint id) {
     vec4 s = spheres[id];
     f.cv = view_space(f.v, s.xyz);
     f.r = s.w;
-    f.rect = sphere_rect(f.v, f.cv, s.w);
+    f.rect = sphere_rect(f.v, f.cv, s.w, PERSP);
     f.step = 1.0 / f.v.center.w;
     f.origin = vec2(0.5 - 0.5 * f.v.right.w, 0.5 * f.v.up.w - 0.5) * vec2(f.step, f.step) - f.cv.xy;
     return f;

@@ -20,11 +20,14 @@ vec2 persp_extent(float a, float z, float r, float dist) {
 
 // Inclusive pixel rectangle (x0, y0, x1, y1), in image coordinates, whose
 // centres may see the sphere, clipped to the view's buffer window; empty
-// when x0 > x1 or y0 > y1.
-ivec4 sphere_rect(View v, vec3 cv, float r) {
+// when x0 > x1 or y0 > y1. `persp` (v.dir.w != 0) comes from a
+// specialization constant or a literal: lavapipe runs the straight-line
+// code of an if that no lane takes, and the perspective side's atan, asin
+// and tans would run for every orthographic sphere.
+ivec4 sphere_rect(View v, vec3 cv, float r, bool persp) {
     float ppu = v.center.w, w = v.right.w, h = v.up.w;
     vec2 xr, yr;
-    if (v.dir.w == 0.0) {
+    if (!persp) {
         xr = vec2(cv.x - r, cv.x + r);
         yr = vec2(cv.y - r, cv.y + r);
     } else {

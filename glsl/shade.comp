@@ -53,6 +53,8 @@ layout(push_constant) uniform Push {
 #include "lookup.glsl"
 #include "ssdo_common.glsl"
 #include "ssdo_record.glsl"
+#define TILE_LIST_ID 11
+#define TILE_LIST_BINDING 9
 #include "tiles.glsl"
 
 vec3 linear_to_srgb(vec3 c) { return pow(clamp(c, 0.0, 1.0), vec3(1.0 / 2.2)); }
@@ -115,7 +117,7 @@ bool on_outline(uvec2 px, bool cov, float z, uint region) {
             uvec2 v = texelFetch(visTex, int(j)).xy;
             if (v.x == NO_SPHERE) continue;
             if (!cov) return true;
-            float zq = key_view_z(g.cam, vec2(q + ivec2(g.cam.dims.zw)), uintBitsToFloat(v.y));
+            float zq = key_view_z(g.cam, vec2(q + ivec2(g.cam.dims.zw)), uintBitsToFloat(v.y), g.cam.dir.w != 0.0);
             if (z - zq > pc.edge_dz) return true;
             uint rq = region_of(v.x);
             if (g.counts.w == 0u && rq != region && (zq < z || (zq == z && rq < region))) return true;
@@ -172,10 +174,10 @@ void ssdo_at(uvec2 px, float z, vec3 n, uint id, out vec2 v, out vec3 bounce, ou
 void main() {
     uint w = g.cam.dims.x, h = g.cam.dims.y;
     uvec2 px;
-    if (!tile_pixel(w, h, px) || !IN_ACTIVE(px)) return;
+    if (!tile_pixel(w, h, false, px) || !IN_ACTIVE(px)) return;
     uint i = px.y * w + px.x;
     Surface s;
-    if (!surface_of(px, s)) {
+    if (TILE_LIST == 2u || !surface_of(px, s)) {
         vec4 bg = background_at(px);
         if (OUTLINE && on_outline(px, false, 0.0, 0u)) bg = vec4(0.0, 0.0, 0.0, 1.0);
         put_color(i, bg);

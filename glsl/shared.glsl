@@ -155,8 +155,11 @@ vec3 point_at(View v, vec2 px, float z) {
 // View distance (as view_z) of the surface at pixel px (image
 // coordinates) from its depth key alone (orthographic: distance from the
 // centre plane + offset; perspective: distance along the ray from the eye).
-float key_view_z(View v, vec2 px, float key) {
-    if (v.dir.w == 0.0) return key - v.depth.x;
+// `persp` (v.dir.w != 0), from a specialization constant where the caller
+// has one: lavapipe runs the perspective side's ray even when no lane
+// takes it (docs/LAVAPIPE.md).
+float key_view_z(View v, vec2 px, float key, bool persp) {
+    if (!persp) return key - v.depth.x;
     vec3 o, d;
     view_ray(v, px, o, d);
     return key * dot(d, v.dir.xyz);

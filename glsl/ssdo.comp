@@ -65,6 +65,8 @@ layout(push_constant) uniform Push {
 #include "surface.glsl"
 #include "ssdo_common.glsl"
 #include "ssdo_record.glsl"
+#define TILE_LIST_ID 6
+#define TILE_LIST_BINDING 9
 #include "tiles.glsl"
 #include "ssdo_taps.glsl"
 
@@ -76,14 +78,14 @@ void main() {
     // HALF: one receiver per block, its representative pixel; else every
     // pixel (whose block record gives the screen-space key visibility).
     uvec2 cell;
-    if (HALF ? !tile_pixel(g.counts.y, g.counts.z, cell) || !IN_ACTIVE_BLOCK(cell)
-             : !tile_pixel(w, h, cell) || !IN_ACTIVE(cell)) return;
+    if (HALF ? !tile_pixel(g.counts.y, g.counts.z, true, cell) || !IN_ACTIVE_BLOCK(cell)
+             : !tile_pixel(w, h, false, cell) || !IN_ACTIVE(cell)) return;
     uvec2 blk = HALF ? cell : cell / SSDO_BLOCK;
     Record own = record_at(blk);
     uvec2 px = HALF ? SSDO_BLOCK * blk + own.sub : cell;
     uint out_index = HALF ? blk.y * g.counts.y + blk.x : px.y * w + px.x;
     Surface s;
-    if (!own.covered || !surface_of(px, s)) {
+    if (TILE_LIST == 2u || !own.covered || !surface_of(px, s)) {
         ao[out_index] = pack_ao(vec2(1.0), vec3(0.0), 1.0);
         if (!HALF) keys[out_index] = BLUR_KEY_BACKGROUND;
         return;

@@ -28,12 +28,14 @@ layout(push_constant) uniform Push {
 
 #include "lookup.glsl"
 #include "ssdo_record.glsl"
+#define TILE_LIST_ID 4
+#define TILE_LIST_BINDING 6
 #include "tiles.glsl"
 
 void main() {
     uint hw = g.counts.y, hh = g.counts.z;
     uvec2 b;
-    if (!tile_pixel(hw, hh, b)) return;
+    if (!tile_pixel(hw, hh, true, b)) return;
     uint w = g.cam.dims.x, h = g.cam.dims.y;
     Record r;
     // The representative: the first covered pixel from a rotating start,
@@ -44,7 +46,8 @@ void main() {
     uint pixel = 0u;
     bool found = false;
     r.sub = uvec2(0u);
-    for (uint k = 0u; k < N; ++k) {
+    // (background regions: nothing to find, the loop compiles out)
+    for (uint k = 0u; k < (TILE_LIST == 2u ? 0u : N); ++k) {
         uint c = (first + k) % N;
         uvec2 sub = uvec2(c % SSDO_BLOCK, c / SSDO_BLOCK);
         uvec2 px = SSDO_BLOCK * b + sub;
@@ -60,7 +63,7 @@ void main() {
     }
     uint out_index = b.y * hw + b.x;
     Surface s;
-    if (!found || !surface_of(SSDO_BLOCK * b + r.sub, s)) {
+    if (TILE_LIST == 2u || !found || !surface_of(SSDO_BLOCK * b + r.sub, s)) {
         records[out_index] = uvec4(floatBitsToUint(RECORD_BACKGROUND), 0u, 0u, 0u);
         return;
     }

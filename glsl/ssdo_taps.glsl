@@ -56,7 +56,7 @@ bool surface_seen(vec3 s, out uvec2 q, out float qz, out vec3 qp) {
     uint j = q.y * w + q.x;
     uint depth_bits = texelFetch(visWordTex, int(2u * j + 1u)).x;
     vec2 pc2 = vec2(q) + org;
-    qz = key_view_z(g.cam, pc2, uintBitsToFloat(depth_bits));
+    qz = key_view_z(g.cam, pc2, uintBitsToFloat(depth_bits), PERSP);
     qp = PERSP ? point_at(g.cam, pc2, qz)
                : vec3((pc2.x + 0.5 - 0.5 * iw) / ppu, (0.5 * ih - 0.5 - pc2.y) / ppu, qz);
     return inside && depth_bits != 0xFFFFFFFFu;

@@ -59,6 +59,19 @@ gpu_constants! {
     S_GROUPS: u32 = 1;
     S_RUN: u32 = 2;
     S_ARGS: u32 = 3;
+    /// Tile lists (coverage.comp): 16x16-pixel regions (8x8 SSDO blocks)
+    /// that show a sphere and those that do not. Words: the two counts,
+    /// four indirect dispatch triples from TL_ARGS (full-resolution 8x8
+    /// tiles of the covered regions, of the background ones, then the
+    /// regions themselves as half-resolution tiles, covered, background),
+    /// then one packed region (x | y << 16) per region from TL_LIST:
+    /// covered ones from the front, background ones from the back.
+    TL_COVERED: u32 = 0;
+    TL_BACKGROUND: u32 = 1;
+    TL_ARGS: u32 = 4;
+    TL_LIST: u32 = 16;
+    /// Region side in pixels.
+    TL_REGION: u32 = 16;
     /// Deep lists: light-space disk enlargement in texels (conservative
     /// footprints: a missed texel would leak light, an extra entry costs one
     /// exact ray test).

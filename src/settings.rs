@@ -175,6 +175,10 @@ pub struct RenderSettings {
     pub ssaa: u32,
     /// Tile side asked for (`--tile-size`); None = tiles only when needed.
     pub tile_size: Option<u32>,
+    /// The per-pixel passes run on the `coverage` pass's tile lists (the
+    /// default; off runs every tile, for comparisons and tests: the images
+    /// are the same bytes).
+    pub tile_lists: bool,
 }
 
 impl RenderSettings {
@@ -676,6 +680,7 @@ impl Options {
             window: None,
             ssaa: self.ssaa,
             tile_size: self.tile_size,
+            tile_lists: true,
             look: Look {
                 background: self.background,
                 outline: self.outline,

@@ -10,6 +10,7 @@ use glam::DVec3;
 use sphereshade::camera::Camera;
 use sphereshade::gpu::Globals;
 use sphereshade::passes::blur::{Axis, BlurIo, BlurPass, BlurPush};
+use sphereshade::passes::coverage::Tiles;
 use sphereshade::passes::spirv;
 use sphereshade::passes::ssdo::Record;
 use sphereshade::render::{Renderer, level_choice};
@@ -329,7 +330,7 @@ fn blur_keeps_edges(half: bool) {
         up("keys", bytemuck::cast_slice(&keys), st),
     ];
     let mut blur = BlurPass::new();
-    blur.prepare(&ctx, false).expect("pipelines");
+    blur.prepare(&ctx, false, false).expect("pipelines");
     let push = BlurPush {
         sigma_z: 1.0,
         level_b: 0,
@@ -348,7 +349,7 @@ fn blur_keeps_edges(half: bool) {
                 input,
                 output,
             };
-            blur.record(rec, axis, false, (2, half), &io, &push, (w, h))?;
+            blur.record(rec, axis, false, (2, half), &io, &push, (w, h), Tiles::All)?;
         }
         Ok(())
     })

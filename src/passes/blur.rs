@@ -4,9 +4,10 @@
 //! resolution and the semantic region test are specialization constants.
 //! See glsl/blur.comp.
 
-use super::shade::{Variants, tile_grid};
+use super::coverage::{TILE_BINDING, Tiles};
+use super::shade::Variants;
 use super::spirv;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::vk::pipeline::{Binding, texel, uniform, wo};
 use crate::vk::{Buffer, Context, Recorder};
 use ash::vk::Format;
@@ -44,12 +45,13 @@ impl Axis {
     }
 }
 
-const BINDINGS: [Binding; 5] = [
+const BINDINGS: [Binding; 6] = [
     uniform("GlobalsBlock"),
     texel("recordTex", Format::R32G32B32A32_UINT),
     texel("inTex", Format::R32_UINT),
     wo("Out"),
     texel("keyTex", Format::R32_UINT),
+    TILE_BINDING,
 ];
 
 #[derive(Default)]
@@ -81,17 +83,19 @@ impl BlurPass {
         ]
     }
 
-    pub fn prepare(&mut self, ctx: &Context, semantic: bool) -> Result<()> {
+    /// `lists`: the pipelines for the tile lists (else for every tile).
+    pub fn prepare(&mut self, ctx: &Context, semantic: bool, lists: bool) -> Result<()> {
         for radius in BLUR_RADII {
             for half in [false, true] {
                 for axis in [Axis::Horizontal, Axis::Vertical] {
-                    self.variants.ensure(
+                    self.variants.ensure_tiled(
                         ctx,
                         axis.name(),
                         spirv::BLUR_COMP,
                         &BINDINGS,
                         std::mem::size_of::<BlurPush>() as u32,
                         &Self::constants(axis, semantic, radius, half),
+                        lists,
                     )?;
                 }
             }
@@ -112,19 +116,17 @@ impl BlurPass {
         io: &BlurIo,
         push: &BlurPush,
         size: (u32, u32),
+        tiles: Tiles,
     ) -> Result<()> {
-        let pipe = self
-            .variants
-            .get(
+        rec.pass(axis.name(), |p| {
+            self.variants.dispatch_tiled(
+                p,
+                axis.name(),
                 spirv::BLUR_COMP,
                 &Self::constants(axis, semantic, radius, half),
-            )
-            .ok_or_else(|| Error::Internal("blur: pipeline not prepared".into()))?;
-        rec.pass(axis.name(), |p| {
-            p.dispatch(
-                pipe,
                 push,
-                tile_grid(size.0, size.1),
+                tiles,
+                (size, half),
                 &[
                     ("GlobalsBlock", io.globals),
                     ("recordTex", io.records),
@@ -132,8 +134,7 @@ impl BlurPass {
                     ("Out", io.output),
                     ("keyTex", io.keys),
                 ],
-            );
-            Ok(())
+            )
         })
     }
 

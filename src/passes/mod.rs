@@ -6,6 +6,7 @@
 
 pub mod bands;
 pub mod blur;
+pub mod coverage;
 pub mod raster;
 pub mod raster_graphics;
 pub mod shade;

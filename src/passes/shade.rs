@@ -6,11 +6,12 @@
 //! specialization constants; pipelines are made the first time a
 //! combination is used and kept.
 
+use super::coverage::{TILE_BINDING, Tiles};
 use super::shadows::{Lookup, LookupKind};
 use super::{LOCAL_SIZE, spirv};
 use crate::error::Result;
 use crate::vk::pipeline::{Binding, PipelineDesc, Shader, texel, uniform, wo};
-use crate::vk::{Buffer, ComputePipeline, Context, Grid, Recorder};
+use crate::vk::{Buffer, ComputePipeline, Context, Grid, PassBuilder, Recorder};
 use ash::vk::Format;
 use bytemuck::{Pod, Zeroable};
 use std::collections::HashMap;
@@ -77,15 +78,24 @@ pub fn tile_grid(w: u32, h: u32) -> Grid<'static> {
     Grid::Invocations(w.div_ceil(8) as u64 * h.div_ceil(8) as u64 * LOCAL_SIZE as u64)
 }
 
-/// Pipelines made on first use, by (variant, constants). A variant is
-/// keyed by the address of its embedded SPIR-V (one static per variant).
+/// Pipelines made on first use, by (variant, constants).
 #[derive(Default)]
 pub struct Variants {
     made: HashMap<(usize, Vec<u32>), ComputePipeline>,
 }
 
+/// A variant is keyed by its SPIR-V's content (FNV-1a over 8-byte words,
+/// a few microseconds): the embedded bytes of one `const` may sit at
+/// different addresses in different codegen units, so the address is no
+/// key.
 fn key(shader: Shader, constants: &[u32]) -> (usize, Vec<u32>) {
-    (shader.spirv.as_ptr() as usize, constants.to_vec())
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325 ^ shader.spirv.len() as u64;
+    for c in shader.spirv.chunks(8) {
+        let mut w = [0u8; 8];
+        w[..c.len()].copy_from_slice(c);
+        h = (h ^ u64::from_le_bytes(w)).wrapping_mul(0x0100_0000_01b3);
+    }
+    (h as usize, constants.to_vec())
 }
 
 impl Variants {
@@ -123,6 +133,62 @@ impl Variants {
         self.made.get(&key(shader, constants))
     }
 
+    /// [`Variants::ensure`] for a tiled shader (glsl/tiles.glsl): the
+    /// pipelines with its TILE_LIST constant appended (the last id), for
+    /// the covered and background lists or for every tile.
+    #[allow(clippy::too_many_arguments)]
+    pub fn ensure_tiled(
+        &mut self,
+        ctx: &Context,
+        name: &'static str,
+        shader: Shader,
+        bindings: &[Binding],
+        push_size: u32,
+        constants: &[u32],
+        lists: bool,
+    ) -> Result<()> {
+        for &t in Tiles::constants(lists) {
+            let mut c = constants.to_vec();
+            c.push(t);
+            self.ensure(ctx, name, shader, bindings, push_size, &c)?;
+        }
+        Ok(())
+    }
+
+    /// A tiled shader's dispatches on a w x h grid (`half`: of blocks):
+    /// one per tile list, `TileLists` bound to the lists (or, for every
+    /// tile, to the first storage buffer given: unread).
+    #[allow(clippy::too_many_arguments)]
+    pub fn dispatch_tiled<'b, P: Pod>(
+        &'b self,
+        p: &mut PassBuilder<'b>,
+        name: &str,
+        shader: Shader,
+        constants: &[u32],
+        push: &P,
+        tiles: Tiles<'b>,
+        (size, half): ((u32, u32), bool),
+        bufs: &[(&'static str, &'b Buffer)],
+    ) -> Result<()> {
+        // (for every tile the lists are unread: any storage buffer given)
+        let fallback = bufs
+            .iter()
+            .map(|b| b.1)
+            .find(|b| b.is_storage())
+            .ok_or_else(|| crate::Error::Internal(format!("{name}: no storage buffer bound")))?;
+        let mut all = bufs.to_vec();
+        all.push(("TileLists", tiles.buffer(fallback)));
+        for (t, grid) in tiles.dispatches(size, half) {
+            let mut c = constants.to_vec();
+            c.push(t);
+            let pipe = self
+                .get(shader, &c)
+                .ok_or_else(|| crate::Error::Internal(format!("{name}: pipeline not prepared")))?;
+            p.dispatch(pipe, push, grid, &all);
+        }
+        Ok(())
+    }
+
     pub fn destroy(&mut self, ctx: &Context) {
         for (_, mut p) in self.made.drain() {
             p.destroy(ctx);
@@ -153,6 +219,9 @@ pub struct ShadeMode {
     pub outline: bool,
     /// RGBA16 colour.
     pub wide: bool,
+    /// Run on the tile lists (not with silhouette lines, which reach from
+    /// covered pixels into background regions).
+    pub lists: bool,
 }
 
 impl ShadeMode {
@@ -193,19 +262,21 @@ impl ShadePass {
     fn bindings(lookup: &Lookup) -> Vec<Binding> {
         let mut b: Vec<Binding> = SURFACE_BINDINGS.to_vec();
         b.extend_from_slice(&SHADE_OUTPUTS);
+        b.push(TILE_BINDING);
         b.extend_from_slice(lookup.bindings);
         b
     }
 
-    /// Makes the pipeline of `mode` if this is its first use.
+    /// Makes the pipelines of `mode` if this is their first use.
     pub fn prepare(&mut self, ctx: &Context, mode: ShadeMode, lookup: &Lookup) -> Result<()> {
-        self.variants.ensure(
+        self.variants.ensure_tiled(
             ctx,
             Self::NAME,
             variant(mode.kind, true),
             &Self::bindings(lookup),
             std::mem::size_of::<ShadePush>() as u32,
             &mode.constants(),
+            mode.lists,
         )
     }
 
@@ -224,11 +295,9 @@ impl ShadePass {
         (color, aov): (&Buffer, &Buffer),
         push: &ShadePush,
         (w, h): (u32, u32),
+        tiles: Tiles,
     ) -> Result<()> {
-        let pipe = self
-            .variants
-            .get(variant(mode.kind, true), &mode.constants())
-            .ok_or_else(|| crate::Error::Internal("shade: pipeline not prepared".into()))?;
+        let tiles = if mode.lists { tiles } else { Tiles::All };
         let mut bufs = vec![
             ("GlobalsBlock", io.globals),
             ("visTex", io.vis),
@@ -242,8 +311,16 @@ impl ShadePass {
         ];
         bufs.extend(lookup.buffers.iter().copied());
         rec.pass(Self::NAME, |p| {
-            p.dispatch(pipe, push, tile_grid(w, h), &bufs);
-            Ok(())
+            self.variants.dispatch_tiled(
+                p,
+                Self::NAME,
+                variant(mode.kind, true),
+                &mode.constants(),
+                push,
+                tiles,
+                ((w, h), false),
+                &bufs,
+            )
         })
     }
 

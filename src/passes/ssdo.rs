@@ -8,7 +8,8 @@
 //! blocks'. See glsl/ssdo.comp.
 
 use super::bands::{BandArgs, BandCounters, counters_buffer};
-use super::shade::{SURFACE_BINDINGS, ScreenInputs, Variants, tile_grid, variant};
+use super::coverage::{TILE_BINDING, Tiles};
+use super::shade::{SURFACE_BINDINGS, ScreenInputs, Variants, variant};
 use super::shadows::Lookup;
 use super::{LOCAL_SIZE, spirv};
 use crate::error::{Error, Result};
@@ -209,7 +210,7 @@ const SPHERE_BINDINGS: [Binding; 8] = [
     texel("attrTex", Format::R32G32B32A32_UINT),
     texel("visWordTex", Format::R32_UINT),
 ];
-const SSDO_BINDINGS: [Binding; 9] = [
+const SSDO_BINDINGS: [Binding; 10] = [
     uniform("GlobalsBlock"),
     texel("recordTex", Format::R32G32B32A32_UINT),
     uniform("SampleTable"),
@@ -219,6 +220,7 @@ const SSDO_BINDINGS: [Binding; 9] = [
     texel("attrTex", Format::R32G32B32A32_UINT),
     texel("visWordTex", Format::R32_UINT),
     wo("Keys"),
+    TILE_BINDING,
 ];
 
 impl SsdoPass {
@@ -252,6 +254,7 @@ impl SsdoPass {
     fn prep_bindings(lookup: &Lookup) -> Vec<Binding> {
         let mut b = SURFACE_BINDINGS.to_vec();
         b.extend_from_slice(&PREP_OUTPUTS);
+        b.push(TILE_BINDING);
         b.extend_from_slice(lookup.bindings);
         b
     }
@@ -263,17 +266,19 @@ impl SsdoPass {
         lookup: &Lookup,
         semantic: bool,
         taps: Taps,
+        lists: bool,
     ) -> Result<()> {
         if taps.dirs as usize > TABLE_SIZE || taps.dirs == 0 || taps.steps == 0 {
             return Err(Error::Internal(format!("ssdo: bad tap counts {taps:?}")));
         }
-        self.prep.ensure(
+        self.prep.ensure_tiled(
             ctx,
             Self::PREP_NAME,
             variant(lookup.kind, false),
             &Self::prep_bindings(lookup),
             std::mem::size_of::<PrepPush>() as u32,
             &Self::prep_constants(lookup, taps),
+            lists,
         )?;
         if taps.per_sphere() {
             if self.list.is_none() {
@@ -301,13 +306,14 @@ impl SsdoPass {
                 &taps.sphere_constants(semantic),
             );
         }
-        self.ssdo.ensure(
+        self.ssdo.ensure_tiled(
             ctx,
             Self::NAME,
             spirv::SSDO_COMP,
             &SSDO_BINDINGS,
             std::mem::size_of::<SsdoPush>() as u32,
             &taps.constants(semantic),
+            lists,
         )
     }
 
@@ -334,14 +340,8 @@ impl SsdoPass {
         push: &PrepPush,
         taps: Taps,
         half: (u32, u32),
+        tiles: Tiles,
     ) -> Result<()> {
-        let pipe = self
-            .prep
-            .get(
-                variant(lookup.kind, false),
-                &Self::prep_constants(lookup, taps),
-            )
-            .ok_or_else(|| Error::Internal("ssdo_prep: pipeline not prepared".into()))?;
         let mut bufs = vec![
             ("GlobalsBlock", io.globals),
             ("visTex", io.vis),
@@ -355,8 +355,16 @@ impl SsdoPass {
             if taps.per_sphere() {
                 p.fill(flags, flags.size, 0);
             }
-            p.dispatch(pipe, push, tile_grid(half.0, half.1), &bufs);
-            Ok(())
+            self.prep.dispatch_tiled(
+                p,
+                Self::PREP_NAME,
+                variant(lookup.kind, false),
+                &Self::prep_constants(lookup, taps),
+                push,
+                tiles,
+                (half, true),
+                &bufs,
+            )
         })
     }
 
@@ -432,16 +440,17 @@ impl SsdoPass {
         semantic: bool,
         taps: Taps,
         size: (u32, u32),
+        tiles: Tiles,
     ) -> Result<()> {
-        let pipe = self
-            .ssdo
-            .get(spirv::SSDO_COMP, &taps.constants(semantic))
-            .ok_or_else(|| Error::Internal("ssdo: pipeline not prepared".into()))?;
         rec.pass(Self::NAME, |p| {
-            p.dispatch(
-                pipe,
+            self.ssdo.dispatch_tiled(
+                p,
+                Self::NAME,
+                spirv::SSDO_COMP,
+                &taps.constants(semantic),
                 push,
-                tile_grid(size.0, size.1),
+                tiles,
+                (size, taps.per_block()),
                 &[
                     ("GlobalsBlock", io.globals),
                     ("recordTex", records),
@@ -453,8 +462,7 @@ impl SsdoPass {
                     ("visWordTex", io.vis),
                     ("Keys", keys),
                 ],
-            );
-            Ok(())
+            )
         })
     }
 

@@ -7,6 +7,7 @@ use super::Resources;
 use crate::error::Result;
 use crate::passes::ShadowInputs;
 use crate::passes::blur::{Axis, BlurIo};
+use crate::passes::coverage::{CoveragePass, Tiles};
 use crate::passes::raster::{RasterPass, ViewIndex};
 use crate::passes::shade::{ScreenInputs, ShadePush};
 use crate::settings::{RenderSettings, SsdoMode};
@@ -53,6 +54,10 @@ pub const PASSES: &[(&str, &str)] = &[
     (
         "osm_prefix",
         "prefix sum of the optical depth across the slices",
+    ),
+    (
+        "coverage",
+        "which 16x16-pixel regions show a sphere (256 id fetches per region): two lists with their indirect dispatch arguments; `ssdo_prep`, `ssdo`, `blur_*` and `shade` run their full shader on the covered regions and a variant compiled to the background path alone on the others (lavapipe runs a branch no lane takes), so background costs about a buffer write",
     ),
     (
         "ssdo_prep",
@@ -147,6 +152,17 @@ impl Resources {
             )?;
         }
 
+        let tiles = if settings.tile_lists {
+            rec.pass(CoveragePass::NAME, |p| {
+                self.coverage
+                    .steps(p, globals, &t.vis, &t.tiles, (t.width, t.height));
+                Ok(())
+            })?;
+            Tiles::Lists(&t.tiles)
+        } else {
+            Tiles::All
+        };
+
         let lookup = self.lookup(settings);
         let screen = ScreenInputs {
             globals,
@@ -174,6 +190,7 @@ impl Resources {
                 &p.prep,
                 p.taps,
                 half,
+                tiles,
             )?;
             if let Some(sb) = spheres {
                 st.pass
@@ -195,6 +212,7 @@ impl Resources {
                     semantic,
                     p.taps,
                     grid,
+                    tiles,
                 )?;
             }
             if settings.blur && spheres.is_none() {
@@ -212,7 +230,7 @@ impl Resources {
                     };
                     let shape = (p.blur_radius, p.taps.per_block());
                     st.blur
-                        .record(rec, axis, semantic, shape, &io, &p.blur, grid)?;
+                        .record(rec, axis, semantic, shape, &io, &p.blur, grid, tiles)?;
                 }
             }
         }
@@ -243,6 +261,7 @@ impl Resources {
                 ao_level_b: ssdo_params.blur.level_b,
             },
             (t.width, t.height),
+            tiles,
         )
     }
 }

@@ -13,6 +13,7 @@ use crate::camera::Camera;
 use crate::error::{Error, Result};
 use crate::gpu::{Globals, GpuSphere, SphereAttr};
 use crate::passes::blur::{BlurPass, BlurPush};
+use crate::passes::coverage::CoveragePass;
 use crate::passes::raster::RasterPass;
 use crate::passes::raster_graphics::GraphicsRasterPass;
 use crate::passes::shade::{ShadeMode, ShadePass};
@@ -188,6 +189,7 @@ pub(crate) struct Resources {
     attrs: Buffer,
     targets: Targets,
     raster: RasterPass,
+    coverage: CoveragePass,
     /// The vertex/fragment baseline, when `--raster graphics`.
     raster_graphics: Option<GraphicsRasterPass>,
     shade: ShadePass,
@@ -364,6 +366,7 @@ impl Resources {
             core_only: lookup.core_only(),
             outline: self.outline_px(settings) > 0,
             wide: settings.look.color16,
+            lists: settings.tile_lists && self.outline_px(settings) == 0,
         }
     }
 
@@ -400,7 +403,8 @@ impl Resources {
             && let Some(st) = &mut self.ssdo
         {
             let semantic = settings.ssdo == SsdoMode::Semantic;
-            st.pass.prepare(ctx, &plain, semantic, taps)?;
+            st.pass
+                .prepare(ctx, &plain, semantic, taps, settings.tile_lists)?;
             if taps.per_sphere()
                 && st.spheres.as_ref().map(|b| b.spheres) != Some(self.sphere_count)
             {
@@ -409,7 +413,7 @@ impl Resources {
                 }
                 st.spheres = Some(SphereBuffers::new(ctx, self.sphere_count)?);
             }
-            st.blur.prepare(ctx, semantic)?;
+            st.blur.prepare(ctx, semantic, settings.tile_lists)?;
         }
         Ok(())
     }
@@ -473,6 +477,7 @@ impl<'c> Renderer<'c> {
             slots.push(FrameSlot::new(ctx, i)?);
         }
         let raster = ctx.guard(RasterPass::new(ctx)?);
+        let coverage = ctx.guard(CoveragePass::new(ctx)?);
 
         let (bs_center, bs_radius) = scene.bounding_sphere();
         let levels = semantic::useful_levels(scene);
@@ -495,6 +500,7 @@ impl<'c> Renderer<'c> {
             attrs: attr_buf.keep(),
             targets: targets.keep(),
             raster: raster.keep(),
+            coverage: coverage.keep(),
             raster_graphics: raster_graphics.keep(),
             shade: ShadePass::new(),
             techniques: Vec::new(),
@@ -1105,6 +1111,12 @@ impl<'c> Renderer<'c> {
             .collect())
     }
 
+    /// The last frame's tile lists (passes/coverage.rs, TL_* words), whole.
+    pub fn read_tile_lists(&self) -> Result<Vec<u32>> {
+        let b = &self.res.targets.tiles;
+        b.download_pod(self.ctx, 0, b.size / 4)
+    }
+
     /// The half-resolution SSDO records of the last frame (tests).
     pub fn read_records(&self) -> Result<Vec<crate::passes::ssdo::Record>> {
         let (hw, hh) = self.res.targets.half();
@@ -1239,6 +1251,7 @@ impl Drop for Renderer<'_> {
         self.slots.destroy_with(ctx);
         let r = &mut self.res;
         r.raster.destroy(ctx);
+        r.coverage.destroy(ctx);
         r.raster_graphics.destroy_with(ctx);
         r.shade.destroy(ctx);
         r.techniques.destroy_with(ctx);

@@ -31,6 +31,8 @@ pub struct Targets {
     pub ao: Buffer,
     /// Per pixel: the blur's edge keys (view distance and region).
     pub keys: Buffer,
+    /// The coverage pass's tile lists (passes/coverage.rs).
+    pub tiles: Buffer,
 }
 
 /// Half-resolution size (one block per 2x2 pixels).
@@ -56,6 +58,7 @@ impl Targets {
         let records = storage("ssdo records", blocks * 16)?;
         let ao = storage("ssdo ao", pixels * 4)?;
         let keys = storage("ssdo blur keys", pixels * 4)?;
+        let tiles = ctx.guard(crate::passes::coverage::lists_buffer(ctx, width, height)?);
         Ok(Targets {
             width,
             height,
@@ -68,6 +71,7 @@ impl Targets {
             records: records.keep(),
             ao: ao.keep(),
             keys: keys.keep(),
+            tiles: tiles.keep(),
         })
     }
 
@@ -75,10 +79,11 @@ impl Targets {
         half(self.width, self.height)
     }
 
-    /// Bytes by memory class: (visibility, gbuffer = colour + AOVs, ssdo).
+    /// Bytes by memory class: (visibility with its tile lists, gbuffer =
+    /// colour + AOVs, ssdo).
     pub fn memory(&self) -> (u64, u64, u64) {
         (
-            self.vis.size,
+            self.vis.size + self.tiles.size,
             self.color.size + self.aov.size,
             self.records.size + self.ao.size + self.keys.size,
         )
@@ -92,6 +97,7 @@ impl Targets {
             &mut self.records,
             &mut self.ao,
             &mut self.keys,
+            &mut self.tiles,
         ] {
             b.destroy(ctx);
         }

@@ -329,6 +329,11 @@ impl Buffer {
         Ok(bytemuck::pod_collect_to_vec(&bytes))
     }
 
+    /// Whether the buffer can be bound as a storage buffer.
+    pub fn is_storage(&self) -> bool {
+        self.usage.contains(vk::BufferUsageFlags::STORAGE_BUFFER)
+    }
+
     pub fn descriptor(&self) -> vk::DescriptorBufferInfo {
         vk::DescriptorBufferInfo {
             buffer: self.raw,

@@ -91,6 +91,7 @@ pub fn settings(camera: Camera, shadows: ShadowMode) -> RenderSettings {
         look: Default::default(),
         ssaa: 1,
         tile_size: None,
+        tile_lists: true,
     }
 }
 
