@@ -219,13 +219,15 @@ pub struct ShadeMode {
     pub outline: bool,
     /// RGBA16 colour.
     pub wide: bool,
+    /// Depth cue (the push constants' fog range).
+    pub fog: bool,
     /// Run on the tile lists (not with silhouette lines, which reach from
     /// covered pixels into background regions).
     pub lists: bool,
 }
 
 impl ShadeMode {
-    fn constants(&self) -> [u32; 10] {
+    fn constants(&self) -> [u32; 11] {
         let use_shadow = !matches!(self.kind, LookupKind::None | LookupKind::Screen);
         [
             self.soft as u32,
@@ -238,6 +240,7 @@ impl ShadeMode {
             self.wide as u32,
             self.ao_half as u32,
             self.ao_sphere as u32,
+            self.fog as u32,
         ]
     }
 }
