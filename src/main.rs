@@ -19,9 +19,10 @@ fn main() {
         }
         Err(e) => {
             // Usage errors follow the error contract too: one line, exit 1.
-            let text = e.render().to_string();
-            let line = text.lines().next().unwrap_or("invalid command line");
-            eprintln!("sphereshade: {}", printable(line));
+            eprintln!(
+                "sphereshade: {}",
+                printable(&usage_line(&e.render().to_string()))
+            );
             std::process::exit(1);
         }
     };
@@ -40,4 +41,22 @@ fn main() {
             std::process::exit(1);
         }
     }
+}
+
+/// clap's message on one line: its first line and the indented lines that
+/// continue it (the missing arguments of "the following required arguments
+/// were not provided:"), up to the blank line before the usage.
+fn usage_line(text: &str) -> String {
+    let mut lines = text.lines();
+    let mut line = lines.next().unwrap_or("invalid command line").to_string();
+    let more: Vec<&str> = lines
+        .take_while(|l| !l.trim().is_empty())
+        .filter(|l| l.starts_with(' '))
+        .map(str::trim)
+        .collect();
+    if !more.is_empty() {
+        line.push(' ');
+        line.push_str(&more.join(", "));
+    }
+    line
 }

@@ -270,6 +270,11 @@ fn cases(d: &Path) -> Vec<Case> {
         ),
         c("an unknown option", vec!["render".into(), "--bogus".into()], "--bogus"),
         c(
+            "a missing required option",
+            vec!["bench".into(), "--quick".into()],
+            "not provided: --json <JSON>",
+        ),
+        c(
             "--fov -40",
             render(procedural.clone(), &["--fov", "-40"]),
             "--fov must be between 0 and 179",
