@@ -18,7 +18,6 @@
 //   void band_inline(uint id);  the job list was full for this sphere
 //   bool band_replay(uint id);
 //   #define BAND_REQ, BAND_RUN  word indices of counters[]
-//   optionally BAND_SPANS and band_row_span() (see visit_rect)
 // with buffers jobs[] (uvec2: sphere id, first row) and counters[] (uint),
 // and push constants pc.sphere_count, pc.big_area, pc.job_capacity.
 #ifndef BANDS_GLSL
@@ -27,18 +26,18 @@
 
 layout(constant_id = 1) const uint BAND_PASS = 0;
 
-// Per-row spans: an includer that defines BAND_SPANS provides
-// `ivec2 band_row_span(Footprint f, int y)` (first and last texel of row y
-// that can be covered) and the per-sphere loop visits only those.
+// One loop over the rectangle, the column stepping and wrapping into the
+// next row (selects, no division). Measured on lavapipe against rows x
+// per-row disk spans: the same camera raster, the light raster of 1-texel
+// spheres 38 -> 35 ms (1M capsid): the loop overhead of the short rows
+// cost more than the corners' ray tests.
 void visit_rect(uint id, Footprint f, ivec4 rc) {
-    for (int y = rc.y; y <= rc.w; ++y) {
-#ifdef BAND_SPANS
-        ivec2 sp = band_row_span(f, y);
-        int x0 = max(rc.x, sp.x), x1 = min(rc.z, sp.y);
-#else
-        int x0 = rc.x, x1 = rc.z;
-#endif
-        for (int x = x0; x <= x1; ++x) visit(id, f, ivec2(x, y));
+    int n = (rc.z - rc.x + 1) * (rc.w - rc.y + 1);
+    ivec2 t = rc.xy;
+    for (int i = 0; i < n; ++i) {
+        visit(id, f, t);
+        bool wrap = t.x == rc.z;
+        t = wrap ? ivec2(rc.x, t.y + 1) : ivec2(t.x + 1, t.y);
     }
 }
 

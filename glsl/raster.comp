@@ -76,18 +76,6 @@ void visit(uint id, Footprint f, ivec2 t) {
     if (texelFetch(visWordTex, int(2u * k + 1u)).x >= floatBitsToUint(d)) atomicMin(vis[k], key);
 }
 
-// Orthographic: the pixels of row y whose centres can hit the disk of
-// radius r (a 1e-3 pixel slack for rounding; visit() tests exactly), so
-// the small-sphere loop skips the bounding square's corners. Perspective
-// keeps the whole row.
-ivec2 band_row_span(Footprint f, int y) {
-    if (PERSP) return ivec2(-0x7FFFFFFF, 0x7FFFFFFF);
-    float dy = f.origin.y - float(y) * f.step;
-    float half_w = sqrt(max(f.r * f.r - dy * dy, 0.0));
-    float inv = 1.0 / f.step;
-    return ivec2(ceil((-half_w - f.origin.x) * inv - 1e-3), floor((half_w - f.origin.x) * inv + 1e-3));
-}
-#define BAND_SPANS
 
 bool band_queue() { return true; }
 void band_inline(uint id) {}

@@ -21,7 +21,7 @@ pub const SHADOW_DIFFUSE: f32 = 0.05;
 pub const PASSES: &[(&str, &str)] = &[
     (
         "raster",
-        "one invocation per sphere: exact ray-sphere test per covered pixel (per-row spans of the disk; orthographic/perspective a specialization constant), the stored depth read first (a 4-byte texel gather through an R32UI view of the buffer) and the 64-bit `atomicMin(depth<<32 \\| id)` only where nearer; footprints above 1024 px (CPU) / 256 px (GPU) are split into 8-row bands that whole workgroups process (indirect dispatch); `--raster graphics`: the vertex/fragment impostor baseline, same output",
+        "one invocation per sphere: exact ray-sphere test per pixel of the footprint's rectangle (one flat loop; orthographic/perspective a specialization constant), the stored depth read first (a 4-byte texel gather through an R32UI view of the buffer) and the 64-bit `atomicMin(depth<<32 \\| id)` only where nearer; footprints above 1024 px (CPU) / 256 px (GPU) are split into 8-row bands that whole workgroups process (indirect dispatch); `--raster graphics`: the vertex/fragment impostor baseline, same output",
     ),
     (
         "issm_raster",
