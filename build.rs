@@ -1,5 +1,5 @@
 //! Compiles every shader in glsl/ to SPIR-V with shaderc and writes
-//! `shaders.rs` (one `pub const NAME: Shader` per shader, with its file name
+//! `shaders.rs` (one `pub static NAME: Shader` per shader, with its file name
 //! for error messages) into OUT_DIR, so the binary embeds them. Shared
 //! headers are resolved by `#include "x.glsl"`; `constants.glsl` is
 //! generated here from src/gpu_consts.rs, the one list of constants Rust
@@ -148,7 +148,7 @@ fn main() {
                     fs::write(&spv, artifact.as_binary_u8()).expect("write spv");
                     writeln!(
                         index,
-                        "pub const {const_name}: crate::vk::pipeline::Shader = crate::vk::pipeline::Shader {{ \
+                        "pub static {const_name}: crate::vk::pipeline::Shader = crate::vk::pipeline::Shader {{ \
                          file: {file_name:?}, spirv: include_bytes!({:?}) }};",
                         spv.display().to_string()
                     )

@@ -48,11 +48,18 @@ uint texel_id(ivec2 t, int size) {
     return texelFetch(issmTex, 2 * (t.y * size + t.x)).x;
 }
 
+// The closeness of the sphere at light texel t to shadowing s (0 for an
+// empty texel and for s's own sphere: a sphere never shadows itself).
+float texel_closeness(Surface s, vec3 dl, ivec2 t, int size) {
+    uint id = texel_id(t, size);
+    if (id == NO_SPHERE || id == s.id) return 0.0;
+    return occluder_closeness(s.p, dl, texelFetch(sphereTex, int(id)));
+}
+
 float key_visibility(Surface s, uint pixel) {
     View L = g.light;
-    vec3 p = s.p;
     vec3 dl = -L.dir.xyz; // toward the light
-    ivec2 c = ivec2(round(light_uv(L, p) - 0.5));
+    ivec2 c = ivec2(round(light_uv(L, s.p) - 0.5));
     int size = int(L.dims.x);
     int t = int(g.shadow_u.x), stride = int(max(g.shadow_u.y, 1u));
     float m = 0.0; // the largest closeness so far
@@ -61,9 +68,7 @@ float key_visibility(Surface s, uint pixel) {
     // Dense core: the spheres nearest the light around P's own texel.
     for (int dy = -1; dy <= 1 && m < 1.0; ++dy) {
         for (int dx = -1; dx <= 1; ++dx) {
-            uint id = texel_id(c + ivec2(dx, dy), size);
-            if (id == NO_SPHERE || id == s.id) continue;
-            m = max(m, occluder_closeness(p, dl, texelFetch(sphereTex, int(id))));
+            m = max(m, texel_closeness(s, dl, c + ivec2(dx, dy), size));
         }
     }
     // The rest of the (2t+1)^2 patch, every `stride` texels: the stride is at
@@ -73,9 +78,7 @@ float key_visibility(Surface s, uint pixel) {
     for (int dy = -lim; !ISSM_CORE_ONLY && dy <= lim && m < 1.0; dy += stride) {
         for (int dx = -lim; dx <= lim; dx += stride) {
             if (abs(dx) <= 1 && abs(dy) <= 1) continue;
-            uint id = texel_id(c + ivec2(dx, dy), size);
-            if (id == NO_SPHERE || id == s.id) continue;
-            m = max(m, occluder_closeness(p, dl, texelFetch(sphereTex, int(id))));
+            m = max(m, texel_closeness(s, dl, c + ivec2(dx, dy), size));
         }
     }
     if (!SOFT) return 1.0 - m;

@@ -45,8 +45,8 @@ layout(set = 0, binding = 8) uniform usamplerBuffer sphereAoTex;  // per sphere 
 layout(push_constant) uniform Push {
     float shadow_diffuse; // fraction of key diffuse kept in full shadow
     float outline_px;     // line width in pixels (OUTLINE)
-    float fog_near;       // view_z where the depth cue starts and ends;
-    float fog_far;        // fog_far <= fog_near: no fog
+    float fog_near;       // view_z where the depth cue starts and ends
+    float fog_far;        // (read with FOG, which the host sets when far > near)
     float edge_dz;        // a neighbour nearer by more than this is an edge
     uint level;           // hierarchy level whose region changes are edges
     float ao_sigma_z;     // depth tolerance of the SSDO upsample
@@ -255,7 +255,7 @@ void main() {
            + vec3(0.25 * spec * vis_key) + vec3(rim * ao);
     c = filmic(c);
     float alpha = 1.0;
-    if (FOG && pc.fog_far > pc.fog_near) {
+    if (FOG) {
         // depth cue toward the background (display-linear), or toward
         // transparency over a transparent one
         float f = clamp((z - pc.fog_near) / (pc.fog_far - pc.fog_near), 0.0, 1.0);

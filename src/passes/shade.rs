@@ -23,7 +23,7 @@ pub struct ShadePush {
     pub shadow_diffuse: f32,
     /// Silhouette line width in pixels (with ShadeMode::outline).
     pub outline_px: f32,
-    /// Depth cue from view_z fog_near to fog_far (fog_far <= fog_near: none).
+    /// Depth cue from view_z fog_near to fog_far (used with ShadeMode::fog).
     pub fog_near: f32,
     pub fog_far: f32,
     /// A neighbour nearer by more than this (world units) makes a line.
@@ -84,18 +84,11 @@ pub struct Variants {
     made: HashMap<(usize, Vec<u32>), ComputePipeline>,
 }
 
-/// A variant is keyed by its SPIR-V's content (FNV-1a over 8-byte words,
-/// a few microseconds): the embedded bytes of one `const` may sit at
-/// different addresses in different codegen units, so the address is no
-/// key.
+/// A variant is keyed by the address of its embedded SPIR-V: build.rs
+/// makes each shader a `static`, whose bytes have one address (a `const`'s
+/// may be copied per codegen unit, and then the key misses).
 fn key(shader: Shader, constants: &[u32]) -> (usize, Vec<u32>) {
-    let mut h: u64 = 0xcbf2_9ce4_8422_2325 ^ shader.spirv.len() as u64;
-    for c in shader.spirv.chunks(8) {
-        let mut w = [0u8; 8];
-        w[..c.len()].copy_from_slice(c);
-        h = (h ^ u64::from_le_bytes(w)).wrapping_mul(0x0100_0000_01b3);
-    }
-    (h as usize, constants.to_vec())
+    (shader.spirv.as_ptr() as usize, constants.to_vec())
 }
 
 impl Variants {
@@ -219,7 +212,8 @@ pub struct ShadeMode {
     pub outline: bool,
     /// RGBA16 colour.
     pub wide: bool,
-    /// Depth cue (the push constants' fog range).
+    /// Depth cue: the push constants' fog range is not empty (the one place
+    /// that decides; the shader reads the range only then).
     pub fog: bool,
     /// Run on the tile lists (not with silhouette lines, which reach from
     /// covered pixels into background regions).
