@@ -41,6 +41,10 @@ void visit_rect(uint id, Footprint f, ivec4 rc) {
     }
 }
 
+// One copy of the visit loop, entered by small footprints, by spheres the
+// deep lists' fill pass replays, and when the job list is full: on lavapipe
+// a loop that no lane enters still runs its body once, so each extra copy
+// (there were three) cost every vector of spheres a full visit.
 void band_sphere() {
     uint id = FLAT_ID;
     if (id >= pc.sphere_count) return;
@@ -48,24 +52,25 @@ void band_sphere() {
     ivec4 rc = f.rect;
     if (rc.x > rc.z || rc.y > rc.w) return;
     uint area = uint(rc.z - rc.x + 1) * uint(rc.w - rc.y + 1);
-    if (area <= pc.big_area) {
-        visit_rect(id, f, rc);
-        return;
+    bool here = area <= pc.big_area;
+    if (!here) {
+        if (!band_queue()) {
+            here = band_replay(id);
+        } else {
+            uint nb = uint(rc.w - rc.y) / BAND_ROWS + 1u;
+            uint base = atomicAdd(counters[BAND_REQ], nb);
+            bool queued = base < pc.job_capacity && nb <= pc.job_capacity - base;
+            // Queued: the bands; the job list is full: void the slots this
+            // sphere got and visit here.
+            uint last = min(base + nb, pc.job_capacity);
+            for (uint j = base; j < last; ++j) {
+                jobs[j] = queued ? uvec2(id, uint(rc.y) + (j - base) * BAND_ROWS) : uvec2(NO_SPHERE, 0u);
+            }
+            if (!queued) band_inline(id);
+            here = !queued;
+        }
     }
-    if (!band_queue()) {
-        if (band_replay(id)) visit_rect(id, f, rc);
-        return;
-    }
-    uint nb = uint(rc.w - rc.y) / BAND_ROWS + 1u;
-    uint base = atomicAdd(counters[BAND_REQ], nb);
-    if (base < pc.job_capacity && nb <= pc.job_capacity - base) {
-        for (uint b = 0u; b < nb; ++b) jobs[base + b] = uvec2(id, uint(rc.y) + b * BAND_ROWS);
-        return;
-    }
-    // The job list is full: void the slots this sphere got, visit here.
-    for (uint j = base; j < min(base + nb, pc.job_capacity); ++j) jobs[j] = uvec2(NO_SPHERE, 0u);
-    band_inline(id);
-    visit_rect(id, f, rc);
+    if (here) visit_rect(id, f, rc);
 }
 
 void band_job() {
