@@ -12,7 +12,7 @@ layout(set = 0, binding = 2) buffer Counters { uint counters[]; };
 
 layout(push_constant) uniform Push {
     uint sphere_count;
-    uint group;  // workgroup size of ssdo_sphere.comp
+    uint group;  // workgroup size of ssdo_sphere.comp (a power of two)
     uint pad0, pad1;
 } pc;
 
@@ -21,5 +21,7 @@ void main() {
     if (id >= pc.sphere_count || flags[id] == 0u) return;
     uint slot = atomicAdd(counters[S_LISTED], 1u);
     list[slot] = id;
-    if (slot % pc.group == 0u) atomicAdd(counters[S_GROUPS], 1u);
+    // (a mask, not %: lavapipe divides every lane by a non-constant one
+    // at a time, masked or not)
+    if ((slot & (pc.group - 1u)) == 0u) atomicAdd(counters[S_GROUPS], 1u);
 }

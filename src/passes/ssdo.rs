@@ -187,9 +187,12 @@ crate::impl_destroy!(SphereBuffers);
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 struct ListPush {
     sphere_count: u32,
+    /// ssdo_list.comp counts groups with a mask: a power of two.
     group: u32,
     pad: [u32; 2],
 }
+
+const _: () = assert!(LOCAL_SIZE.is_power_of_two());
 
 const LIST_COUNTERS: BandCounters = BandCounters {
     job_capacity: u32::MAX,
