@@ -50,7 +50,7 @@ float key_visibility(Surface s, uint pixel) {
     vec4 sp = texelFetch(sphereTex, int(s.id));
     vec3 p = s.p;
     View L = g.light;
-    vec3 own_cv = view_space(L, sp.xyz);
+    vec3 own_cv = view_space(L, sp.xyz, false);
     vec3 q = p - L.center.xyz;
     float n = L.right.w;
     vec2 uv = light_uv(L, p) - 0.5;

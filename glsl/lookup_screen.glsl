@@ -18,12 +18,12 @@ float key_visibility(Surface s, uint pixel) {
     uint steps = g.shadow_u.x;
     for (uint j = 1u; j <= steps; ++j) {
         vec3 p = x + l * (march * (float(j) - 1.0 + rot) / float(steps));
-        vec2 px = round(project_px(g.cam, p)) - org;
+        vec2 px = round(project_px(g.cam, p, PERSP)) - org;
         if (px.x < 0.0 || px.y < 0.0 || px.x >= float(w) || px.y >= float(h)) break;
         uint q = uint(px.y) * w + uint(px.x);
         uvec2 v = texelFetch(visTex, int(q)).xy;
         if (v.x == NO_SPHERE || v.x == s.id) continue;
-        float dz = view_z(g.cam, p) - key_view_z(g.cam, px + org, uintBitsToFloat(v.y), g.cam.dir.w != 0.0);
+        float dz = view_z(g.cam, p, PERSP) - key_view_z(g.cam, px + org, uintBitsToFloat(v.y), PERSP);
         if (dz > 0.0 && dz < thickness) return 0.0;
     }
     return 1.0;

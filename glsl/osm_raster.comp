@@ -49,7 +49,7 @@ Footprint band_footprint(uint id) {
     View L = g.light;
     vec4 s = spheres[id];
     Footprint f;
-    f.cv = view_space(L, s.xyz);
+    f.cv = view_space(L, s.xyz, false);
     f.r = s.w;
     f.rect = sphere_rect(L, f.cv, s.w, false); // light views are orthographic
     return f;

@@ -47,7 +47,7 @@ Footprint band_footprint(uint id) {
     Footprint f;
     f.v = pc.view_index == 0u ? g.cam : g.light;
     vec4 s = spheres[id];
-    f.cv = view_space(f.v, s.xyz);
+    f.cv = view_space(f.v, s.xyz, PERSP);
     f.r = s.w;
     f.rect = sphere_rect(f.v, f.cv, s.w, PERSP);
     f.step = 1.0 / f.v.center.w;
@@ -58,7 +58,7 @@ Footprint band_footprint(uint id) {
 void visit(uint id, Footprint f, ivec2 t) {
     float d;
     if (PERSP) {
-        d = hit_depth(f.v, f.cv, f.r, vec2(t));
+        d = hit_depth(f.v, f.cv, f.r, vec2(t), true);
     } else {
         vec2 dxy = f.origin + vec2(t.x, -t.y) * f.step;
         float disc = f.r * f.r - dot(dxy, dxy);

@@ -15,6 +15,7 @@ void main() {
     View v = pc.view_index == 0u ? g.cam : g.light;
     vec4 s = spheres[v_id];
     ivec2 p = ivec2(gl_FragCoord.xy);
-    float d = hit_depth(v, view_space(v, s.xyz), s.w, vec2(p));
+    bool persp = v.dir.w != 0.0; // (a real GPU skips the side not taken)
+    float d = hit_depth(v, view_space(v, s.xyz, persp), s.w, vec2(p), persp);
     if (d >= 0.0) atomicMin(vis[uint(p.y) * v.dims.x + uint(p.x)], vis_key(d, v_id));
 }

@@ -17,7 +17,7 @@ void main() {
     uint corner = uint(gl_VertexIndex) % 6u;
     View v = pc.view_index == 0u ? g.cam : g.light;
     vec4 s = spheres[id];
-    ivec4 rc = sphere_rect(v, view_space(v, s.xyz), s.w, v.dir.w != 0.0);
+    ivec4 rc = sphere_rect(v, view_space(v, s.xyz, v.dir.w != 0.0), s.w, v.dir.w != 0.0);
     v_id = id;
     if (rc.x > rc.z || rc.y > rc.w) {
         gl_Position = vec4(2.0, 2.0, 0.0, 1.0); // degenerate, outside: no fragments

@@ -31,6 +31,8 @@ layout(constant_id = 10) const bool AO_SPHERE = false;
 // Depth cue (--fog): a constant, because lavapipe runs the straight-line
 // code of an if no lane takes (the fog's background and pows every pixel).
 layout(constant_id = 11) const bool FOG = false;
+// Perspective camera (surface.glsl, shared.glsl's view functions).
+layout(constant_id = 12) const bool PERSP = false;
 
 layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
 layout(set = 0, binding = 1) uniform usamplerBuffer visTex;
@@ -56,7 +58,7 @@ layout(push_constant) uniform Push {
 #include "lookup.glsl"
 #include "ssdo_common.glsl"
 #include "ssdo_record.glsl"
-#define TILE_LIST_ID 12
+#define TILE_LIST_ID 13
 #define TILE_LIST_BINDING 9
 #include "tiles.glsl"
 
@@ -120,7 +122,7 @@ bool on_outline(uvec2 px, bool cov, float z, uint region) {
             uvec2 v = texelFetch(visTex, int(j)).xy;
             if (v.x == NO_SPHERE) continue;
             if (!cov) return true;
-            float zq = key_view_z(g.cam, vec2(q + ivec2(g.cam.dims.zw)), uintBitsToFloat(v.y), g.cam.dir.w != 0.0);
+            float zq = key_view_z(g.cam, vec2(q + ivec2(g.cam.dims.zw)), uintBitsToFloat(v.y), PERSP);
             if (z - zq > pc.edge_dz) return true;
             uint rq = region_of(v.x);
             if (g.counts.w == 0u && rq != region && (zq < z || (zq == z && rq < region))) return true;
@@ -190,7 +192,7 @@ void main() {
     vec3 albedo = albedo_of(s.id);
     vec3 n = s.n;
     vec3 o, vdir;
-    view_ray(g.cam, vec2(px + g.cam.dims.zw), o, vdir);
+    view_ray(g.cam, vec2(px + g.cam.dims.zw), PERSP, o, vdir);
     vec3 v = -vdir;
 
     vec3 l_key = -normalize(g.light_dir.xyz);
@@ -200,14 +202,14 @@ void main() {
 
     vec4 amb = vec4(1.0, 0.0, 0.0, 0.0);
     float screen_vis = 1.0;
-    float z = view_z(g.cam, s.p);
+    float z = view_z(g.cam, s.p, PERSP);
     if (AO) {
         vec2 v;
         vec3 bounce;
         if (AO_SPHERE) {
             // (perspective: the frame about this pixel's ray, nearly the
             // sphere's that ssdo_sphere.comp used)
-            mat3 b = g.cam.dir.w == 0.0 ? mat3(g.cam.right.xyz, g.cam.up.xyz, g.cam.dir.xyz)
+            mat3 b = !PERSP ? mat3(g.cam.right.xyz, g.cam.up.xyz, g.cam.dir.xyz)
                                         : sphere_basis(vdir, g.cam.up.xyz);
             vec3 nc = n * b;
             sphere_ao_at(texelFetch(sphereAoTex, int(s.id)), s.id, nc, v, bounce);

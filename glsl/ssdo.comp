@@ -96,7 +96,7 @@ void main() {
         uvec2 own_regions = regions_of(s.id);
         ra = own_regions.x;
         rb = own_regions.y;
-        keys[out_index] = blur_key(view_z(g.cam, s.p), pc.blur_level_b != 0u ? rb : ra);
+        keys[out_index] = blur_key(view_z(g.cam, s.p, PERSP), pc.blur_level_b != 0u ? rb : ra);
     }
     vec3 x = to_space(s.p), n = dir_to_space(s.n);
     // One rotation of the table per receiver, a 4x4 pattern the blur averages.

@@ -12,6 +12,8 @@ layout(constant_id = 1) const bool SOFT = false;
 layout(constant_id = 2) const bool ISSM_CORE_ONLY = false;  // lookup_issm.glsl
 // Per-sphere SSDO (ssdo_sphere.comp): mark every sphere seen in the block.
 layout(constant_id = 3) const bool MARK = false;
+// Perspective camera (surface.glsl, shared.glsl's view functions).
+layout(constant_id = 4) const bool PERSP = false;
 
 layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
 layout(set = 0, binding = 1) uniform usamplerBuffer visTex;
@@ -28,7 +30,7 @@ layout(push_constant) uniform Push {
 
 #include "lookup.glsl"
 #include "ssdo_record.glsl"
-#define TILE_LIST_ID 4
+#define TILE_LIST_ID 5
 #define TILE_LIST_BINDING 6
 #include "tiles.glsl"
 
@@ -68,7 +70,7 @@ void main() {
         return;
     }
     r.covered = true;
-    r.z = view_z(g.cam, s.p);
+    r.z = view_z(g.cam, s.p, PERSP);
     r.n = s.n;
     if (g.counts.w != 0u) {
         // No hierarchy: every sphere is its own region.

@@ -36,7 +36,7 @@ vec3 dir_to_space(vec3 d) {
     return vec3(dot(d, g.cam.right.xyz), dot(d, g.cam.up.xyz), dot(d, g.cam.dir.xyz));
 }
 // Distance from the viewer, comparable with the occluder's.
-float depth_of(vec3 s) { return PERSP ? view_z(g.cam, s) : s.z; }
+float depth_of(vec3 s) { return PERSP ? view_z(g.cam, s, true) : s.z; }
 
 // The surface seen at tap-space point s: its pixel, view distance and
 // tap-space position, exactly from the pixel's depth key (one 4-byte
@@ -49,7 +49,7 @@ bool surface_seen(vec3 s, out uvec2 q, out float qz, out vec3 qp) {
     float ppu = g.cam.center.w, iw = g.cam.right.w, ih = g.cam.up.w;
     vec2 org = vec2(g.cam.dims.zw);
     // (image coordinates, then the window's)
-    vec2 px = (PERSP ? round(project_px(g.cam, s))
+    vec2 px = (PERSP ? round(project_px(g.cam, s, true))
                      : round(vec2(s.x * ppu + 0.5 * iw - 0.5, 0.5 * ih - s.y * ppu - 0.5))) - org;
     bool inside = px.x >= 0.0 && px.y >= 0.0 && px.x < float(w) && px.y < float(h);
     q = uvec2(clamp(px, vec2(0.0), vec2(float(w) - 1.0, float(h) - 1.0)));
@@ -57,7 +57,7 @@ bool surface_seen(vec3 s, out uvec2 q, out float qz, out vec3 qp) {
     uint depth_bits = texelFetch(visWordTex, int(2u * j + 1u)).x;
     vec2 pc2 = vec2(q) + org;
     qz = key_view_z(g.cam, pc2, uintBitsToFloat(depth_bits), PERSP);
-    qp = PERSP ? point_at(g.cam, pc2, qz)
+    qp = PERSP ? point_at(g.cam, pc2, qz, true)
                : vec3((pc2.x + 0.5 - 0.5 * iw) / ppu, (0.5 * ih - 0.5 - pc2.y) / ppu, qz);
     return inside && depth_bits != 0xFFFFFFFFu;
 }

@@ -2,7 +2,8 @@
 // exactly from its (pixel ray, sphere id) instead of a stored G-buffer.
 // Needs, before inclusion: `Globals g`, the visibility buffer as a uniform
 // texel buffer `visTex` (RG32UI: x = sphere id, y = depth key bits; both
-// ~0 = background) and the spheres as `sphereTex` (RGBA32F: centre, radius).
+// ~0 = background), the spheres as `sphereTex` (RGBA32F: centre, radius)
+// and the specialization constant PERSP (a perspective camera).
 // Texel fetches are vector gathers on lavapipe (docs/LAVAPIPE.md).
 #ifndef SURFACE_GLSL
 #define SURFACE_GLSL
@@ -30,7 +31,7 @@ bool surface_of(uvec2 q, out Surface s) {
     s.key = uintBitsToFloat(v.y);
     vec4 sp = texelFetch(sphereTex, int(s.id));
     vec3 o, d;
-    view_ray(g.cam, s.img, o, d);
+    view_ray(g.cam, s.img, PERSP, o, d);
     // Exact hit recomputed relative to the sphere centre for precision.
     vec3 oc = o - sp.xyz;
     float b = dot(oc, d);

@@ -215,13 +215,15 @@ pub struct ShadeMode {
     /// Depth cue: the push constants' fog range is not empty (the one place
     /// that decides; the shader reads the range only then).
     pub fog: bool,
+    /// Perspective camera.
+    pub perspective: bool,
     /// Run on the tile lists (not with silhouette lines, which reach from
     /// covered pixels into background regions).
     pub lists: bool,
 }
 
 impl ShadeMode {
-    fn constants(&self) -> [u32; 11] {
+    fn constants(&self) -> [u32; 12] {
         let use_shadow = !matches!(self.kind, LookupKind::None | LookupKind::Screen);
         [
             self.soft as u32,
@@ -235,6 +237,7 @@ impl ShadeMode {
             self.ao_half as u32,
             self.ao_sphere as u32,
             self.fog as u32,
+            self.perspective as u32,
         ]
     }
 }

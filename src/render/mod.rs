@@ -367,6 +367,7 @@ impl Resources {
             outline: self.outline_px(settings) > 0,
             wide: settings.look.color16,
             fog: settings.look.fog.is_some_and(|f| f.0[1] > f.0[0]),
+            perspective: settings.camera.fov_deg.is_some(),
             lists: settings.tile_lists && self.outline_px(settings) == 0,
         }
     }
