@@ -48,13 +48,13 @@ uint texel_id(ivec2 t, int size) {
     return texelFetch(issmTex, 2 * (t.y * size + t.x)).x;
 }
 
-// The closeness of the sphere at light texel t to shadowing s (0 for an
-// empty texel and for s's own sphere: a sphere never shadows itself).
-float texel_closeness(Surface s, vec3 dl, ivec2 t, int size) {
-    uint id = texel_id(t, size);
+// The closeness to shadowing s of sphere id, read at a light texel (0 for
+// an empty texel and for s's own sphere: a sphere never shadows itself).
+float id_closeness(Surface s, vec3 dl, uint id) {
     if (id == NO_SPHERE || id == s.id) return 0.0;
     return occluder_closeness(s.p, dl, texelFetch(sphereTex, int(id)));
 }
+float texel_closeness(Surface s, vec3 dl, ivec2 t, int size) { return id_closeness(s, dl, texel_id(t, size)); }
 
 float key_visibility(Surface s, uint pixel) {
     View L = g.light;
@@ -65,10 +65,16 @@ float key_visibility(Surface s, uint pixel) {
     float m = 0.0; // the largest closeness so far
     // (Repeated ids are tested again: skipping the last two seen saved
     // nothing on lavapipe, where a masked lane runs the body anyway.)
-    // Dense core: the spheres nearest the light around P's own texel.
+    // Dense core: the spheres nearest the light around P's own texel. Its
+    // centre is kept one texel inside the map (size >= 16), so the core
+    // needs no bounds test per texel: at the border it reads the edge's
+    // own texels instead of empty ones outside, and testing an extra
+    // sphere never adds a wrong shadow (the hit test is exact).
+    ivec2 cc = clamp(c, ivec2(1), ivec2(size - 2));
+    int base = 2 * (cc.y * size + cc.x);
     for (int dy = -1; dy <= 1 && m < 1.0; ++dy) {
         for (int dx = -1; dx <= 1; ++dx) {
-            m = max(m, texel_closeness(s, dl, c + ivec2(dx, dy), size));
+            m = max(m, id_closeness(s, dl, texelFetch(issmTex, base + 2 * (dy * size + dx)).x));
         }
     }
     // The rest of the (2t+1)^2 patch, every `stride` texels: the stride is at
