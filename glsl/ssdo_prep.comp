@@ -20,7 +20,7 @@ layout(set = 0, binding = 1) uniform usamplerBuffer visTex;
 layout(set = 0, binding = 2) uniform samplerBuffer sphereTex;
 layout(set = 0, binding = 3) uniform usamplerBuffer attrTex;
 layout(set = 0, binding = 4) writeonly buffer Records { uvec4 records[]; };
-layout(set = 0, binding = 5) writeonly buffer Flags { uint flags[]; };
+layout(set = 0, binding = 5) buffer Flags { uint flags[]; };
 
 layout(push_constant) uniform Push {
     uint level_a;
@@ -56,8 +56,8 @@ void main() {
         bool inside = px.x < w && px.y < h;
         uint j = min(px.y, h - 1u) * w + min(px.x, w - 1u);
         uint id = texelFetch(visTex, int(j)).x;
-        // (plain stores: every writer of a sphere's flag writes the same 1)
-        if (MARK && inside && id != NO_SPHERE) flags[id] = 1u;
+        // (one bit per sphere: ssdo_list.comp reads 32 spheres per word)
+        if (MARK && inside && id != NO_SPHERE) atomicOr(flags[id >> 5], 1u << (id & 31u));
         bool take = !found && inside && id != NO_SPHERE;
         pixel = take ? j : pixel;
         r.sub = take ? sub : r.sub;

@@ -258,3 +258,55 @@ fn per_sphere_semantic_without_hierarchy_equals_plain() {
     assert!(differ * 200 <= plain.len(), "{differ} pixels differ");
     assert!(occluded > 1000, "too little occlusion: {occluded}");
 }
+
+/// The per-sphere list (flag bits set by `ssdo_prep`, compacted by
+/// `ssdo_list` with one atomic per flag word) holds every sphere the
+/// visibility buffer shows, each once, and nothing else; the workgroup
+/// count is the list's length in groups of the dispatch's size. A CPU
+/// model of the atomics' result: GPU-AV does not check atomics.
+#[test]
+fn per_sphere_list_is_exactly_the_visible_spheres() {
+    let ctx = validated_context();
+    let scene = ao_scene(3);
+    for (w, h, fov) in [(320, 240, None), (301, 217, Some(30.0))] {
+        let cam = camera(&scene, w, h, fov);
+        let mut s = settings(cam, ShadowMode::None);
+        s.ssdo = SsdoMode::Semantic;
+        let mut r = Renderer::new(&ctx, &scene, s).expect("renderer");
+        assert_eq!(r.ssdo_receivers(), Receivers::Sphere);
+        r.render_frame().expect("frame");
+        let (mut list, groups) = r
+            .read_sphere_list()
+            .expect("list")
+            .expect("per-sphere buffers");
+        let mut seen: Vec<u32> = r
+            .read_vis()
+            .expect("vis")
+            .iter()
+            .map(|k| *k as u32)
+            .filter(|id| *id != u32::MAX)
+            .collect();
+        seen.sort_unstable();
+        seen.dedup();
+        list.sort_unstable();
+        eprintln!("{w}x{h}: {} spheres listed, {groups} groups", list.len());
+        assert!(seen.len() > 100, "too few spheres seen: {}", seen.len());
+        let twice = list.windows(2).filter(|p| p[0] == p[1]).count();
+        let missing = seen
+            .iter()
+            .filter(|id| list.binary_search(id).is_err())
+            .count();
+        let extra = list
+            .iter()
+            .filter(|id| seen.binary_search(id).is_err())
+            .count();
+        assert_eq!(
+            (missing, extra, twice),
+            (0, 0, 0),
+            "{w}x{h}: spheres seen but not listed, listed but not seen, listed twice"
+        );
+        let g = sphereshade::passes::LOCAL_SIZE as usize;
+        assert_eq!(groups as usize, list.len().div_ceil(g));
+    }
+    assert_no_validation_messages(&ctx);
+}

@@ -152,7 +152,11 @@ pub struct SphereBuffers {
 impl SphereBuffers {
     pub fn new(ctx: &Context, spheres: u32) -> Result<Self> {
         let n = spheres.max(1) as u64;
-        let flags = ctx.guard(Buffer::storage(ctx, "ssdo sphere flags", n * 4)?);
+        let flags = ctx.guard(Buffer::storage(
+            ctx,
+            "ssdo sphere flags",
+            flag_words(n) * 4,
+        )?);
         let list = ctx.guard(Buffer::storage(ctx, "ssdo sphere list", n * 4)?);
         let counters = ctx.guard(counters_buffer(ctx, "ssdo sphere counters", 32)?);
         let ao = Buffer::storage(ctx, "ssdo sphere ao", n * 16)?;
@@ -186,10 +190,16 @@ crate::impl_destroy!(SphereBuffers);
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 struct ListPush {
-    sphere_count: u32,
-    /// ssdo_list.comp counts groups with a mask: a power of two.
-    group: u32,
+    /// Flag words, one bit per sphere.
+    words: u32,
+    /// log2 of ssdo_sphere.comp's workgroup size (groups counted by shifts).
+    group_shift: u32,
     pad: [u32; 2],
+}
+
+/// Words of the per-sphere flags: one bit per sphere.
+fn flag_words(spheres: u64) -> u64 {
+    spheres.div_ceil(32)
 }
 
 const _: () = assert!(LOCAL_SIZE.is_power_of_two());
@@ -201,7 +211,7 @@ const LIST_COUNTERS: BandCounters = BandCounters {
     args: S_ARGS,
 };
 
-const PREP_OUTPUTS: [Binding; 2] = [wo("Records"), wo("Flags")];
+const PREP_OUTPUTS: [Binding; 2] = [wo("Records"), rw("Flags")];
 const LIST_BINDINGS: [Binding; 3] = [ro("Flags"), wo("List"), rw("Counters")];
 const SPHERE_BINDINGS: [Binding; 8] = [
     uniform("GlobalsBlock"),
@@ -393,9 +403,10 @@ impl SsdoPass {
             .sphere
             .get(spirv::SSDO_SPHERE_COMP, &taps.sphere_constants(semantic))
             .ok_or_else(missing)?;
+        let words = flag_words(sb.spheres as u64);
         let lp = ListPush {
-            sphere_count: sb.spheres,
-            group: LOCAL_SIZE,
+            words: words as u32,
+            group_shift: LOCAL_SIZE.trailing_zeros(),
             pad: [0; 2],
         };
         rec.pass(Self::NAME, |p| {
@@ -403,7 +414,7 @@ impl SsdoPass {
             p.dispatch(
                 list,
                 &lp,
-                Grid::Invocations(sb.spheres as u64),
+                Grid::Invocations(words),
                 &[
                     ("Flags", &sb.flags),
                     ("List", &sb.list),

@@ -1119,6 +1119,28 @@ impl<'c> Renderer<'c> {
         b.download_pod(self.ctx, 0, b.size / 4)
     }
 
+    /// The last frame's per-sphere SSDO list (the spheres `ssdo_prep`
+    /// flagged, in list order) and the workgroups counted for it; `None`
+    /// without per-sphere buffers (tests).
+    pub fn read_sphere_list(&self) -> Result<Option<(Vec<u32>, u32)>> {
+        let Some(sb) = self.res.ssdo.as_ref().and_then(|st| st.spheres.as_ref()) else {
+            return Ok(None);
+        };
+        let counters: Vec<u32> = sb.counters.download_pod(self.ctx, 0, 4)?;
+        let n = counters[crate::gpu::consts::S_LISTED as usize];
+        if n > sb.spheres {
+            return Err(Error::Internal(format!(
+                "per-sphere list: {n} entries for {} spheres",
+                sb.spheres
+            )));
+        }
+        let list = sb.list.download_pod(self.ctx, 0, n as u64)?;
+        Ok(Some((
+            list,
+            counters[crate::gpu::consts::S_GROUPS as usize],
+        )))
+    }
+
     /// The half-resolution SSDO records of the last frame (tests).
     pub fn read_records(&self) -> Result<Vec<crate::passes::ssdo::Record>> {
         let (hw, hh) = self.res.targets.half();
