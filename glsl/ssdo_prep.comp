@@ -21,6 +21,12 @@ layout(set = 0, binding = 2) uniform samplerBuffer sphereTex;
 layout(set = 0, binding = 3) uniform usamplerBuffer attrTex;
 layout(set = 0, binding = 4) writeonly buffer Records { uvec4 records[]; };
 layout(set = 0, binding = 5) buffer Flags { uint flags[]; };
+// Per-sphere SSDO (MARK): the depth words of the block's four pixels (~0
+// outside the image and for background), block by block, for the taps of
+// ssdo_sphere.comp: a 64-byte line holds an 8x2-pixel patch, where the
+// visibility buffer's rows hold 8x1 pixels and their ids. Fewer cache lines
+// per tap neighbourhood (the taps' fetches were mostly cache misses).
+layout(set = 0, binding = 7) writeonly buffer TapDepth { uvec4 tap_depth[]; };
 
 layout(push_constant) uniform Push {
     uint level_a;
@@ -64,6 +70,16 @@ void main() {
         found = found || take;
     }
     uint out_index = b.y * hw + b.x;
+    if (MARK) {
+        uvec4 dw = uvec4(0xFFFFFFFFu);
+        for (uint k = 0u; k < (TILE_LIST == 2u ? 0u : N); ++k) {
+            uvec2 px = SSDO_BLOCK * b + uvec2(k & 1u, k >> 1u);
+            uint j = min(px.y, h - 1u) * w + min(px.x, w - 1u);
+            uint d = texelFetch(visTex, int(j)).y;
+            dw[k] = px.x < w && px.y < h ? d : 0xFFFFFFFFu;
+        }
+        tap_depth[out_index] = dw;
+    }
     Surface s;
     if (TILE_LIST == 2u || !found || !surface_of(SSDO_BLOCK * b + r.sub, s)) {
         records[out_index] = uvec4(floatBitsToUint(RECORD_BACKGROUND), 0u, 0u, 0u);

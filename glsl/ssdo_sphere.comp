@@ -30,6 +30,10 @@ layout(set = 0, binding = 5) uniform samplerBuffer sphereTex;
 layout(set = 0, binding = 6) uniform usamplerBuffer attrTex;
 // The visibility buffer as 32-bit words: depth (odd) and id (even) halves.
 layout(set = 0, binding = 7) uniform usamplerBuffer visWordTex;
+// The taps' depth words, four per 2x2 block (ssdo_prep.comp): the taps'
+// fetches were mostly cache misses in the visibility buffer's rows.
+layout(set = 0, binding = 8) uniform usamplerBuffer tapDepthTex;
+#define TAP_DEPTH_BLOCKED
 
 layout(push_constant) uniform Push {
     float r_near;

@@ -2,7 +2,8 @@
 // (ssdo.comp) and the per-sphere ones (ssdo_sphere.comp). Needs, before
 // inclusion: `Globals g`, `recordTex`, `visWordTex`, `attrTex`, push constants `pc`
 // (SsdoPush), the specialization constants SEMANTIC and PERSP, and
-// ssdo_record.glsl.
+// ssdo_record.glsl. With TAP_DEPTH_BLOCKED defined the taps read the depth
+// words from `tapDepthTex` (ssdo_prep.comp's block-ordered copy) instead.
 #ifndef SSDO_TAPS_GLSL
 #define SSDO_TAPS_GLSL
 
@@ -53,8 +54,14 @@ bool surface_seen(vec3 s, out uvec2 q, out float qz, out vec3 qp) {
                      : round(vec2(s.x * ppu + 0.5 * iw - 0.5, 0.5 * ih - s.y * ppu - 0.5))) - org;
     bool inside = px.x >= 0.0 && px.y >= 0.0 && px.x < float(w) && px.y < float(h);
     q = uvec2(clamp(px, vec2(0.0), vec2(float(w) - 1.0, float(h) - 1.0)));
+#ifdef TAP_DEPTH_BLOCKED
+    // ssdo_prep.comp's copy, four words per 2x2 block (SSDO_BLOCK = 2)
+    uint j = 4u * ((q.y >> 1u) * g.counts.y + (q.x >> 1u)) + 2u * (q.y & 1u) + (q.x & 1u);
+    uint depth_bits = texelFetch(tapDepthTex, int(j)).x;
+#else
     uint j = q.y * w + q.x;
     uint depth_bits = texelFetch(visWordTex, int(2u * j + 1u)).x;
+#endif
     vec2 pc2 = vec2(q) + org;
     qz = key_view_z(g.cam, pc2, uintBitsToFloat(depth_bits), PERSP);
     qp = PERSP ? point_at(g.cam, pc2, qz, true)

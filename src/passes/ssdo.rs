@@ -211,9 +211,9 @@ const LIST_COUNTERS: BandCounters = BandCounters {
     args: S_ARGS,
 };
 
-const PREP_OUTPUTS: [Binding; 2] = [wo("Records"), rw("Flags")];
+const PREP_OUTPUTS: [Binding; 3] = [wo("Records"), rw("Flags"), wo("TapDepth")];
 const LIST_BINDINGS: [Binding; 3] = [ro("Flags"), wo("List"), rw("Counters")];
-const SPHERE_BINDINGS: [Binding; 8] = [
+const SPHERE_BINDINGS: [Binding; 9] = [
     uniform("GlobalsBlock"),
     texel("recordTex", Format::R32G32B32A32_UINT),
     wo("SphereAo"),
@@ -222,6 +222,7 @@ const SPHERE_BINDINGS: [Binding; 8] = [
     texel("sphereTex", Format::R32G32B32A32_SFLOAT),
     texel("attrTex", Format::R32G32B32A32_UINT),
     texel("visWordTex", Format::R32_UINT),
+    texel("tapDepthTex", Format::R32_UINT),
 ];
 const SSDO_BINDINGS: [Binding; 10] = [
     uniform("GlobalsBlock"),
@@ -343,14 +344,15 @@ impl SsdoPass {
 
     /// `ssdo_prep`: the half-resolution records, and with per-sphere
     /// receivers the flags of the spheres seen (into `flags`: the sphere
-    /// buffers' then; any buffer the pass may write otherwise).
+    /// buffers' then; any buffer the pass may write otherwise) and the
+    /// taps' block-ordered depth words (into `tap_depth`).
     #[allow(clippy::too_many_arguments)]
     pub fn record_prep(
         &self,
         rec: &mut Recorder,
         io: &ScreenInputs,
         lookup: &Lookup,
-        (records, flags): (&Buffer, &Buffer),
+        (records, flags, tap_depth): (&Buffer, &Buffer, &Buffer),
         push: &PrepPush,
         taps: Taps,
         half: (u32, u32),
@@ -363,6 +365,7 @@ impl SsdoPass {
             ("attrTex", io.attrs),
             ("Records", records),
             ("Flags", flags),
+            ("TapDepth", tap_depth),
         ];
         bufs.extend(lookup.buffers.iter().copied());
         rec.pass(Self::PREP_NAME, |p| {
@@ -384,13 +387,13 @@ impl SsdoPass {
 
     /// `ssdo` with per-sphere receivers: the flagged spheres listed, the
     /// list's dispatch arguments, then one invocation per listed sphere
-    /// into `sb.ao`.
+    /// into `sb.ao`; the taps read `tap_depth` (what `ssdo_prep` wrote).
     #[allow(clippy::too_many_arguments)]
     pub fn record_spheres(
         &self,
         rec: &mut Recorder,
         io: &ScreenInputs,
-        records: &Buffer,
+        (records, tap_depth): (&Buffer, &Buffer),
         sb: &SphereBuffers,
         push: &SsdoPush,
         semantic: bool,
@@ -435,6 +438,7 @@ impl SsdoPass {
                     ("sphereTex", io.spheres),
                     ("attrTex", io.attrs),
                     ("visWordTex", io.vis),
+                    ("tapDepthTex", tap_depth),
                 ],
             );
             Ok(())

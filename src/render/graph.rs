@@ -186,15 +186,22 @@ impl Resources {
                 rec,
                 &screen,
                 &lookup,
-                (&t.records, flags),
+                (&t.records, flags, &t.keys),
                 &p.prep,
                 p.taps,
                 half,
                 tiles,
             )?;
             if let Some(sb) = spheres {
-                st.pass
-                    .record_spheres(rec, &screen, &t.records, sb, &p.ssdo, semantic, p.taps)?;
+                st.pass.record_spheres(
+                    rec,
+                    &screen,
+                    (&t.records, &t.keys),
+                    sb,
+                    &p.ssdo,
+                    semantic,
+                    p.taps,
+                )?;
             }
             // receivers: the blocks, or every pixel
             let grid = if p.taps.per_block() {

@@ -3,8 +3,10 @@
 //! visibility buffer (8 B/px), colour (4 B/px, also the blur's scratch:
 //! SSDO and blur run before shade writes colour), the SSDO result (4 B/px;
 //! per pixel when spheres are small on screen, else only its first quarter
-//! is used, per 2x2 block) and the per-pixel blur's edge keys (4 B/px); the
-//! SSDO records at half resolution (16 B per 2x2 block = 4 B/px): 24 B/px;
+//! is used, per 2x2 block) and the per-pixel blur's edge keys (4 B/px; with
+//! per-sphere SSDO, which has no blur, the taps' depth words in 2x2-block
+//! order instead); the SSDO records at half resolution (16 B per 2x2 block
+//! = 4 B/px): 24 B/px;
 //! the shadow|ao AOVs when asked for (4 B/px more).
 
 use crate::error::Result;
@@ -29,7 +31,9 @@ pub struct Targets {
     /// SSDO records (half resolution) and result (full, or half).
     pub records: Buffer,
     pub ao: Buffer,
-    /// Per pixel: the blur's edge keys (view distance and region).
+    /// Per pixel: the blur's edge keys (view distance and region); with
+    /// per-sphere SSDO the depth words the taps read, four per 2x2 block
+    /// (ssdo_prep.comp writes them).
     pub keys: Buffer,
     /// The coverage pass's tile lists (passes/coverage.rs).
     pub tiles: Buffer,
@@ -57,7 +61,8 @@ impl Targets {
         let aov = storage("shadow and ao", if aovs { pixels * 4 } else { 4 })?;
         let records = storage("ssdo records", blocks * 16)?;
         let ao = storage("ssdo ao", pixels * 4)?;
-        let keys = storage("ssdo blur keys", pixels * 4)?;
+        // (block-linear depth words cover whole blocks: odd sizes need more)
+        let keys = storage("ssdo blur keys", pixels.max(4 * blocks) * 4)?;
         let tiles = ctx.guard(crate::passes::coverage::lists_buffer(ctx, width, height)?);
         Ok(Targets {
             width,
