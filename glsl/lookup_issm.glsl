@@ -20,26 +20,31 @@
 // would still run for every pixel.
 layout(set = 0, binding = 16) uniform usamplerBuffer issmTex; // R32UI view: even texels = sphere ids
 
-// How strongly one occluder shadows p: 1 where the light ray crosses it
-// (full shadow), else the soft penumbra's 1 - s'/s_eff (0 outside it).
-// The shadow strength (1 - s'/s_eff)^x grows with this, so the minimum
-// illumination over the patch is 1 - (max closeness)^x: one pow per pixel,
-// not one per occluder. No sqrt in the hit test: the far hit
-// k + sqrt(r^2 - d^2) is ahead iff k > 0 or p is inside the sphere.
-float occluder_closeness(vec3 p, vec3 dl, vec4 s) {
+// How strongly one occluder shadows p, as a fraction num / den (den > 0):
+// 1 where the light ray crosses it (full shadow), else the soft penumbra's
+// 1 - s'/s_eff = (s_eff - s') / s_eff, 0 outside it. The shadow strength
+// (1 - s'/s_eff)^x grows with this closeness, so the minimum illumination
+// over the patch is 1 - (max closeness)^x: one pow per pixel, not one per
+// occluder; and the max is kept as a fraction compared by cross-multiplying,
+// so a pixel divides once, not once per occluder. No sqrt in the hit test:
+// the far hit k + sqrt(r^2 - d^2) is ahead iff k > 0 or p is inside the
+// sphere. Selects, no early returns: lavapipe runs every branch anyway,
+// with mask bookkeeping on top. `inv2b2` = 1 / (2 b^2).
+vec2 occluder_closeness(vec3 p, vec3 dl, vec4 s, float inv2b2) {
     vec3 oc = s.xyz - p;
     float k = dot(oc, dl);
     float l2 = dot(oc, oc), r2 = s.w * s.w;
     float d2 = max(l2 - k * k, 0.0);
     bool hit = d2 < r2 && (k > 0.0 || l2 < r2);
-    if (!SOFT) return hit ? 1.0 : 0.0;
-    float soft_s = g.shadow_f0.x, soft_b = g.shadow_f0.z;
-    if (hit) return 1.0;
-    if (soft_s <= 0.0 || k <= 0.0) return 0.0;
-    float se = soft_s * (1.0 - exp(-k * k / (2.0 * soft_b * soft_b)));
+    if (!SOFT) return vec2(hit ? 1.0 : 0.0, 1.0);
+    float se = g.shadow_f0.x * (1.0 - exp(-k * k * inv2b2));
     float gap = sqrt(d2) - s.w;
-    return gap >= se ? 0.0 : 1.0 - gap / se;
+    bool near = g.shadow_f0.x > 0.0 && k > 0.0 && gap < se;
+    return hit ? vec2(1.0) : (near ? vec2(se - gap, se) : vec2(0.0, 1.0));
 }
+
+// The larger of two closeness fractions (denominators > 0).
+vec2 max_closeness(vec2 a, vec2 b) { return b.x * a.y > a.x * b.y ? b : a; }
 
 // Sphere id stored at light texel t (NO_SPHERE outside or empty): the low
 // word of the 64-bit depth|id key, read as 32 bits.
@@ -50,11 +55,13 @@ uint texel_id(ivec2 t, int size) {
 
 // The closeness to shadowing s of sphere id, read at a light texel (0 for
 // an empty texel and for s's own sphere: a sphere never shadows itself).
-float id_closeness(Surface s, vec3 dl, uint id) {
-    if (id == NO_SPHERE || id == s.id) return 0.0;
-    return occluder_closeness(s.p, dl, texelFetch(sphereTex, int(id)));
+vec2 id_closeness(Surface s, vec3 dl, uint id, float inv2b2) {
+    if (id == NO_SPHERE || id == s.id) return vec2(0.0, 1.0);
+    return occluder_closeness(s.p, dl, texelFetch(sphereTex, int(id)), inv2b2);
 }
-float texel_closeness(Surface s, vec3 dl, ivec2 t, int size) { return id_closeness(s, dl, texel_id(t, size)); }
+vec2 texel_closeness(Surface s, vec3 dl, ivec2 t, int size, float inv2b2) {
+    return id_closeness(s, dl, texel_id(t, size), inv2b2);
+}
 
 float key_visibility(Surface s, uint pixel) {
     View L = g.light;
@@ -62,7 +69,8 @@ float key_visibility(Surface s, uint pixel) {
     ivec2 c = ivec2(round(light_uv(L, s.p) - 0.5));
     int size = int(L.dims.x);
     int t = int(g.shadow_u.x), stride = int(max(g.shadow_u.y, 1u));
-    float m = 0.0; // the largest closeness so far
+    float inv2b2 = 0.5 / (g.shadow_f0.z * g.shadow_f0.z);
+    vec2 m = vec2(0.0, 1.0); // the largest closeness so far, as a fraction
     // (Repeated ids are tested again: skipping the last two seen saved
     // nothing on lavapipe, where a masked lane runs the body anyway.)
     // Dense core: the spheres nearest the light around P's own texel. Its
@@ -72,21 +80,21 @@ float key_visibility(Surface s, uint pixel) {
     // sphere never adds a wrong shadow (the hit test is exact).
     ivec2 cc = clamp(c, ivec2(1), ivec2(size - 2));
     int base = 2 * (cc.y * size + cc.x);
-    for (int dy = -1; dy <= 1 && m < 1.0; ++dy) {
+    for (int dy = -1; dy <= 1 && m.x < m.y; ++dy) {
         for (int dx = -1; dx <= 1; ++dx) {
-            m = max(m, id_closeness(s, dl, texelFetch(issmTex, base + 2 * (dy * size + dx)).x));
+            m = max_closeness(m, id_closeness(s, dl, texelFetch(issmTex, base + 2 * (dy * size + dx)).x, inv2b2));
         }
     }
     // The rest of the (2t+1)^2 patch, every `stride` texels: the stride is at
     // most the smallest sphere radius in texels, so every sphere whose disk
     // is visible from the light lands on at least one sample.
     int lim = ISSM_CORE_ONLY ? 0 : (t / stride) * stride;
-    for (int dy = -lim; !ISSM_CORE_ONLY && dy <= lim && m < 1.0; dy += stride) {
+    for (int dy = -lim; !ISSM_CORE_ONLY && dy <= lim && m.x < m.y; dy += stride) {
         for (int dx = -lim; dx <= lim; dx += stride) {
             if (abs(dx) <= 1 && abs(dy) <= 1) continue;
-            m = max(m, texel_closeness(s, dl, c + ivec2(dx, dy), size));
+            m = max_closeness(m, texel_closeness(s, dl, c + ivec2(dx, dy), size, inv2b2));
         }
     }
-    if (!SOFT) return 1.0 - m;
-    return m <= 0.0 ? 1.0 : 1.0 - pow(m, g.shadow_f0.y);
+    if (!SOFT) return 1.0 - m.x;
+    return m.x <= 0.0 ? 1.0 : 1.0 - pow(m.x / m.y, g.shadow_f0.y);
 }
