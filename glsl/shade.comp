@@ -212,7 +212,7 @@ void main() {
             mat3 b = !PERSP ? mat3(g.cam.right.xyz, g.cam.up.xyz, g.cam.dir.xyz)
                                         : sphere_basis(vdir, g.cam.up.xyz);
             vec3 nc = n * b;
-            sphere_ao_at(texelFetch(sphereAoTex, int(s.id)), s.id, nc, v, bounce);
+            sphere_ao_at(texelFetch(sphereAoTex, int(s.id)), nc, v, bounce);
 #if defined(SHADOW_SCREEN)
             uvec2 blk = px / SSDO_BLOCK;
             screen_vis = unpack_record(texelFetch(recordTex, int(blk.y * g.counts.y + blk.x))).visibility;

@@ -11,8 +11,9 @@
 // surface seen closer to the viewer than the ray, within the radius, not
 // this sphere, and (semantic) in another region than the sphere; the
 // bounce comes off the line's first occluder's lit surface. The
-// per-direction occluder weights go to the sphere's word (sphere_ao_bit)
-// and shade.comp weights them by each pixel's normal: per-pixel AO from
+// per-direction occluder weights go to the sphere's result as the
+// spherical harmonics of their cosine-lobe sum (sphere_ao_pack), which
+// shade.comp evaluates at each pixel's normal: per-pixel AO from
 // per-sphere work, without noise to blur.
 #include "shared.glsl"
 
@@ -81,7 +82,10 @@ void main() {
                        : mat3(1.0);
     float rot = sphere_rot(id), jit = sphere_jitter(id);
     vec3 zb = basis[2];
-    uvec2 word = uvec2(0u);
+    SH9 acc;
+    acc.a = vec4(0.0);
+    acc.b = vec4(0.0);
+    acc.c = 0.0;
     vec3 bounce = vec3(0.0);
     // each direction stands for 1/(K/2) of a receiver's hemisphere
     float area = 3.14159265 * pc.r_far * pc.r_far / (0.5 * float(SSDO_SPHERE_DIRS));
@@ -99,7 +103,8 @@ void main() {
         // seen surface occludes elevation e if it is nearer the viewer
         // than that ray where the ray crosses the tap's line of sight.
         float phi = 6.2831853 * (float(a) + rot) / float(SSDO_SPHERE_AZIMUTHS);
-        vec3 u = basis * vec3(cos(phi), sin(phi), 0.0);
+        vec2 cs = vec2(cos(phi), sin(phi));
+        vec3 u = basis * vec3(cs, 0.0);
         // Per elevation e, the ray x_e + t d_e (x_e = c + r d_e, d_e =
         // h_e u + z_e zb, a unit vector) is searched from t = r_far / 10
         // to r_far: taps at s in ((r + r_far / 10) h_e, (r + r_far) h_e].
@@ -153,12 +158,16 @@ void main() {
             float wf = found[e] ? wq : 0.0;
             float dd = distance(first_p, x);
             vec3 to_x = (x - first_p) / max(dd, 1e-4);
-            float cs = max(dot(qn, to_x), 0.0), cr = max(dot(d, -to_x), 0.0);
+            float cs_q = max(dot(qn, to_x), 0.0), cr = max(dot(d, -to_x), 0.0);
             float d2 = max(dd * dd, 0.25 * pc.r_near * pc.r_near);
-            bounce += wf * q.radiance * (area * cs * cr / d2) / 3.14159265;
-            word |= sphere_ao_bit(a * SPHERE_ELEVATIONS + e, wf);
+            bounce += wf * q.radiance * (area * cs_q * cr / d2) / 3.14159265;
+            // (the direction in the sphere's frame)
+            SH9 y = sh9_basis(vec3(SPHERE_HE(e) * cs, SPHERE_ZE(e)));
+            acc.a += wf * y.a;
+            acc.b += wf * y.b;
+            acc.c += wf * y.c;
         }
     }
     // the mean over the hemisphere a pixel sees: half the directions
-    sphere_ao[id] = uvec4(word, sphere_ao_bounce(pc.bounce * bounce * 0.5), 0u);
+    sphere_ao[id] = sphere_ao_pack(acc, pc.bounce * bounce * 0.5);
 }
