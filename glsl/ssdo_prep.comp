@@ -19,6 +19,8 @@ layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
 layout(set = 0, binding = 1) uniform usamplerBuffer visTex;
 layout(set = 0, binding = 2) uniform samplerBuffer sphereTex;
 layout(set = 0, binding = 3) uniform usamplerBuffer attrTex;
+layout(set = 0, binding = 8) uniform usamplerBuffer colorTex;  // RGBA8 per sphere
+#define SURFACE_ALBEDO
 layout(set = 0, binding = 4) writeonly buffer Records { uvec4 records[]; };
 layout(set = 0, binding = 5) buffer Flags { uint flags[]; };
 // Per-sphere SSDO (MARK): the depth words of the block's four pixels (~0
@@ -62,8 +64,6 @@ void main() {
         bool inside = px.x < w && px.y < h;
         uint j = min(px.y, h - 1u) * w + min(px.x, w - 1u);
         uint id = texelFetch(visTex, int(j)).x;
-        // (one bit per sphere: ssdo_list.comp reads 32 spheres per word)
-        if (MARK && inside && id != NO_SPHERE) atomicOr(flags[id >> 5], 1u << (id & 31u));
         bool take = !found && inside && id != NO_SPHERE;
         pixel = take ? j : pixel;
         r.sub = take ? sub : r.sub;
@@ -71,12 +71,31 @@ void main() {
     }
     uint out_index = b.y * hw + b.x;
     if (MARK) {
-        uvec4 dw = uvec4(0xFFFFFFFFu);
+        // The four pixels' keys in block order: their depth words for the
+        // taps, and their spheres' flag bits (one bit per sphere:
+        // ssdo_list.comp reads 32 spheres per word), one atomicOr per
+        // distinct flag word of the block (mostly one: neighbouring spheres
+        // have neighbouring ids) instead of one per pixel: an executed
+        // atomic is a locked instruction per lane on lavapipe.
+        uvec4 dw = uvec4(0xFFFFFFFFu), ids = uvec4(NO_SPHERE);
         for (uint k = 0u; k < (TILE_LIST == 2u ? 0u : N); ++k) {
             uvec2 px = SSDO_BLOCK * b + uvec2(k & 1u, k >> 1u);
             uint j = min(px.y, h - 1u) * w + min(px.x, w - 1u);
-            uint d = texelFetch(visTex, int(j)).y;
-            dw[k] = px.x < w && px.y < h ? d : 0xFFFFFFFFu;
+            uvec2 v = texelFetch(visTex, int(j)).xy;
+            bool inside = px.x < w && px.y < h;
+            dw[k] = inside ? v.y : 0xFFFFFFFFu;
+            ids[k] = inside ? v.x : NO_SPHERE;
+        }
+        uvec4 words = ids >> 5u;
+        for (uint k = 0u; k < (TILE_LIST == 2u ? 0u : N); ++k) {
+            uint bits = 0u;
+            bool first_of_word = ids[k] != NO_SPHERE;
+            for (uint i = 0u; i < N; ++i) {
+                bool same = ids[i] != NO_SPHERE && words[i] == words[k];
+                bits |= same ? 1u << (ids[i] & 31u) : 0u;
+                first_of_word = first_of_word && !(same && i < k);
+            }
+            if (first_of_word) atomicOr(flags[words[k]], bits);
         }
         tap_depth[out_index] = dw;
     }
