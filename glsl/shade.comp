@@ -43,6 +43,8 @@ layout(set = 0, binding = 5) uniform usamplerBuffer aoTex;  // per pixel or 2x2 
 layout(set = 0, binding = 6) writeonly buffer Color { uint color[]; };
 layout(set = 0, binding = 7) writeonly buffer Aov { uint aov[]; };
 layout(set = 0, binding = 8) uniform usamplerBuffer sphereAoTex;  // per sphere (AO_SPHERE)
+layout(set = 0, binding = 10) uniform usamplerBuffer colorTex;  // RGBA8 per sphere
+#define SURFACE_ALBEDO
 
 layout(push_constant) uniform Push {
     float shadow_diffuse; // fraction of key diffuse kept in full shadow

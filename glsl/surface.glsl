@@ -42,8 +42,12 @@ bool surface_of(uvec2 q, out Surface s) {
     return true;
 }
 
-// Linear albedo of a sphere from the attribute texels (2 per sphere: the
-// region ids, then colour, flags).
+// Linear albedo of a sphere from `colorTex`, one RGBA8 word per sphere:
+// the attribute texels (32 B per sphere) held it too, but as a random
+// fetch per pixel they cost ~10 ms of the 1M capsid's shade on lavapipe.
+// (includers that want it define SURFACE_ALBEDO and declare `colorTex`)
 vec3 srgb_to_linear(vec3 c) { return pow(c, vec3(2.2)); }
-vec3 albedo_of(uint id) { return srgb_to_linear(unpack_rgba8(texelFetch(attrTex, int(2u * id + 1u)).x).rgb); }
+#ifdef SURFACE_ALBEDO
+vec3 albedo_of(uint id) { return srgb_to_linear(unpack_rgba8(texelFetch(colorTex, int(id)).x).rgb); }
+#endif
 #endif

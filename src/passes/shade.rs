@@ -42,14 +42,18 @@ pub struct ScreenInputs<'a> {
     pub vis: &'a Buffer,
     pub spheres: &'a Buffer,
     pub attrs: &'a Buffer,
+    /// One RGBA8 word per sphere (albedo_of): a 64-byte line holds 16
+    /// spheres' colours, where the attribute texels hold 2.
+    pub colors: &'a Buffer,
 }
 
 /// The bindings every variant of shade.comp and ssdo_prep.comp starts with.
-pub const SURFACE_BINDINGS: [Binding; 4] = [
+pub const SURFACE_BINDINGS: [Binding; 5] = [
     uniform("GlobalsBlock"),
     texel("visTex", Format::R32G32_UINT),
     texel("sphereTex", Format::R32G32B32A32_SFLOAT),
     texel("attrTex", Format::R32G32B32A32_UINT),
+    texel("colorTex", Format::R32_UINT),
 ];
 
 /// Which compiled variant of a per-technique shader.
@@ -303,6 +307,7 @@ impl ShadePass {
             ("visTex", io.vis),
             ("sphereTex", io.spheres),
             ("attrTex", io.attrs),
+            ("colorTex", io.colors),
             ("aoTex", ao),
             ("recordTex", records),
             ("Color", color),

@@ -363,6 +363,7 @@ impl SsdoPass {
             ("visTex", io.vis),
             ("sphereTex", io.spheres),
             ("attrTex", io.attrs),
+            ("colorTex", io.colors),
             ("Records", records),
             ("Flags", flags),
             ("TapDepth", tap_depth),

@@ -169,6 +169,7 @@ impl Resources {
             vis: &t.vis,
             spheres: &self.spheres,
             attrs: &self.attrs,
+            colors: &self.colors,
         };
         let half = t.half();
         let ssdo = self.ssdo.as_ref().filter(|_| settings.ssdo_on());

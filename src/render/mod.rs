@@ -187,6 +187,8 @@ pub(crate) struct Resources {
     bgra: bool,
     spheres: Buffer,
     attrs: Buffer,
+    /// One RGBA8 word per sphere (the colour of `attrs`, compact).
+    colors: Buffer,
     targets: Targets,
     raster: RasterPass,
     coverage: CoveragePass,
@@ -462,6 +464,13 @@ impl<'c> Renderer<'c> {
             (attrs.len() * 32) as u64,
         )?);
         attr_buf.upload(ctx, 0, bytemuck::cast_slice(&attrs))?;
+        let colors: Vec<u32> = attrs.iter().map(|a| a.color).collect();
+        let color_buf = ctx.guard(Buffer::storage(
+            ctx,
+            "sphere colours",
+            (colors.len().max(1) * 4) as u64,
+        )?);
+        color_buf.upload(ctx, 0, bytemuck::cast_slice(&colors))?;
         let win = checked_window(&cam, settings.window, settings.raster)?;
         let targets = ctx.guard(Targets::new(
             ctx,
@@ -500,6 +509,7 @@ impl<'c> Renderer<'c> {
             bgra: false,
             spheres: spheres.keep(),
             attrs: attr_buf.keep(),
+            colors: color_buf.keep(),
             targets: targets.keep(),
             raster: raster.keep(),
             coverage: coverage.keep(),
@@ -805,7 +815,10 @@ impl<'c> Renderer<'c> {
                 *m.entry(class.to_string()).or_insert(0) += bytes;
             }
         };
-        add("scene", self.res.spheres.size + self.res.attrs.size);
+        add(
+            "scene",
+            self.res.spheres.size + self.res.attrs.size + self.res.colors.size,
+        );
         add(
             "uniforms",
             self.slots.iter().map(|f| f.globals.size).sum::<u64>(),
@@ -1283,6 +1296,7 @@ impl Drop for Renderer<'_> {
         r.targets.destroy(ctx);
         r.spheres.destroy(ctx);
         r.attrs.destroy(ctx);
+        r.colors.destroy(ctx);
         r.staging.destroy_with(ctx);
     }
 }
