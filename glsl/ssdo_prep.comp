@@ -48,44 +48,38 @@ void main() {
     if (!tile_pixel(hw, hh, true, b)) return;
     uint w = g.cam.dims.x, h = g.cam.dims.y;
     Record r;
+    // The block's four keys in block order (~0 outside the image); none in
+    // background regions (the loops compile out).
+    const uint N = SSDO_BLOCK * SSDO_BLOCK;
+    uvec4 ids = uvec4(NO_SPHERE), dw = uvec4(0xFFFFFFFFu);
+    for (uint k = 0u; k < (TILE_LIST == 2u ? 0u : N); ++k) {
+        uvec2 px = SSDO_BLOCK * b + uvec2(k % SSDO_BLOCK, k / SSDO_BLOCK);
+        uvec2 v = texelFetch(visTex, int(min(px.y, h - 1u) * w + min(px.x, w - 1u))).xy;
+        bool inside = px.x < w && px.y < h;
+        ids[k] = inside ? v.x : NO_SPHERE;
+        dw[k] = inside ? v.y : 0xFFFFFFFFu;
+    }
     // The representative: the first covered pixel from a rotating start,
     // found from the ids alone (straight-line; lavapipe would run every
-    // iteration's surface rebuild), then rebuilt once.
-    const uint N = SSDO_BLOCK * SSDO_BLOCK;
+    // candidate's surface rebuild), then rebuilt once.
     uint first = (b.x + SSDO_BLOCK * b.y) % N;
-    uint pixel = 0u;
     bool found = false;
     r.sub = uvec2(0u);
-    // (background regions: nothing to find, the loop compiles out)
     for (uint k = 0u; k < (TILE_LIST == 2u ? 0u : N); ++k) {
         uint c = (first + k) % N;
-        uvec2 sub = uvec2(c % SSDO_BLOCK, c / SSDO_BLOCK);
-        uvec2 px = SSDO_BLOCK * b + sub;
-        bool inside = px.x < w && px.y < h;
-        uint j = min(px.y, h - 1u) * w + min(px.x, w - 1u);
-        uint id = texelFetch(visTex, int(j)).x;
-        bool take = !found && inside && id != NO_SPHERE;
-        pixel = take ? j : pixel;
-        r.sub = take ? sub : r.sub;
+        bool take = !found && ids[c] != NO_SPHERE;
+        r.sub = take ? uvec2(c % SSDO_BLOCK, c / SSDO_BLOCK) : r.sub;
         found = found || take;
     }
+    uvec2 rep = SSDO_BLOCK * b + r.sub;
+    uint pixel = rep.y * w + rep.x;
     uint out_index = b.y * hw + b.x;
     if (MARK) {
-        // The four pixels' keys in block order: their depth words for the
-        // taps, and their spheres' flag bits (one bit per sphere:
-        // ssdo_list.comp reads 32 spheres per word), one atomicOr per
-        // distinct flag word of the block (mostly one: neighbouring spheres
-        // have neighbouring ids) instead of one per pixel: an executed
-        // atomic is a locked instruction per lane on lavapipe.
-        uvec4 dw = uvec4(0xFFFFFFFFu), ids = uvec4(NO_SPHERE);
-        for (uint k = 0u; k < (TILE_LIST == 2u ? 0u : N); ++k) {
-            uvec2 px = SSDO_BLOCK * b + uvec2(k & 1u, k >> 1u);
-            uint j = min(px.y, h - 1u) * w + min(px.x, w - 1u);
-            uvec2 v = texelFetch(visTex, int(j)).xy;
-            bool inside = px.x < w && px.y < h;
-            dw[k] = inside ? v.y : 0xFFFFFFFFu;
-            ids[k] = inside ? v.x : NO_SPHERE;
-        }
+        // The taps' depth words, and the spheres' flag bits (one bit per
+        // sphere: ssdo_list.comp reads 32 spheres per word), one atomicOr
+        // per distinct flag word of the block (mostly one: neighbouring
+        // spheres have neighbouring ids) instead of one per pixel: an
+        // executed atomic is a locked instruction per lane on lavapipe.
         uvec4 words = ids >> 5u;
         for (uint k = 0u; k < (TILE_LIST == 2u ? 0u : N); ++k) {
             uint bits = 0u;
@@ -100,7 +94,7 @@ void main() {
         tap_depth[out_index] = dw;
     }
     Surface s;
-    if (TILE_LIST == 2u || !found || !surface_of(SSDO_BLOCK * b + r.sub, s)) {
+    if (TILE_LIST == 2u || !found || !surface_of(rep, s)) {
         records[out_index] = uvec4(floatBitsToUint(RECORD_BACKGROUND), 0u, 0u, 0u);
         return;
     }
