@@ -17,7 +17,10 @@
 // dense 3x3 core), shadow_f0.xyz = (s, x, b). ISSM_CORE_ONLY (a
 // specialization constant of the including shader, set when t <= 1)
 // compiles the outer patch loop out: on lavapipe its empty iterations
-// would still run for every pixel.
+// would still run for every pixel. ISSM_QUAD (t = 0) reads only the 2x2
+// texels whose centres surround P's light position: 4 occluder tests, not
+// 9 (hard shade 52 -> 41 ms on the 1M capsid at 1080p; its hard mask there
+// agrees with exact rays on 98.44 % of pixels against 98.84 % for 3x3).
 layout(set = 0, binding = 16) uniform usamplerBuffer issmTex; // R32UI view: even texels = sphere ids
 
 // How strongly one occluder shadows p, as a fraction num / den (den > 0):
@@ -78,9 +81,17 @@ float key_visibility(Surface s, uint pixel) {
     // needs no bounds test per texel: at the border it reads the edge's
     // own texels instead of empty ones outside, and testing an extra
     // sphere never adds a wrong shadow (the hit test is exact).
+    if (ISSM_QUAD) {
+        ivec2 q = clamp(ivec2(floor(light_uv(L, s.p) - 0.5)), ivec2(0), ivec2(size - 2));
+        int b = 2 * (q.y * size + q.x);
+        m = max_closeness(m, id_closeness(s, dl, texelFetch(issmTex, b).x, inv2b2));
+        m = max_closeness(m, id_closeness(s, dl, texelFetch(issmTex, b + 2).x, inv2b2));
+        m = max_closeness(m, id_closeness(s, dl, texelFetch(issmTex, b + 2 * size).x, inv2b2));
+        m = max_closeness(m, id_closeness(s, dl, texelFetch(issmTex, b + 2 * size + 2).x, inv2b2));
+    }
     ivec2 cc = clamp(c, ivec2(1), ivec2(size - 2));
     int base = 2 * (cc.y * size + cc.x);
-    for (int dy = -1; dy <= 1 && m.x < m.y; ++dy) {
+    for (int dy = -1; !ISSM_QUAD && dy <= 1 && m.x < m.y; ++dy) {
         for (int dx = -1; dx <= 1; ++dx) {
             m = max_closeness(m, id_closeness(s, dl, texelFetch(issmTex, base + 2 * (dy * size + dx)).x, inv2b2));
         }

@@ -33,6 +33,8 @@ layout(constant_id = 10) const bool AO_SPHERE = false;
 layout(constant_id = 11) const bool FOG = false;
 // Perspective camera (surface.glsl, shared.glsl's view functions).
 layout(constant_id = 12) const bool PERSP = false;
+// ISSM t = 0: the 2x2 texels around P (lookup_issm.glsl).
+layout(constant_id = 13) const bool ISSM_QUAD = false;
 
 layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
 layout(set = 0, binding = 1) uniform usamplerBuffer visTex;
@@ -60,7 +62,7 @@ layout(push_constant) uniform Push {
 #include "lookup.glsl"
 #include "ssdo_common.glsl"
 #include "ssdo_record.glsl"
-#define TILE_LIST_ID 13
+#define TILE_LIST_ID 14
 #define TILE_LIST_BINDING 9
 #include "tiles.glsl"
 

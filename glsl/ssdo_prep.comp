@@ -14,6 +14,8 @@ layout(constant_id = 2) const bool ISSM_CORE_ONLY = false;  // lookup_issm.glsl
 layout(constant_id = 3) const bool MARK = false;
 // Perspective camera (surface.glsl, shared.glsl's view functions).
 layout(constant_id = 4) const bool PERSP = false;
+// ISSM t = 0: the 2x2 texels around P (lookup_issm.glsl).
+layout(constant_id = 5) const bool ISSM_QUAD = false;
 
 layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
 layout(set = 0, binding = 1) uniform usamplerBuffer visTex;
@@ -38,7 +40,7 @@ layout(push_constant) uniform Push {
 
 #include "lookup.glsl"
 #include "ssdo_record.glsl"
-#define TILE_LIST_ID 5
+#define TILE_LIST_ID 6
 #define TILE_LIST_BINDING 6
 #include "tiles.glsl"
 

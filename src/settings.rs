@@ -479,7 +479,9 @@ pub struct Options {
     /// ISSM (and deep-list) light map side in texels.
     #[arg(long, default_value_t = Options::default().issm_size)]
     pub issm_size: u32,
-    /// ISSM patch half-size t (0..32), or `auto`.
+    /// ISSM patch half-size t (0..32), or `auto`: 1 is the paper's 3x3
+    /// patch; 0 reads only the 2x2 texels around the point (faster, slightly
+    /// less exact where a light texel is nearly a sphere radius).
     #[arg(long, default_value_t = Options::default().issm_t)]
     pub issm_t: IssmT,
     /// Soft shadows: radius enlargement s in world units.

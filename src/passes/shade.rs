@@ -212,6 +212,8 @@ pub struct ShadeMode {
     pub aovs: bool,
     /// ISSM reads only its 3x3 core ([`Lookup::core_only`]).
     pub core_only: bool,
+    /// ISSM reads only the 2x2 texels around the point ([`Lookup::quad`]).
+    pub quad: bool,
     /// Silhouette lines.
     pub outline: bool,
     /// RGBA16 colour.
@@ -227,7 +229,7 @@ pub struct ShadeMode {
 }
 
 impl ShadeMode {
-    fn constants(&self) -> [u32; 12] {
+    fn constants(&self) -> [u32; 13] {
         let use_shadow = !matches!(self.kind, LookupKind::None | LookupKind::Screen);
         [
             self.soft as u32,
@@ -242,6 +244,7 @@ impl ShadeMode {
             self.ao_sphere as u32,
             self.fog as u32,
             self.perspective as u32,
+            self.quad as u32,
         ]
     }
 }

@@ -333,12 +333,13 @@ impl SsdoPass {
 
     /// With per-sphere receivers the records feed only the bounce (4 bits a
     /// channel): their key-light visibility skips the soft penumbra.
-    fn prep_constants(lookup: &Lookup, taps: Taps) -> [u32; 4] {
+    fn prep_constants(lookup: &Lookup, taps: Taps) -> [u32; 5] {
         [
             (lookup.soft && !taps.per_sphere()) as u32,
             lookup.core_only() as u32,
             taps.per_sphere() as u32,
             taps.perspective as u32,
+            lookup.quad() as u32,
         ]
     }
 

@@ -366,6 +366,7 @@ impl Resources {
             swap_rb: self.bgra,
             aovs: settings.aovs,
             core_only: lookup.core_only(),
+            quad: lookup.quad(),
             outline: self.outline_px(settings) > 0,
             wide: settings.look.color16,
             fog: settings.look.fog.is_some_and(|f| f.0[1] > f.0[0]),

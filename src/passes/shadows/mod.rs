@@ -98,6 +98,12 @@ impl Lookup<'_> {
     pub fn core_only(&self) -> bool {
         self.kind == LookupKind::Issm && self.params.u[0] <= 1
     }
+
+    /// ISSM with t = 0: only the 2x2 texels around the point are read (a
+    /// specialization constant of the lookup, `ISSM_QUAD`).
+    pub fn quad(&self) -> bool {
+        self.kind == LookupKind::Issm && self.params.u[0] == 0
+    }
 }
 
 impl Lookup<'static> {
