@@ -24,9 +24,5 @@ void main() {
     put4u(g.shadow_u);
     for (int a = 0; a < 2; ++a) {
         put4u(attrs[a].region);
-        words[k++] = attrs[a].color;
-        words[k++] = attrs[a].flags;
-        words[k++] = attrs[a].pad0;
-        words[k++] = attrs[a].pad1;
     }
 }

@@ -104,7 +104,7 @@ vec4 background_at(uvec2 px) {
 }
 
 uint region_of(uint id) {
-    return g.counts.w != 0u ? 0u : texelFetch(attrTex, int(2u * id))[pc.level];
+    return g.counts.w != 0u ? 0u : texelFetch(attrTex, int(id))[pc.level];
 }
 
 // Silhouette lines (as ChimeraX's and Mol*'s): a pixel lies on a line when
@@ -144,7 +144,7 @@ bool on_outline(uvec2 px, bool cov, float z, uint region) {
 void ssdo_at(uvec2 px, float z, vec3 n, uint id, out vec2 v, out vec3 bounce, out float screen_vis) {
     uint hw = g.counts.y, hh = g.counts.z;
     bool regions = g.counts.w == 0u;
-    uint reg = regions ? region_hash(texelFetch(attrTex, int(2u * id))[pc.level]) : 0u;
+    uint reg = regions ? region_hash(texelFetch(attrTex, int(id))[pc.level]) : 0u;
     vec2 f = (vec2(px) - 0.5) * 0.5;
     vec2 b0 = floor(f);
     vec2 fr = f - b0;

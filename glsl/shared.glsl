@@ -43,12 +43,9 @@ struct Globals {
     uvec4 shadow_u;
 };
 
+// (Colours are a separate RGBA8 word per sphere, colorTex.)
 struct SphereAttr {
     uvec4 region; // region ids per hierarchy level, outermost first
-    uint color;   // RGBA8 (R in the low byte)
-    uint flags;
-    uint pad0;
-    uint pad1;
 };
 
 // Flat invocation index; dispatch() folds large 1D grids into y.

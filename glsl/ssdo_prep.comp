@@ -108,7 +108,7 @@ void main() {
         r.region_a = region_hash(s.id);
         r.region_b = r.region_a;
     } else {
-        uvec4 regions = texelFetch(attrTex, int(2u * s.id));
+        uvec4 regions = texelFetch(attrTex, int(s.id));
         r.region_a = region_hash(regions[pc.level_a]);
         r.region_b = region_hash(regions[pc.level_b]);
     }

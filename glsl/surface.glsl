@@ -43,7 +43,7 @@ bool surface_of(uvec2 q, out Surface s) {
 }
 
 // Linear albedo of a sphere from `colorTex`, one RGBA8 word per sphere:
-// the attribute texels (32 B per sphere) held it too, but as a random
+// the attribute texels (32 B per sphere then) held it too, but as a random
 // fetch per pixel they cost ~10 ms of the 1M capsid's shade on lavapipe.
 // (includers that want it define SURFACE_ALBEDO and declare `colorTex`)
 vec3 srgb_to_linear(vec3 c) { return pow(c, vec3(2.2)); }

@@ -45,16 +45,15 @@ pub struct Globals {
     pub shadow_u: [u32; 4],
 }
 
-/// Per-sphere attributes used after visibility (shading, regions).
+/// Per-sphere attributes used after visibility: the regions (SSDO, the
+/// region AOV). Colours are a separate RGBA8 word per sphere: a pixel's
+/// colour and a block's regions were each a random fetch, and a 16-byte
+/// texel keeps the regions' fetch to half the bytes of a shared 32-byte one.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
 pub struct SphereAttr {
     /// Region ids per hierarchy level, outermost first.
     pub region: [u32; 4],
-    /// RGBA8, R in the low byte.
-    pub color: u32,
-    pub flags: u32,
-    pub pad: [u32; 2],
 }
 
 /// Geometry as the rasterizer reads it: centre xyz, radius w.
@@ -65,7 +64,7 @@ pub const VIS_EMPTY: u64 = u64::MAX;
 
 const _: () = assert!(std::mem::size_of::<GpuView>() == 96);
 const _: () = assert!(std::mem::size_of::<Globals>() == 2 * 96 + 7 * 16);
-const _: () = assert!(std::mem::size_of::<SphereAttr>() == 32);
+const _: () = assert!(std::mem::size_of::<SphereAttr>() == 16);
 const _: () = assert!(std::mem::size_of::<GpuSphere>() == 16);
 
 /// Turns the shared constant list into `pub const`s (build.rs turns the same

@@ -448,11 +448,7 @@ impl<'c> Renderer<'c> {
         let attrs: Vec<SphereAttr> = scene
             .spheres
             .iter()
-            .map(|s| SphereAttr {
-                region: s.region,
-                color: u32::from_le_bytes(s.color),
-                ..Default::default()
-            })
+            .map(|s| SphereAttr { region: s.region })
             .collect();
 
         // Each object is guarded until the renderer owns it: an error part
@@ -462,10 +458,14 @@ impl<'c> Renderer<'c> {
         let attr_buf = ctx.guard(Buffer::storage(
             ctx,
             "sphere attributes",
-            (attrs.len() * 32) as u64,
+            std::mem::size_of_val(attrs.as_slice()).max(16) as u64,
         )?);
         attr_buf.upload(ctx, 0, bytemuck::cast_slice(&attrs))?;
-        let colors: Vec<u32> = attrs.iter().map(|a| a.color).collect();
+        let colors: Vec<u32> = scene
+            .spheres
+            .iter()
+            .map(|s| u32::from_le_bytes(s.color))
+            .collect();
         let color_buf = ctx.guard(Buffer::storage(
             ctx,
             "sphere colours",

@@ -21,7 +21,12 @@ pub struct Buffer {
 /// sizes it.
 fn advice(name: &str) -> &'static str {
     let light = ["deep", "issm", "shadow map", "osm", "light"];
-    let scene = ["spheres", "sphere attributes", "raster jobs"];
+    let scene = [
+        "spheres",
+        "sphere attributes",
+        "sphere colours",
+        "raster jobs",
+    ];
     if light.iter().any(|k| name.contains(k)) {
         "lower the light-map size (--issm-size, --sm-size or --osm-size)"
     } else if scene.iter().any(|k| name.starts_with(k)) {
