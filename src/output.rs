@@ -399,7 +399,9 @@ pub struct RunStats {
     pub image_sha256: String,
     /// With a light-space technique, `bench` also measures frames that
     /// reuse its map/lists (camera moving, light fixed): an addition to
-    /// DESIGN.md's object; null otherwise.
+    /// DESIGN.md's object. A run without one that `bench` measured beside
+    /// such runs holds its plain frames of those rounds here (the
+    /// denominator of the cached ratio); null otherwise.
     #[serde(default)]
     pub light_cached: Option<CachedStats>,
 }

@@ -568,40 +568,132 @@ pub fn render_run_with(
     cached: bool,
     before: &mut dyn FnMut(&mut Renderer, u32) -> Result<()>,
 ) -> Result<RunOutcome> {
-    let mut settings = settings;
-    settings.aovs |= matches!(aov, Aov::Shadow | Aov::Ao);
-    let n = settings.ssaa_for(aov);
-    let tile = settings.tile_size;
-    let mut r = Renderer::new_windowed(ctx, scene, settings, tile)?;
-    let mut progress = StepProgress::new("rendering");
-    for _ in 0..warmup {
-        render_supersampled(&mut r, n, tile, false, &mut |d, t| progress.tick(d, t))?;
+    let mut run = PreparedRun::new(ctx, scene, input, settings, aov, warmup, load_ms)?;
+    let frames = frames.max(1);
+    for k in 0..frames {
+        before(run.renderer(), k)?;
+        run.frame(k + 1 == frames)?;
     }
-    let mut times = Vec::new();
-    let mut last = None;
-    for k in 0..frames.max(1) {
-        before(&mut r, k)?;
-        let read = k + 1 == frames.max(1);
-        let (img, t) = render_supersampled(&mut r, n, tile, read, &mut |d, t| progress.tick(d, t))?;
-        times.push(t);
-        last = img.or(last);
+    if cached && run.has_light() {
+        run.start_cached()?;
+        for k in 0..frames {
+            before(run.renderer(), k)?;
+            run.cached_frame()?;
+        }
     }
-    let img = last.ok_or_else(|| Error::Internal("no image read back".into()))?;
-    let image = image_aov(&img, aov);
-    let light_cached = if cached && r.settings().shadows != ShadowMode::None {
-        r.set_light_cache(true);
-        // builds the structure the measured frames reuse
-        r.render_frame()?;
-        let times = run_frames_with(&mut r, 0, frames, before)?;
-        r.set_light_cache(false);
-        let (passes, total_ms) = output::summarize(&times);
-        Some(output::CachedStats { passes, total_ms })
-    } else {
-        None
-    };
-    let mut stats = run_stats(ctx, &r, input, &times, load_ms, &image);
-    stats.light_cached = light_cached;
-    Ok(RunOutcome { stats, image })
+    run.finish(ctx)
+}
+
+/// One run between its warm-up and its stats record: a renderer, the
+/// times of its measured frames and its last image. `render_run_with`
+/// measures one run at a time; `bench` keeps several and renders their
+/// frames in turn, so that a slow spell of the machine falls on every run
+/// it compares alike (lavapipe's frame times drift by 20 % from one second
+/// to the next on a shared machine).
+pub struct PreparedRun<'c> {
+    r: Renderer<'c>,
+    input: String,
+    aov: Aov,
+    samples: u32,
+    tile: Option<u32>,
+    load_ms: f64,
+    progress: StepProgress,
+    times: Vec<PassTimes>,
+    cached: Vec<PassTimes>,
+    last: Option<crate::render::tiles::Image>,
+}
+
+impl<'c> PreparedRun<'c> {
+    /// Creates the renderer and renders the unmeasured warm-up frames.
+    pub fn new(
+        ctx: &'c Context,
+        scene: &Scene,
+        input: &str,
+        settings: RenderSettings,
+        aov: Aov,
+        warmup: u32,
+        load_ms: f64,
+    ) -> Result<Self> {
+        let mut settings = settings;
+        settings.aovs |= matches!(aov, Aov::Shadow | Aov::Ao);
+        let samples = settings.ssaa_for(aov);
+        let tile = settings.tile_size;
+        let r = Renderer::new_windowed(ctx, scene, settings, tile)?;
+        let mut run = PreparedRun {
+            r,
+            input: input.to_string(),
+            aov,
+            samples,
+            tile,
+            load_ms,
+            progress: StepProgress::new("rendering"),
+            times: Vec::new(),
+            cached: Vec::new(),
+            last: None,
+        };
+        for _ in 0..warmup {
+            let (r, p) = (&mut run.r, &mut run.progress);
+            render_supersampled(r, samples, tile, false, &mut |d, t| p.tick(d, t))?;
+        }
+        Ok(run)
+    }
+
+    pub fn renderer(&mut self) -> &mut Renderer<'c> {
+        &mut self.r
+    }
+
+    /// Device memory of the run's buffers.
+    pub fn memory_bytes(&self) -> u64 {
+        self.r.memory_by_class().values().sum()
+    }
+
+    /// Whether the active technique has a light-space structure to cache.
+    pub fn has_light(&self) -> bool {
+        self.r.settings().shadows != ShadowMode::None
+    }
+
+    /// Renders one measured frame; `read` keeps its image.
+    pub fn frame(&mut self, read: bool) -> Result<()> {
+        let (r, p) = (&mut self.r, &mut self.progress);
+        let (img, t) =
+            render_supersampled(r, self.samples, self.tile, read, &mut |d, n| p.tick(d, n))?;
+        self.times.push(t);
+        self.last = img.or(self.last.take());
+        Ok(())
+    }
+
+    /// Turns the light cache on and renders the frame that builds the
+    /// structure the cached frames reuse (unmeasured).
+    pub fn start_cached(&mut self) -> Result<()> {
+        self.r.set_light_cache(true);
+        self.r.render_frame()?;
+        Ok(())
+    }
+
+    /// Renders one measured frame with the light cache on (after
+    /// `start_cached`; without a light structure, the run's plain frame,
+    /// which `bench` measures alongside the others' cached frames).
+    pub fn cached_frame(&mut self) -> Result<()> {
+        let t = self.r.render_frame()?;
+        self.cached.push(t);
+        Ok(())
+    }
+
+    /// The stats record and the last image.
+    pub fn finish(mut self, ctx: &Context) -> Result<RunOutcome> {
+        self.r.set_light_cache(false);
+        let img = self
+            .last
+            .take()
+            .ok_or_else(|| Error::Internal("no image read back".into()))?;
+        let image = image_aov(&img, self.aov);
+        let mut stats = run_stats(ctx, &self.r, &self.input, &self.times, self.load_ms, &image);
+        if !self.cached.is_empty() {
+            let (passes, total_ms) = output::summarize(&self.cached);
+            stats.light_cached = Some(output::CachedStats { passes, total_ms });
+        }
+        Ok(RunOutcome { stats, image })
+    }
 }
 
 /// The DESIGN.md stats record of frames `times` rendered by `r`, whose

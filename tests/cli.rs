@@ -364,6 +364,28 @@ fn bench_writes_runs_and_ratios() {
             .keys()
             .any(|k| k.starts_with("issm_overhead"))
     );
+    // The runs were measured together: the local run carries its frames of
+    // the cached rounds, and the cached ratio divides by them.
+    let cached = |i: usize| {
+        runs[i]["light_cached"]["total_ms"]["median"]
+            .as_f64()
+            .unwrap()
+    };
+    assert_eq!(runs[0]["shadows"], "none");
+    assert_eq!(runs[1]["shadows"], "issm");
+    let ratio = v["ratios"]
+        .as_object()
+        .unwrap()
+        .iter()
+        .find(|(k, _)| k.starts_with("issm_cached_overhead"))
+        .and_then(|(_, r)| r.as_f64())
+        .unwrap();
+    assert!((ratio - cached(1) / cached(0)).abs() < 1e-9, "{ratio}");
+    assert!(
+        stderr(&o).contains("measuring 3 runs together"),
+        "{}",
+        stderr(&o)
+    );
     // --compare against itself: every ratio is exactly 1
     let o = bench(
         "random",

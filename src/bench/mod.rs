@@ -399,7 +399,12 @@ pub fn run(a: &BenchArgs) -> Result<BenchReport> {
     // written) before the expensive one starts.
     for &(w, h) in &sizes {
         for set in &sets {
-            for t in &techniques {
+            // One slot per technique, filled in the matrix's order.
+            let mut results: Vec<Option<std::result::Result<RunStats, FailedRun>>> =
+                techniques.iter().map(|_| None).collect();
+            let mut pool: Vec<Pending> = Vec::new();
+            let mut pool_bytes = 0u64;
+            for (i, t) in techniques.iter().enumerate() {
                 done += 1;
                 let desc = format!(
                     "{} ({} spheres) {w}x{h} shadows={} ssdo={} raster={} opacity={}",
@@ -423,36 +428,54 @@ pub fn run(a: &BenchArgs) -> Result<BenchReport> {
                     "bench: run {done}/{total} ({:.0} s elapsed{eta}): {desc}",
                     elapsed
                 );
-                let result = if t.raster == RasterMode::Graphics {
+                if t.raster == RasterMode::Graphics {
                     // Measured on lavapipe: once a queue has drawn, its later
                     // timestamps are binned with the draw's scene and all land
                     // at the end of the command buffer (every compute pass
                     // after the first then reads 0 ms). A device of its own
-                    // keeps the draw away from the compute runs' timings.
-                    Context::new(&options).and_then(|g| {
+                    // keeps the draw away from the compute runs' timings, so
+                    // this run is measured alone.
+                    let r = Context::new(&options).and_then(|g| {
                         let r = bench_one(&g, a, set, t, w, h);
                         let (n, _) = g.finish();
                         r.map(|mut s| {
                             s.validation_messages = s.validation_messages.max(n);
                             s
                         })
-                    })
-                } else {
-                    bench_one(&ctx, a, set, t, w, h)
-                };
-                match result {
-                    Ok(stats) => report.runs.push(stats),
-                    Err(e) => {
-                        eprintln!("bench: run {done}/{total} failed: {e}");
-                        report.failed.push(FailedRun {
-                            run: desc,
-                            error: e.to_string(),
+                    });
+                    results[i] = Some(r.map_err(|e| failed_run(desc, e)));
+                    continue;
+                }
+                match prepare(&ctx, a, set, t, w, h) {
+                    Ok(p) => {
+                        let bytes: u64 = p.run.memory_bytes();
+                        if !pool.is_empty() && pool_bytes + bytes > POOL_BYTES {
+                            for (j, d, r) in measure_pool(&ctx, a, std::mem::take(&mut pool)) {
+                                results[j] = Some(r.map_err(|e| failed_run(d, e)));
+                            }
+                            pool_bytes = 0;
+                        }
+                        pool_bytes += bytes;
+                        pool.push(Pending {
+                            index: i,
+                            desc,
+                            ..p
                         });
                     }
+                    Err(e) => results[i] = Some(Err(failed_run(desc, e))),
                 }
-                report.ratios = ratios(&report.runs);
-                output::write_json(&a.json, &report)?;
             }
+            for (j, d, r) in measure_pool(&ctx, a, pool) {
+                results[j] = Some(r.map_err(|e| failed_run(d, e)));
+            }
+            for r in results.into_iter().flatten() {
+                match r {
+                    Ok(stats) => report.runs.push(stats),
+                    Err(f) => report.failed.push(f),
+                }
+            }
+            report.ratios = ratios(&report.runs);
+            output::write_json(&a.json, &report)?;
         }
     }
     // Leak reports come at device destruction: charge them to the last run.
@@ -465,15 +488,38 @@ pub fn run(a: &BenchArgs) -> Result<BenchReport> {
     Ok(report)
 }
 
-/// Measures one technique on one data set at one size.
-fn bench_one(
-    ctx: &Context,
+/// The device memory that the runs measured together may hold at once: a
+/// matrix's larger runs (4M spheres at 4K with deep lists) are then
+/// measured in smaller groups.
+const POOL_BYTES: u64 = 3 << 30;
+
+fn failed_run(run: String, e: Error) -> FailedRun {
+    eprintln!("bench: {run} failed: {e}");
+    FailedRun {
+        run,
+        error: e.to_string(),
+    }
+}
+
+/// A run set up and warmed up, waiting for its measured frames.
+struct Pending<'c> {
+    /// The technique's place in the matrix.
+    index: usize,
+    desc: String,
+    run: run::PreparedRun<'c>,
+    /// The camera the orbit starts from.
+    base: crate::camera::Camera,
+}
+
+/// Sets one technique up on one data set at one size (renderer, warm-up).
+fn prepare<'c>(
+    ctx: &'c Context,
     a: &BenchArgs,
     set: &DataSet,
     t: &Technique,
     w: u32,
     h: u32,
-) -> Result<RunStats> {
+) -> Result<Pending<'c>> {
     let axes = Axes {
         width: w,
         height: h,
@@ -484,27 +530,97 @@ fn bench_one(
     };
     let settings = a.options.resolve(&axes, &set.scene)?;
     let base = settings.camera;
-    let frames = a.frames;
-    let orbit = !a.no_orbit && frames > 1;
-    let out = run::render_run_with(
+    let run = run::PreparedRun::new(
         ctx,
         &set.scene,
         &set.name,
         settings,
         Aov::Color,
         a.warmup,
-        frames,
         set.load_ms,
-        true,
-        &mut |r, k| {
-            if orbit {
-                r.set_camera(orbit_camera(&base, k, frames)?)
-            } else {
-                Ok(())
-            }
-        },
     )?;
-    Ok(out.stats)
+    Ok(Pending {
+        index: 0,
+        desc: String::new(),
+        run,
+        base,
+    })
+}
+
+/// Measures the runs of one data set and size together: frame k of every
+/// run, then frame k + 1 of every run, and so on; then, when any run has a
+/// light-space structure, its cached frames the same way, every run taking
+/// part (a run without one renders its plain frame there, so cached ratios
+/// divide frames of the same rounds). On a shared machine whose speed
+/// drifts by tens of percent within seconds, the ratios between runs were
+/// otherwise as noisy as the runs themselves (full / local 1.85-2.26 for
+/// one build over three `bench` runs, measured one run after another).
+/// Returns (matrix index, description, stats) per run.
+fn measure_pool(
+    ctx: &Context,
+    a: &BenchArgs,
+    pool: Vec<Pending>,
+) -> Vec<(usize, String, Result<RunStats>)> {
+    let frames = a.frames.max(1);
+    let orbit = !a.no_orbit && a.frames > 1;
+    if pool.len() > 1 {
+        eprintln!(
+            "bench: measuring {} runs together, {frames} frames each in turn",
+            pool.len()
+        );
+    }
+    let mut live: Vec<(Pending, Option<Error>)> = pool.into_iter().map(|p| (p, None)).collect();
+    let step = |p: &mut Pending, k: u32, f: &mut dyn FnMut(&mut run::PreparedRun) -> Result<()>| {
+        if orbit {
+            p.run
+                .renderer()
+                .set_camera(orbit_camera(&p.base, k, frames)?)?;
+        }
+        f(&mut p.run)
+    };
+    for k in 0..frames {
+        for (p, err) in live.iter_mut().filter(|(_, e)| e.is_none()) {
+            *err = step(p, k, &mut |r| r.frame(k + 1 == frames)).err();
+        }
+    }
+    if live.iter().any(|(p, e)| e.is_none() && p.run.has_light()) {
+        for (p, err) in live
+            .iter_mut()
+            .filter(|(p, e)| e.is_none() && p.run.has_light())
+        {
+            *err = p.run.start_cached().err();
+        }
+        for k in 0..frames {
+            for (p, err) in live.iter_mut().filter(|(_, e)| e.is_none()) {
+                *err = step(p, k, &mut |r| r.cached_frame()).err();
+            }
+        }
+    }
+    live.into_iter()
+        .map(|(p, err)| {
+            let stats = match err {
+                Some(e) => Err(e),
+                None => p.run.finish(ctx).map(|o| o.stats),
+            };
+            (p.index, p.desc, stats)
+        })
+        .collect()
+}
+
+/// Measures one technique on one data set at one size, alone.
+fn bench_one(
+    ctx: &Context,
+    a: &BenchArgs,
+    set: &DataSet,
+    t: &Technique,
+    w: u32,
+    h: u32,
+) -> Result<RunStats> {
+    let p = prepare(ctx, a, set, t, w, h)?;
+    match measure_pool(ctx, a, vec![p]).pop() {
+        Some((_, _, stats)) => stats,
+        None => Err(Error::Internal("run not measured".into())),
+    }
 }
 
 fn key(r: &RunStats) -> (String, u64, u32, u32, String, String, String, u64) {
@@ -562,9 +678,15 @@ pub fn ratios(runs: &[RunStats]) -> BTreeMap<String, f64> {
         if let Some(h) = hard {
             out.insert(format!("issm_overhead[{tag}]"), frame(h) / frame(r));
             if let Some(c) = &h.light_cached {
+                // the local frames of the same rounds where `bench` measured
+                // them (measure_pool), else its own
+                let local = r
+                    .light_cached
+                    .as_ref()
+                    .map_or(frame(r), |l| l.total_ms.median);
                 out.insert(
                     format!("issm_cached_overhead[{tag}]"),
-                    c.total_ms.median / frame(r),
+                    c.total_ms.median / local,
                 );
             }
         }
@@ -661,8 +783,13 @@ pub fn table(report: &BenchReport) -> String {
                 .iter()
                 .map(|p| format!("{} {:.2}", p.name, p.median_ms))
                 .collect();
+            let what = if r.shadows == "none" {
+                "alongside the cached frames"
+            } else {
+                "light map cached"
+            };
             s += &format!(
-                "    light map cached: total {:.2} ms: {}\n",
+                "    {what}: total {:.2} ms: {}\n",
                 c.total_ms.median,
                 passes.join(" | ")
             );
@@ -952,6 +1079,27 @@ mod tests {
         assert!((get("ms_per_million_spheres") - 5.0).abs() < 1e-12);
         assert!((get("issm_cached_overhead") - 1.05).abs() < 1e-12);
         assert!((get("full_over_local") - 2.0).abs() < 1e-12);
+        // measured together, the cached frames divide by the local frames
+        // of the same rounds
+        let mut runs = runs;
+        runs[0].light_cached = Some(crate::output::CachedStats {
+            passes: vec![],
+            total_ms: TotalStats {
+                median: 7.0,
+                min: 7.0,
+                max: 7.0,
+            },
+        });
+        let r = ratios(&runs);
+        let cached = r
+            .iter()
+            .find(|(k, _)| k.starts_with("issm_cached_overhead"))
+            .map(|(_, v)| *v);
+        assert!((cached.unwrap() - 1.5).abs() < 1e-12);
+        assert!(
+            r.iter()
+                .any(|(k, v)| k.starts_with("issm_overhead") && (*v - 1.1).abs() < 1e-12)
+        );
     }
 
     #[test]
