@@ -371,6 +371,9 @@ pub struct TotalStats {
 pub struct CachedStats {
     pub passes: Vec<PassStats>,
     pub total_ms: TotalStats,
+    /// Each measured frame's total, in order (see `RunStats::frame_ms`).
+    #[serde(default)]
+    pub frame_ms: Vec<f64>,
 }
 
 /// One run, exactly the DESIGN.md JSON object.
@@ -404,6 +407,12 @@ pub struct RunStats {
     /// denominator of the cached ratio); null otherwise.
     #[serde(default)]
     pub light_cached: Option<CachedStats>,
+    /// Each measured frame's `total_ms`, in order: an addition to
+    /// DESIGN.md's object. `bench` renders frame k of the runs it compares
+    /// in one round, so their k-th frames pair up (same moment, same orbit
+    /// camera) and its ratios are medians of per-frame ratios.
+    #[serde(default)]
+    pub frame_ms: Vec<f64>,
 }
 
 fn median(v: &mut [f64]) -> f64 {

@@ -690,7 +690,11 @@ impl<'c> PreparedRun<'c> {
         let mut stats = run_stats(ctx, &self.r, &self.input, &self.times, self.load_ms, &image);
         if !self.cached.is_empty() {
             let (passes, total_ms) = output::summarize(&self.cached);
-            stats.light_cached = Some(output::CachedStats { passes, total_ms });
+            stats.light_cached = Some(output::CachedStats {
+                passes,
+                total_ms,
+                frame_ms: self.cached.iter().map(|t| t.total_ms).collect(),
+            });
         }
         Ok(RunOutcome { stats, image })
     }
@@ -730,6 +734,7 @@ pub fn run_stats(
         deep: r.deep_stats(),
         image_sha256: image.sha256(),
         light_cached: None,
+        frame_ms: times.iter().map(|t| t.total_ms).collect(),
     }
 }
 

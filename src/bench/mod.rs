@@ -648,8 +648,25 @@ fn pass_ms(r: &RunStats, name: &str) -> Option<f64> {
         .map(|p| p.median_ms)
 }
 
+/// a / b for two runs measured together: the median of their per-frame
+/// ratios when both list the same number of frames (frame k of each was
+/// rendered in the same round), else the ratio of their medians (`a`, `b`).
+fn paired(a_ms: &[f64], a: f64, b_ms: &[f64], b: f64) -> f64 {
+    if a_ms.is_empty() || a_ms.len() != b_ms.len() || b_ms.iter().any(|&t| t <= 0.0) {
+        return a / b;
+    }
+    let mut r: Vec<f64> = a_ms.iter().zip(b_ms).map(|(x, y)| x / y).collect();
+    r.sort_by(|x, y| x.total_cmp(y));
+    let n = r.len();
+    if n % 2 == 1 {
+        r[n / 2]
+    } else {
+        0.5 * (r[n / 2 - 1] + r[n / 2])
+    }
+}
+
 /// Derived ratios between runs of the same data set and size that differ in
-/// one setting (frame medians unless noted), named after data set and size:
+/// one setting (medians of per-frame ratios, `paired`, unless noted), named after data set and size:
 /// ISSM overhead (issm / none, issm-soft / none), soft/hard, deep/ISSM,
 /// translucent/opaque deep, semantic/plain SSDO (full frames), graphics /
 /// compute raster (the `raster` pass), and ms per million spheres of the
@@ -669,51 +686,51 @@ pub fn ratios(runs: &[RunStats]) -> BTreeMap<String, f64> {
     let bases = runs.iter().filter(|r| {
         r.shadows == "none" && r.ssdo == "off" && r.raster == "compute" && r.opacity == 1.0
     });
+    let frame = |x: &RunStats| x.total_ms.median;
+    let over = |a: &RunStats, b: &RunStats| paired(&a.frame_ms, frame(a), &b.frame_ms, frame(b));
     for r in bases {
         let tag = data_tag(r);
-        let frame = |x: &RunStats| x.total_ms.median;
         let hard = find(r, "issm", "off", "compute", 1.0);
         let soft = find(r, "issm-soft", "off", "compute", 1.0);
         let deep = find(r, "deep", "off", "compute", 1.0);
         if let Some(h) = hard {
-            out.insert(format!("issm_overhead[{tag}]"), frame(h) / frame(r));
+            out.insert(format!("issm_overhead[{tag}]"), over(h, r));
             if let Some(c) = &h.light_cached {
                 // the local frames of the same rounds where `bench` measured
                 // them (measure_pool), else its own
-                let local = r
+                let (local, local_ms) = r
                     .light_cached
                     .as_ref()
-                    .map_or(frame(r), |l| l.total_ms.median);
+                    .map_or((frame(r), &r.frame_ms), |l| {
+                        (l.total_ms.median, &l.frame_ms)
+                    });
                 out.insert(
                     format!("issm_cached_overhead[{tag}]"),
-                    c.total_ms.median / local,
+                    paired(&c.frame_ms, c.total_ms.median, local_ms, local),
                 );
             }
         }
         // The full default frame against local lighting.
         if let Some(f) = find(r, "issm-soft", "semantic", "compute", 1.0) {
-            out.insert(format!("full_over_local[{tag}]"), frame(f) / frame(r));
+            out.insert(format!("full_over_local[{tag}]"), over(f, r));
         }
         if let Some(s) = soft {
-            out.insert(format!("issm_soft_overhead[{tag}]"), frame(s) / frame(r));
+            out.insert(format!("issm_soft_overhead[{tag}]"), over(s, r));
         }
         if let (Some(s), Some(h)) = (soft, hard) {
-            out.insert(format!("soft_over_hard[{tag}]"), frame(s) / frame(h));
+            out.insert(format!("soft_over_hard[{tag}]"), over(s, h));
         }
         if let (Some(d), Some(h)) = (deep, hard) {
-            out.insert(format!("deep_over_issm[{tag}]"), frame(d) / frame(h));
+            out.insert(format!("deep_over_issm[{tag}]"), over(d, h));
         }
         if let (Some(d5), Some(d)) = (find(r, "deep", "off", "compute", 0.5), deep) {
-            out.insert(
-                format!("deep_translucent_over_opaque[{tag}]"),
-                frame(d5) / frame(d),
-            );
+            out.insert(format!("deep_translucent_over_opaque[{tag}]"), over(d5, d));
         }
         if let (Some(se), Some(pl)) = (
             find(r, "issm-soft", "semantic", "compute", 1.0),
             find(r, "issm-soft", "plain", "compute", 1.0),
         ) {
-            out.insert(format!("semantic_over_plain[{tag}]"), frame(se) / frame(pl));
+            out.insert(format!("semantic_over_plain[{tag}]"), over(se, pl));
         }
         if let Some(g) = find(r, "none", "off", "graphics", 1.0)
             && let (Some(gr), Some(cr)) = (pass_ms(g, "raster"), pass_ms(r, "raster"))
@@ -1044,6 +1061,7 @@ mod tests {
             deep: None,
             image_sha256: String::new(),
             light_cached: None,
+            frame_ms: vec![],
         }
     }
 
@@ -1057,6 +1075,7 @@ mod tests {
                 min: 10.5,
                 max: 10.5,
             },
+            frame_ms: vec![],
         });
         let mut full = run("issm-soft", 1.0, 20.0);
         full.ssdo = "semantic".into();
@@ -1089,6 +1108,7 @@ mod tests {
                 min: 7.0,
                 max: 7.0,
             },
+            frame_ms: vec![],
         });
         let r = ratios(&runs);
         let cached = r
@@ -1100,6 +1120,30 @@ mod tests {
             r.iter()
                 .any(|(k, v)| k.starts_with("issm_overhead") && (*v - 1.1).abs() < 1e-12)
         );
+    }
+
+    /// Runs measured together divide frame by frame: a slow spell that hit
+    /// one round hits both runs' frames of it and cancels.
+    #[test]
+    fn ratios_pair_the_frames_of_one_round() {
+        let mut local = run("none", 1.0, 20.0);
+        local.frame_ms = vec![10.0, 20.0, 30.0];
+        let mut hard = run("issm", 1.0, 22.0);
+        hard.frame_ms = vec![12.0, 22.0, 60.0];
+        let get = |runs: &[RunStats]| {
+            ratios(runs)
+                .into_iter()
+                .find(|(k, _)| k.starts_with("issm_overhead"))
+                .map(|(_, v)| v)
+                .unwrap()
+        };
+        // per-frame 1.2, 1.1, 2.0: median 1.2 (the medians' ratio is 1.1)
+        assert!((get(&[local.clone(), hard.clone()]) - 1.2).abs() < 1e-12);
+        // frames that do not pair up: the medians' ratio
+        hard.frame_ms.pop();
+        assert!((get(&[local, hard]) - 1.1).abs() < 1e-12);
+        assert!((paired(&[], 3.0, &[], 2.0) - 1.5).abs() < 1e-12);
+        assert!((paired(&[1.0, 3.0], 2.0, &[1.0, 1.0], 1.0) - 2.0).abs() < 1e-12);
     }
 
     #[test]
