@@ -54,7 +54,11 @@ pub struct Issm {
 
 /// The lookup's binding: the 64-bit depth|id map read as 32-bit words
 /// (even words = ids).
-const LOOKUP: [Binding; 1] = [texel("issmTex", ash::vk::Format::R32_UINT)];
+const LOOKUP: [Binding; 2] = [
+    texel("issmTex", ash::vk::Format::R32_UINT),
+    // two texels per fetch for the 3x3 core (glsl/lookup_issm.glsl)
+    texel("issmPairTex", ash::vk::Format::R32G32B32A32_UINT),
+];
 
 impl Issm {
     pub const RASTER_NAME: &'static str = "issm_raster";
@@ -146,7 +150,7 @@ impl ShadowTechnique for Issm {
             kind: LookupKind::Issm,
             soft: self.soft,
             bindings: &LOOKUP,
-            buffers: vec![("issmTex", &self.map)],
+            buffers: vec![("issmTex", &self.map), ("issmPairTex", &self.map)],
             params: ShadowParams {
                 f0: [p.soft_s, p.soft_x, p.soft_b, 0.0],
                 u: [p.t as u32, p.stride as u32, 0, 0],
