@@ -241,6 +241,14 @@ fn binding_mismatches_are_rejected_with_the_shader_and_binding_named() {
             vec!["deep_alloc.comp", "push constants", "16"],
         ),
     ] {
+        // A binding the shader lacks is an error only where shaders keep
+        // every binding (debug builds: src/vk/pipeline.rs `strict`); an
+        // optimised build may have dropped an unused one.
+        if !cfg!(debug_assertions) && bindings.len() > good.len() {
+            let mut p = make(&bindings, push).expect("accepted when optimised");
+            p.destroy(&ctx);
+            continue;
+        }
         let err = make(&bindings, push)
             .err()
             .unwrap_or_else(|| panic!("{bindings:?} push {push} was accepted"));
