@@ -214,30 +214,6 @@ pub fn check_frames(frames: u32) -> Result<()> {
     Ok(())
 }
 
-/// Renders `frames` measured frames after `warmup` ones.
-pub fn run_frames(r: &mut Renderer, warmup: u32, frames: u32) -> Result<Vec<PassTimes>> {
-    run_frames_with(r, warmup, frames, &mut |_, _| Ok(()))
-}
-
-/// `run_frames` calling `before(renderer, k)` ahead of measured frame k
-/// (the benchmark moves the camera along its orbit there).
-pub fn run_frames_with(
-    r: &mut Renderer,
-    warmup: u32,
-    frames: u32,
-    before: &mut dyn FnMut(&mut Renderer, u32) -> Result<()>,
-) -> Result<Vec<PassTimes>> {
-    for _ in 0..warmup {
-        r.render_frame()?;
-    }
-    (0..frames.max(1))
-        .map(|k| {
-            before(r, k)?;
-            r.render_frame()
-        })
-        .collect()
-}
-
 /// Reads the requested AOV back from the renderer and encodes it.
 pub fn aov_image(r: &Renderer, aov: Aov) -> Result<output::AovImage> {
     let cam = &r.settings().camera;
@@ -552,8 +528,8 @@ pub fn render_run(
     )
 }
 
-/// `render_run` with a hook before each measured frame (see
-/// `run_frames_with`); with `cached`, and a light-space shadow technique,
+/// `render_run` calling `before(renderer, k)` ahead of measured frame k
+/// (the benchmark moves the camera along its orbit there); with `cached`, and a light-space shadow technique,
 /// the same frames again reusing its structure (`RunStats::light_cached`).
 #[allow(clippy::too_many_arguments)]
 pub fn render_run_with(

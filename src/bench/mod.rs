@@ -446,7 +446,7 @@ pub fn run(a: &BenchArgs) -> Result<BenchReport> {
                     results[i] = Some(r.map_err(|e| failed_run(desc, e)));
                     continue;
                 }
-                match prepare(&ctx, a, set, t, w, h) {
+                match prepare(&ctx, a, set, t, (w, h), i, desc.clone()) {
                     Ok(p) => {
                         let bytes: u64 = p.run.memory_bytes();
                         if !pool.is_empty() && pool_bytes + bytes > POOL_BYTES {
@@ -456,11 +456,7 @@ pub fn run(a: &BenchArgs) -> Result<BenchReport> {
                             pool_bytes = 0;
                         }
                         pool_bytes += bytes;
-                        pool.push(Pending {
-                            index: i,
-                            desc,
-                            ..p
-                        });
+                        pool.push(p);
                     }
                     Err(e) => results[i] = Some(Err(failed_run(desc, e))),
                 }
@@ -511,14 +507,16 @@ struct Pending<'c> {
     base: crate::camera::Camera,
 }
 
-/// Sets one technique up on one data set at one size (renderer, warm-up).
+/// Sets technique `index` of the matrix up on one data set at one size
+/// (renderer, warm-up).
 fn prepare<'c>(
     ctx: &'c Context,
     a: &BenchArgs,
     set: &DataSet,
     t: &Technique,
-    w: u32,
-    h: u32,
+    (w, h): (u32, u32),
+    index: usize,
+    desc: String,
 ) -> Result<Pending<'c>> {
     let axes = Axes {
         width: w,
@@ -540,8 +538,8 @@ fn prepare<'c>(
         set.load_ms,
     )?;
     Ok(Pending {
-        index: 0,
-        desc: String::new(),
+        index,
+        desc,
         run,
         base,
     })
@@ -616,7 +614,7 @@ fn bench_one(
     w: u32,
     h: u32,
 ) -> Result<RunStats> {
-    let p = prepare(ctx, a, set, t, w, h)?;
+    let p = prepare(ctx, a, set, t, (w, h), 0, String::new())?;
     match measure_pool(ctx, a, vec![p]).pop() {
         Some((_, _, stats)) => stats,
         None => Err(Error::Internal("run not measured".into())),
@@ -656,13 +654,7 @@ fn paired(a_ms: &[f64], a: f64, b_ms: &[f64], b: f64) -> f64 {
         return a / b;
     }
     let mut r: Vec<f64> = a_ms.iter().zip(b_ms).map(|(x, y)| x / y).collect();
-    r.sort_by(|x, y| x.total_cmp(y));
-    let n = r.len();
-    if n % 2 == 1 {
-        r[n / 2]
-    } else {
-        0.5 * (r[n / 2 - 1] + r[n / 2])
-    }
+    output::median(&mut r)
 }
 
 /// Derived ratios between runs of the same data set and size that differ in
