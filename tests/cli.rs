@@ -524,10 +524,8 @@ fn bench_reproduces_a_render_with_the_same_options() {
         "--blur",
         "off",
     ];
-    let png = tmp("repro.png");
-    let json = tmp("repro.json");
-    let mut a = vec![
-        "render",
+    // The scene, size and technique, shared by both commands.
+    let common = [
         "--scene",
         "random",
         "--atoms",
@@ -540,9 +538,12 @@ fn bench_reproduces_a_render_with_the_same_options() {
         "issm-soft",
         "--ssdo",
         "plain",
-        "--out",
     ];
-    a.push(png.to_str().unwrap());
+    let png = tmp("repro.png");
+    let json = tmp("repro.json");
+    let mut a = vec!["render"];
+    a.extend(common);
+    a.extend(["--out", png.to_str().unwrap()]);
     a.extend(["--json", json.to_str().unwrap()]);
     a.extend(opts);
     let o = run(&a);
@@ -550,28 +551,10 @@ fn bench_reproduces_a_render_with_the_same_options() {
     let v: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     let bjson = tmp("repro-bench.json");
-    let mut b = vec![
-        "bench",
-        "--scene",
-        "random",
-        "--atoms",
-        "500",
-        "--width",
-        "80",
-        "--height",
-        "60",
-        "--shadows",
-        "issm-soft",
-        "--ssdo",
-        "plain",
-        "--frames",
-        "1",
-        "--warmup",
-        "0",
-        "--no-orbit",
-        "--json",
-    ];
-    b.push(bjson.to_str().unwrap());
+    let mut b = vec!["bench"];
+    b.extend(common);
+    b.extend(["--frames", "1", "--warmup", "0", "--no-orbit"]);
+    b.extend(["--json", bjson.to_str().unwrap()]);
     b.extend(opts);
     let o = run(&b);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));

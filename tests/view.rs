@@ -2,12 +2,56 @@
 //! frames in a real window with a scripted resize, then a screenshot whose
 //! pixels must match `render` of the same scene and camera at the final size.
 
-use std::process::Command;
+use std::path::Path;
+use std::process::{Command, Output};
 
 fn bin() -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_sphereshade"));
     c.env("XDG_RUNTIME_DIR", std::env::temp_dir());
     c
+}
+
+/// `sphereshade view ARGS --screenshot SHOT` in a virtual X server.
+fn view(args: &[&str], shot: &Path) -> Output {
+    Command::new("xvfb-run")
+        .args(["-a", "-s", "-screen 0 1024x768x24"])
+        .arg(env!("CARGO_BIN_EXE_sphereshade"))
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+        .arg("view")
+        .args(args)
+        .arg("--screenshot")
+        .arg(shot)
+        .output()
+        .expect("run xvfb-run")
+}
+
+/// `sphereshade render ARGS --out OUT` (which must succeed), read back.
+fn render(args: &[&str], out: &Path) -> image::RgbaImage {
+    let o = bin()
+        .arg("render")
+        .args(args)
+        .arg("--out")
+        .arg(out)
+        .output()
+        .expect("render");
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    image::open(out).expect("render png").to_rgba8()
+}
+
+/// Percentage of pixels whose channels all agree within 2 levels.
+fn percent_close(a: &image::RgbaImage, b: &image::RgbaImage) -> f64 {
+    assert_eq!(a.dimensions(), b.dimensions());
+    let close = a
+        .pixels()
+        .zip(b.pixels())
+        .filter(|(a, b)| a.0.iter().zip(b.0.iter()).all(|(x, y)| x.abs_diff(*y) <= 2))
+        .count();
+    100.0 * close as f64 / (a.width() as f64 * a.height() as f64)
 }
 
 #[test]
@@ -20,12 +64,8 @@ fn view_smoke_with_resize_matches_render() {
     std::fs::create_dir_all(&dir).unwrap();
     let shot = dir.join("view.png");
     let input = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/1tii.pdb");
-    let o = Command::new("xvfb-run")
-        .args(["-a", "-s", "-screen 0 1024x768x24"])
-        .arg(env!("CARGO_BIN_EXE_sphereshade"))
-        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
-        .args([
-            "view",
+    let o = view(
+        &[
             input,
             "--width",
             "200",
@@ -35,11 +75,9 @@ fn view_smoke_with_resize_matches_render() {
             "6",
             "--resize-test",
             "--validate",
-        ])
-        .arg("--screenshot")
-        .arg(&shot)
-        .output()
-        .expect("run xvfb-run");
+        ],
+        &shot,
+    );
     assert_eq!(
         o.status.code(),
         Some(0),
@@ -53,34 +91,11 @@ fn view_smoke_with_resize_matches_render() {
         "the scripted resize did not take effect"
     );
 
-    let reference = dir.join("render.png");
-    let o = bin()
-        .args([
-            "render",
-            input,
-            "--width",
-            "240",
-            "--height",
-            "174",
-            "--validate",
-            "--out",
-        ])
-        .arg(&reference)
-        .output()
-        .expect("render");
-    assert_eq!(
-        o.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&o.stderr)
+    let render = render(
+        &[input, "--width", "240", "--height", "174", "--validate"],
+        &dir.join("render.png"),
     );
-    let render = image::open(&reference).expect("render png").to_rgba8();
-    let close = view
-        .pixels()
-        .zip(render.pixels())
-        .filter(|(a, b)| a.0.iter().zip(b.0.iter()).all(|(x, y)| x.abs_diff(*y) <= 2))
-        .count();
-    let pct = 100.0 * close as f64 / (240.0 * 174.0);
+    let pct = percent_close(&view, &render);
     eprintln!("view screenshot matches render on {pct:.3}% of pixels");
     let sphere_px = view.pixels().filter(|p| p.0[0] > 120).count();
     assert!(sphere_px > 1000, "the screenshot shows no spheres");
@@ -101,12 +116,8 @@ fn view_toggles_every_mode_and_drags_the_light_without_rebuilding() {
     std::fs::create_dir_all(&dir).unwrap();
     let shot = dir.join("toggle.png");
     let input = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/1tii.pdb");
-    let o = Command::new("xvfb-run")
-        .args(["-a", "-s", "-screen 0 1024x768x24"])
-        .arg(env!("CARGO_BIN_EXE_sphereshade"))
-        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
-        .args([
-            "view",
+    let o = view(
+        &[
             input,
             "--width",
             "160",
@@ -117,11 +128,9 @@ fn view_toggles_every_mode_and_drags_the_light_without_rebuilding() {
             "--script",
             "toggle-all",
             "--validate",
-        ])
-        .arg("--screenshot")
-        .arg(&shot)
-        .output()
-        .expect("run xvfb-run");
+        ],
+        &shot,
+    );
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(0), "view failed: {err}");
     let summary = err
@@ -144,28 +153,12 @@ fn view_toggles_every_mode_and_drags_the_light_without_rebuilding() {
     );
     let light = state.rsplit("light ").next().unwrap().trim();
 
-    let reference = dir.join("render.png");
-    let o = bin()
-        .args([
-            "render", input, "--width", "160", "--height", "120", "--light", light, "--out",
-        ])
-        .arg(&reference)
-        .output()
-        .expect("render");
-    assert_eq!(
-        o.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&o.stderr)
+    let render = render(
+        &[input, "--width", "160", "--height", "120", "--light", light],
+        &dir.join("render.png"),
     );
     let view = image::open(&shot).expect("screenshot").to_rgba8();
-    let render = image::open(&reference).expect("render png").to_rgba8();
-    let close = view
-        .pixels()
-        .zip(render.pixels())
-        .filter(|(a, b)| a.0.iter().zip(b.0.iter()).all(|(x, y)| x.abs_diff(*y) <= 2))
-        .count();
-    let pct = 100.0 * close as f64 / (160.0 * 120.0);
+    let pct = percent_close(&view, &render);
     eprintln!("after the toggles the screenshot matches render on {pct:.3}% of pixels");
     assert!(
         pct >= 99.5,
@@ -187,12 +180,8 @@ fn view_plays_a_trajectory() {
         format!("{traj}adk_oplsaa.gro"),
         format!("{traj}adk_oplsaa.xtc"),
     );
-    let o = Command::new("xvfb-run")
-        .args(["-a", "-s", "-screen 0 1024x768x24"])
-        .arg(env!("CARGO_BIN_EXE_sphereshade"))
-        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
-        .args([
-            "view",
+    let o = view(
+        &[
             &top,
             "--trajectory",
             &xtc,
@@ -200,18 +189,14 @@ fn view_plays_a_trajectory() {
             "160",
             "--height",
             "120",
-        ])
-        .args([
             "--frames",
             "20",
             "--validate",
             "--ssdo",
             "off",
-            "--screenshot",
-        ])
-        .arg(&shot)
-        .output()
-        .expect("run xvfb-run");
+        ],
+        &shot,
+    );
     let err = String::from_utf8_lossy(&o.stderr).into_owned();
     assert_eq!(o.status.code(), Some(0), "view failed: {err}");
     let played = err

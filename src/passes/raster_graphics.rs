@@ -259,16 +259,11 @@ impl GraphicsRasterPass {
 
     /// Destroys the pipeline objects; a second call does nothing.
     pub fn destroy(&mut self, ctx: &Context) {
-        if self.pipeline == vk::Pipeline::null() {
-            return;
-        }
-        // SAFETY: called after the last frame using the pipeline finished.
-        unsafe {
-            ctx.device.destroy_pipeline(self.pipeline, None);
-            ctx.device.destroy_pipeline_layout(self.layout, None);
-            ctx.device
-                .destroy_descriptor_set_layout(self.set_layout, None);
-        }
-        self.pipeline = vk::Pipeline::null();
+        crate::vk::pipeline::destroy_pipeline_objects(
+            ctx,
+            &mut self.pipeline,
+            &mut self.layout,
+            &mut self.set_layout,
+        );
     }
 }

@@ -47,6 +47,19 @@ pub struct ScreenInputs<'a> {
     pub colors: &'a Buffer,
 }
 
+impl<'a> ScreenInputs<'a> {
+    /// The buffers of [`SURFACE_BINDINGS`], by the same names.
+    pub fn surface_buffers(&self) -> Vec<(&'static str, &'a Buffer)> {
+        vec![
+            ("GlobalsBlock", self.globals),
+            ("visTex", self.vis),
+            ("sphereTex", self.spheres),
+            ("attrTex", self.attrs),
+            ("colorTex", self.colors),
+        ]
+    }
+}
+
 /// The bindings every variant of shade.comp and ssdo_prep.comp starts with.
 pub const SURFACE_BINDINGS: [Binding; 5] = [
     uniform("GlobalsBlock"),
@@ -305,18 +318,14 @@ impl ShadePass {
         tiles: Tiles,
     ) -> Result<()> {
         let tiles = if mode.lists { tiles } else { Tiles::All };
-        let mut bufs = vec![
-            ("GlobalsBlock", io.globals),
-            ("visTex", io.vis),
-            ("sphereTex", io.spheres),
-            ("attrTex", io.attrs),
-            ("colorTex", io.colors),
+        let mut bufs = io.surface_buffers();
+        bufs.extend([
             ("aoTex", ao),
             ("recordTex", records),
             ("Color", color),
             ("Aov", aov),
             ("sphereAoTex", sphere_ao),
-        ];
+        ]);
         bufs.extend(lookup.buffers.iter().copied());
         rec.pass(Self::NAME, |p| {
             self.variants.dispatch_tiled(

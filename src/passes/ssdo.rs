@@ -362,16 +362,12 @@ impl SsdoPass {
         half: (u32, u32),
         tiles: Tiles,
     ) -> Result<()> {
-        let mut bufs = vec![
-            ("GlobalsBlock", io.globals),
-            ("visTex", io.vis),
-            ("sphereTex", io.spheres),
-            ("attrTex", io.attrs),
-            ("colorTex", io.colors),
+        let mut bufs = io.surface_buffers();
+        bufs.extend([
             ("Records", records),
             ("Flags", flags),
             ("TapDepth", tap_depth),
-        ];
+        ]);
         bufs.extend(lookup.buffers.iter().copied());
         rec.pass(Self::PREP_NAME, |p| {
             if taps.per_sphere() {

@@ -461,20 +461,38 @@ impl ComputePipeline {
 
     /// Destroys the pipeline's objects; a second call does nothing.
     pub fn destroy(&mut self, ctx: &Context) {
-        if self.pipeline == vk::Pipeline::null() {
-            return;
-        }
-        // SAFETY: the owner calls this after the last frame using it finished.
-        unsafe {
-            ctx.device.destroy_pipeline(self.pipeline, None);
-            ctx.device.destroy_pipeline_layout(self.layout, None);
-            ctx.device
-                .destroy_descriptor_set_layout(self.set_layout, None);
-        }
-        self.pipeline = vk::Pipeline::null();
-        self.layout = vk::PipelineLayout::null();
-        self.set_layout = vk::DescriptorSetLayout::null();
+        destroy_pipeline_objects(
+            ctx,
+            &mut self.pipeline,
+            &mut self.layout,
+            &mut self.set_layout,
+        );
     }
+}
+
+/// Destroys a pipeline with its layout and descriptor set layout and nulls
+/// the handles (the compute pipelines and the graphics raster baseline); a
+/// second call does nothing. The owner calls it after the last frame using
+/// the pipeline finished.
+pub fn destroy_pipeline_objects(
+    ctx: &Context,
+    pipeline: &mut vk::Pipeline,
+    layout: &mut vk::PipelineLayout,
+    set_layout: &mut vk::DescriptorSetLayout,
+) {
+    if *pipeline == vk::Pipeline::null() {
+        return;
+    }
+    // SAFETY: no frame using the pipeline is in flight (the caller's
+    // contract above); each handle is destroyed once, then nulled.
+    unsafe {
+        ctx.device.destroy_pipeline(*pipeline, None);
+        ctx.device.destroy_pipeline_layout(*layout, None);
+        ctx.device.destroy_descriptor_set_layout(*set_layout, None);
+    }
+    *pipeline = vk::Pipeline::null();
+    *layout = vk::PipelineLayout::null();
+    *set_layout = vk::DescriptorSetLayout::null();
 }
 
 fn descriptor_type(access: Access) -> vk::DescriptorType {
