@@ -120,6 +120,13 @@ float hit_depth(View v, vec3 cv, float r, vec2 px, bool persp) {
 // downward. floor() gives the texel holding the point; subtract 0.5 for
 // coordinates where texel centres are integers (round() = nearest centre).
 // The one world -> light-texel projection of every shadow lookup.
+// Coordinates of a world point in an orthographic view (the key light's):
+// along its right, up and direction vectors from its centre, world units.
+vec3 light_space(View L, vec3 p) {
+    vec3 q = p - L.center.xyz;
+    return vec3(dot(q, L.right.xyz), dot(q, L.up.xyz), dot(q, L.dir.xyz));
+}
+
 vec2 light_uv(View L, vec3 p) {
     vec3 q = p - L.center.xyz;
     float ppu = L.center.w;

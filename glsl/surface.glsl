@@ -15,6 +15,7 @@ struct Surface {
     uint id;    // sphere index
     float key;  // depth key of the visibility buffer
     vec2 img;   // the pixel's image coordinates
+    vec4 sphere; // its sphere: centre, radius
 };
 
 bool covered(uint i) { return texelFetch(visTex, int(i)).x != NO_SPHERE; }
@@ -30,6 +31,7 @@ bool surface_of(uvec2 q, out Surface s) {
     s.id = v.x;
     s.key = uintBitsToFloat(v.y);
     vec4 sp = texelFetch(sphereTex, int(s.id));
+    s.sphere = sp;
     vec3 o, d;
     view_ray(g.cam, s.img, PERSP, o, d);
     // Exact hit recomputed relative to the sphere centre for precision.

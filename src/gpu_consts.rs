@@ -76,4 +76,7 @@ gpu_constants! {
     /// footprints: a missed texel would leak light, an extra entry costs one
     /// exact ray test).
     DEEP_DISK_SLACK: f32 = 0.01;
+    /// ISSM resolved map (issm_resolve.comp): the light-space x and y of an
+    /// empty texel, so far from every point that no test hits it.
+    ISSM_EMPTY_XY: f32 = 1e30;
 }

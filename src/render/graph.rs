@@ -28,6 +28,10 @@ pub const PASSES: &[(&str, &str)] = &[
         "the same rasterizer from the key light into the ISSM (nearest sphere id per light texel), light view fitted to the spheres",
     ),
     (
+        "issm_resolve",
+        "per light texel, its sphere's light-space centre and radius (16 bytes): the lookup reads one texel per patch texel instead of an id and the sphere it names",
+    ),
+    (
         "deep_count",
         "deep shadow lists (seed 002), 8x8-texel tiles, one 64-invocation workgroup each: count the entries per texel (every sphere whose light-space disk overlaps the texel square)",
     ),

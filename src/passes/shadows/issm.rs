@@ -1,16 +1,18 @@
 //! Implicit Sphere Shadow Maps (seed 000): the key light's view is
 //! rasterized by the compute sphere rasterizer into an id map
-//! (`issm_raster`), then `issm_shadow` tests each visible point's light ray
-//! against the spheres of a (2t+1)^2 texel patch.
+//! (`issm_raster`), resolved to a light-space sphere record per texel
+//! (`issm_resolve`); the lookup (in `shade`) tests each visible point's
+//! light ray against the spheres of a (2t+1)^2 texel patch.
 
 use super::{Lookup, LookupKind, ShadowParams, ShadowSetup, ShadowTechnique};
 use crate::camera::Camera;
 use crate::error::Result;
-use crate::passes::ShadowInputs;
 use crate::passes::raster;
+use crate::passes::{LOCAL_SIZE, ShadowInputs, spirv};
 use crate::settings::{IssmParams, ShadowMode};
-use crate::vk::pipeline::{Binding, texel};
-use crate::vk::{Buffer, Context, Recorder};
+use crate::vk::pipeline::{Binding, PipelineDesc, texel, uniform, wo};
+use crate::vk::{Buffer, ComputePipeline, Context, Grid, Recorder};
+use ash::vk::Format;
 use bytemuck::{Pod, Zeroable};
 use std::any::Any;
 
@@ -44,38 +46,70 @@ pub fn auto_stride(min_radius: f32, texel: f64) -> u32 {
     ((min_radius as f64 / texel.max(1e-9)).floor() as u32).max(1)
 }
 
-/// The key light's sphere id map (read by glsl/lookup_issm.glsl).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+struct ResolvePush {
+    texels: u32,
+}
+
+/// The key light's sphere id map and its resolved copy (read by
+/// glsl/lookup_issm.glsl).
 pub struct Issm {
     soft: bool,
     pub light: Camera,
     map: Buffer,
+    /// Per texel its sphere's light-space centre and radius (RGBA32F,
+    /// glsl/issm_resolve.comp).
+    resolved: Buffer,
+    resolve: ComputePipeline,
     pub push: IssmPush,
 }
 
-/// The lookup's binding: the 64-bit depth|id map read as 32-bit words
-/// (even words = ids).
-const LOOKUP: [Binding; 2] = [
-    texel("issmTex", ash::vk::Format::R32_UINT),
-    // two texels per fetch for the 3x3 core (glsl/lookup_issm.glsl)
-    texel("issmPairTex", ash::vk::Format::R32G32B32A32_UINT),
+/// Bytes per texel of the resolved map.
+const RESOLVED_TEXEL: u64 = 16;
+
+/// The lookup's binding: the resolved map.
+const LOOKUP: [Binding; 1] = [texel("issmResolvedTex", Format::R32G32B32A32_SFLOAT)];
+
+const RESOLVE_BINDINGS: [Binding; 4] = [
+    uniform("GlobalsBlock"),
+    texel("issmTex", Format::R32_UINT),
+    texel("sphereTex", Format::R32G32B32A32_SFLOAT),
+    wo("Resolved"),
 ];
 
 impl Issm {
     pub const RASTER_NAME: &'static str = "issm_raster";
+    pub const RESOLVE_NAME: &'static str = "issm_resolve";
 
     pub fn new(setup: &ShadowSetup, soft: bool) -> Result<Self> {
         let ctx = setup.ctx;
         let p = &setup.settings.issm;
         let light = setup.fit(p.size)?;
-        let map = ctx.guard(raster::vis_buffer(
+        let texels = p.size as u64 * p.size as u64;
+        let map = ctx.guard(raster::vis_buffer(ctx, "issm", texels)?);
+        let resolved = ctx.guard(Buffer::storage(
             ctx,
-            "issm",
-            p.size as u64 * p.size as u64,
+            "issm resolved",
+            texels * RESOLVED_TEXEL,
+        )?);
+        let resolve = ctx.guard(ComputePipeline::new(
+            ctx,
+            &PipelineDesc {
+                name: "issm resolve",
+                shader: spirv::ISSM_RESOLVE_COMP,
+                bindings: &RESOLVE_BINDINGS,
+                push_size: std::mem::size_of::<ResolvePush>() as u32,
+                local_size: LOCAL_SIZE,
+                constants: &[],
+            },
         )?);
         let mut issm = Issm {
             soft,
             light,
             map: map.keep(),
+            resolved: resolved.keep(),
+            resolve: resolve.keep(),
             push: IssmPush::zeroed(),
         };
         issm.fit_push(setup, light);
@@ -139,9 +173,26 @@ impl ShadowTechnique for Issm {
         &self.light
     }
 
+    /// `issm_raster`, then `issm_resolve`.
     fn record_light<'b>(&'b self, rec: &mut Recorder, f: &ShadowInputs<'b>) -> Result<()> {
         f.raster
-            .record_light_map(rec, Self::RASTER_NAME, f, &self.map, self.texels())
+            .record_light_map(rec, Self::RASTER_NAME, f, &self.map, self.texels())?;
+        rec.pass(Self::RESOLVE_NAME, |p| {
+            p.dispatch(
+                &self.resolve,
+                &ResolvePush {
+                    texels: self.texels() as u32,
+                },
+                Grid::Invocations(self.texels()),
+                &[
+                    ("GlobalsBlock", f.globals),
+                    ("issmTex", &self.map),
+                    ("sphereTex", f.spheres),
+                    ("Resolved", &self.resolved),
+                ],
+            );
+            Ok(())
+        })
     }
 
     fn lookup(&self, _opacity: f32) -> Lookup<'_> {
@@ -150,7 +201,7 @@ impl ShadowTechnique for Issm {
             kind: LookupKind::Issm,
             soft: self.soft,
             bindings: &LOOKUP,
-            buffers: vec![("issmTex", &self.map), ("issmPairTex", &self.map)],
+            buffers: vec![("issmResolvedTex", &self.resolved)],
             params: ShadowParams {
                 f0: [p.soft_s, p.soft_x, p.soft_b, 0.0],
                 u: [p.t as u32, p.stride as u32, 0, 0],
@@ -166,7 +217,7 @@ impl ShadowTechnique for Issm {
     }
 
     fn memory(&self) -> Vec<(&'static str, u64)> {
-        vec![("issm_map", self.map.size)]
+        vec![("issm_map", self.map.size + self.resolved.size)]
     }
 
     fn as_any(&self) -> &dyn Any {
@@ -178,6 +229,8 @@ impl ShadowTechnique for Issm {
     }
 
     fn destroy(&mut self, ctx: &Context) {
+        self.resolve.destroy(ctx);
+        self.resolved.destroy(ctx);
         self.map.destroy(ctx);
     }
 }

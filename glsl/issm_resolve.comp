@@ -1,0 +1,29 @@
+#version 460
+// ISSM resolve (after issm_raster): each light texel's nearest sphere as a
+// light-space record (centre along the light view's right, up and
+// direction from its centre; radius), so the lookup reads one 16-byte
+// texel per patch texel instead of an id and then the sphere it names (on
+// lavapipe a texel fetch costs per lane whatever its width, and the
+// lookup's fetches were its cost), and tests in light space. Empty texels
+// get x = y = ISSM_EMPTY_XY: no ray passes near them.
+#include "shared.glsl"
+
+layout(local_size_x_id = 0) in;
+
+layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
+layout(set = 0, binding = 1) uniform usamplerBuffer issmTex; // R32UI view: even words = ids
+layout(set = 0, binding = 2) uniform samplerBuffer sphereTex;
+layout(set = 0, binding = 3) writeonly buffer Resolved { vec4 resolved[]; };
+
+layout(push_constant) uniform Push {
+    uint texels;
+} pc;
+
+void main() {
+    uint i = FLAT_ID;
+    if (i >= pc.texels) return;
+    uint id = texelFetch(issmTex, int(2u * i)).x;
+    vec4 s = texelFetch(sphereTex, id == NO_SPHERE ? 0 : int(id));
+    resolved[i] = id == NO_SPHERE ? vec4(ISSM_EMPTY_XY, ISSM_EMPTY_XY, 0.0, 0.0)
+                                  : vec4(light_space(g.light, s.xyz), s.w);
+}
