@@ -28,8 +28,9 @@
 // pixels against 98.84 % for 3x3).
 layout(set = 0, binding = 16) uniform samplerBuffer issmResolvedTex; // RGBA32F per texel
 
-// P in light space, and its own sphere's centre there (self-exclusion: the
-// centre a texel of its own sphere carries, within a rounding tolerance).
+// P in light space, and (ISSM_SELF_TEST) its own sphere's centre there:
+// the centre a texel of its own sphere carries, within a rounding
+// tolerance. The includer defines ISSM_SELF_TEST (a constant expression).
 struct LightPoint {
     vec3 p;
     vec3 own;
@@ -39,24 +40,35 @@ struct LightPoint {
 // How strongly one occluder o (light-space centre, radius) shadows P, as a
 // fraction num / den (den > 0): 1 where the light ray crosses it (full
 // shadow), else the soft penumbra's 1 - s'/s_eff = (s_eff - s') / s_eff, 0
-// outside it and for P's own sphere. The shadow strength (1 - s'/s_eff)^x
-// grows with this closeness, so the minimum illumination over the patch is
+// outside it. The shadow strength (1 - s'/s_eff)^x grows with this
+// closeness, so the minimum illumination over the patch is
 // 1 - (max closeness)^x: one pow per pixel, not one per occluder; and the
 // max is kept as a fraction compared by cross-multiplying, so a pixel
-// divides once, not once per occluder. k = P.z - o.z is the distance from P
-// toward the light to the closest approach, d2 the squared distance of the
-// ray from the centre. No sqrt in the hit test: the far hit
-// k + sqrt(r^2 - d^2) is ahead iff k > 0 or P is inside the sphere.
-// Selects, no early returns: lavapipe runs every branch anyway, with mask
-// bookkeeping on top. `inv2b2` = 1 / (2 b^2).
+// divides once, not once per occluder. k = P.z - o.z is the distance from
+// P toward the light to the closest approach, d2 the squared distance of
+// the ray from the centre; the far hit k + sqrt(r^2 - d^2) is ahead iff
+// k > 0 or P is inside the sphere.
+//
+// P's own sphere: with ISSM_SELF_TEST (the shadow AOV, which counts other
+// spheres only) it is excluded by its centre and the inside clause is
+// kept. Without it (the colour), neither is needed: a visible P lies inside
+// no other sphere, and its own sphere hits only where P faces away from
+// the light (k = -r N.L > 0), where the key light's diffuse and specular
+// terms are 0 whatever the visibility; on the lit side k < 0, and the
+// soft penumbra needs k > 0 too. Selects, no early returns: lavapipe runs
+// every branch anyway, with mask bookkeeping on top. `inv2b2` = 1 / (2 b^2).
 vec2 occluder_closeness(LightPoint lp, vec4 o, float inv2b2) {
     vec2 dxy = o.xy - lp.p.xy;
     float d2 = dot(dxy, dxy);
     float k = lp.p.z - o.z;
     float r2 = o.w * o.w;
-    vec3 dc = o.xyz - lp.own;
-    bool other = dot(dc, dc) > lp.own_eps2;
-    bool hit = other && d2 < r2 && (k > 0.0 || d2 + k * k < r2);
+    bool other = true, ahead = k > 0.0;
+    if (ISSM_SELF_TEST) {
+        vec3 dc = o.xyz - lp.own;
+        other = dot(dc, dc) > lp.own_eps2;
+        ahead = ahead || d2 + k * k < r2;
+    }
+    bool hit = other && d2 < r2 && ahead;
     if (!SOFT) return vec2(hit ? 1.0 : 0.0, 1.0);
     float se = g.shadow_f0.x * (1.0 - exp(-k * k * inv2b2));
     float gap = sqrt(d2) - o.w;
@@ -82,10 +94,12 @@ float key_visibility(Surface s, uint pixel) {
     View L = g.light;
     LightPoint lp;
     lp.p = light_space(L, s.p);
-    lp.own = light_space(L, s.sphere.xyz);
-    // Distinct spheres are never this close (1e-3 of the radius); the two
-    // computations of the own centre round alike, or nearly.
-    lp.own_eps2 = 1e-6 * s.sphere.w * s.sphere.w;
+    if (ISSM_SELF_TEST) {
+        lp.own = light_space(L, s.sphere.xyz);
+        // Distinct spheres are never this close (1e-3 of the radius); the
+        // two computations of the own centre round alike, or nearly.
+        lp.own_eps2 = 1e-6 * s.sphere.w * s.sphere.w;
+    }
     float ppu = L.center.w;
     // Texel coordinates, centres at integers (light_uv - 0.5).
     vec2 uv = vec2(lp.p.x * ppu + 0.5 * L.right.w - 0.5, 0.5 * L.up.w - lp.p.y * ppu - 0.5);

@@ -59,6 +59,8 @@ layout(push_constant) uniform Push {
     uint ao_level_b;      // the upsample's region test at the records' level b
 } pc;
 
+// The shadow AOV counts other spheres only (lookup_issm.glsl).
+#define ISSM_SELF_TEST AOVS
 #include "lookup.glsl"
 #include "ssdo_common.glsl"
 #include "ssdo_record.glsl"

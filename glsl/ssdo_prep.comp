@@ -38,6 +38,8 @@ layout(push_constant) uniform Push {
     uint pad0, pad1;
 } pc;
 
+// Records feed the colour only: no self test (lookup_issm.glsl).
+#define ISSM_SELF_TEST false
 #include "lookup.glsl"
 #include "ssdo_record.glsl"
 #define TILE_LIST_ID 6
