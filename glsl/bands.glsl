@@ -18,11 +18,18 @@
 //   void band_inline(uint id);  the job list was full for this sphere
 //   bool band_replay(uint id);
 //   #define BAND_REQ, BAND_RUN  word indices of counters[]
+//   (optionally) #define SPHERE_AT(i): the sphere of invocation i
 // with buffers jobs[] (uvec2: sphere id, first row) and counters[] (uint),
 // and push constants pc.sphere_count, pc.big_area, pc.job_capacity.
 #ifndef BANDS_GLSL
 #define BANDS_GLSL
 #include "shared.glsl"
+
+// The sphere the i-th invocation rasterizes (an includer may visit them in
+// another order: raster.comp's light view).
+#ifndef SPHERE_AT
+#define SPHERE_AT(i) (i)
+#endif
 
 layout(constant_id = 1) const uint BAND_PASS = 0;
 
@@ -46,8 +53,9 @@ void visit_rect(uint id, Footprint f, ivec4 rc) {
 // a loop that no lane enters still runs its body once, so each extra copy
 // (there were three) cost every vector of spheres a full visit.
 void band_sphere() {
-    uint id = FLAT_ID;
-    if (id >= pc.sphere_count) return;
+    uint i = FLAT_ID;
+    if (i >= pc.sphere_count) return;
+    uint id = SPHERE_AT(i);
     Footprint f = band_footprint(id);
     ivec4 rc = f.rect;
     if (rc.x > rc.z || rc.y > rc.w) return;

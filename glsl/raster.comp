@@ -19,6 +19,20 @@ layout(set = 0, binding = 4) buffer Counters { uint counters[]; };
 // per-lane addresses is a scalar loop).
 layout(set = 0, binding = 5) uniform usamplerBuffer visWordTex;
 
+// The light view visits the spheres in the order of orderTex (ORDERED):
+// 64-sphere runs of the input sorted front to back along the light, the
+// two halves of the dispatch (lavapipe's two threads) each front to back,
+// so the early-depth test turns more of the later visits away before
+// their atomics (glsl/bands.glsl's SPHERE_AT; src/passes/raster.rs).
+layout(constant_id = 3) const bool ORDERED = false;
+layout(set = 0, binding = 6) uniform usamplerBuffer orderTex;
+#define SPHERE_AT(i) (ORDERED ? texelFetch(orderTex, int(i)).x : (i))
+// The spheres again, as RGBA32F texels: in the light order a sphere's
+// address is no longer the invocation's, and a storage load at per-lane
+// addresses is a scalar loop per component on lavapipe; a texel fetch is a
+// vector gather.
+layout(set = 0, binding = 7) uniform samplerBuffer sphereTex;
+
 layout(push_constant) uniform Push {
     uint view_index;   // 0 camera, 1 key light
     uint big_area;     // footprints larger than this (pixels) go to bands
@@ -46,7 +60,7 @@ struct Footprint {
 Footprint band_footprint(uint id) {
     Footprint f;
     f.v = pc.view_index == 0u ? g.cam : g.light;
-    vec4 s = spheres[id];
+    vec4 s = ORDERED ? texelFetch(sphereTex, int(id)) : spheres[id];
     f.cv = view_space(f.v, s.xyz, PERSP);
     f.r = s.w;
     f.rect = sphere_rect(f.v, f.cv, s.w, PERSP);

@@ -89,6 +89,62 @@ fn pdb_1tii_matches_reference() {
     assert_no_validation_messages(&ctx);
 }
 
+/// The light view visits the spheres in a sorted order (runs front to back
+/// along the light, src/passes/raster.rs `light_order`): the ISSM's id map
+/// must still hold each texel's nearest sphere, as the exact caster finds it
+/// through the light view, before and after the light turns far enough for
+/// the order to be sorted again.
+#[test]
+fn ordered_light_raster_matches_reference() {
+    let ctx = validated_context();
+    let s = scene::procedural("capsid", 6000, 3).expect("scene");
+    let mut r = Renderer::new(
+        &ctx,
+        &s,
+        settings(camera(&s, 96, 96, None), ShadowMode::Issm),
+    )
+    .expect("renderer");
+    let (_, radius) = s.bounding_sphere();
+    let tolerance = 2e-5 * (radius as f64).max(1.0);
+    for (k, light) in [
+        glam::DVec3::new(-1.0, -1.0, -1.0),
+        glam::DVec3::new(1.0, 0.3, 0.8),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        r.set_light(light).expect("light");
+        r.render_frame().expect("frame");
+        let (light_cam, _) = r.issm_info().expect("issm active");
+        let map = r.read_issm().expect("read map").expect("issm map");
+        let reference = reference::cast(&s.spheres, &light_cam, tolerance);
+        let name = format!("issm-light-{k}");
+        let m = compare_ids(&name, &ids_from_vis(&map), &reference);
+        let hit = reference.ids.iter().filter(|&&i| i != u32::MAX).count();
+        eprintln!(
+            "{name}: {:.4}% of {} texels match ({hit} covered)",
+            m.percent(),
+            m.pixels
+        );
+        assert!(
+            hit > 1000,
+            "{name}: the light sees too little to prove anything"
+        );
+        assert!(
+            m.percent() >= 99.9,
+            "{name}: only {:.3}% match",
+            m.percent()
+        );
+        assert!(
+            m.hard_mismatches as f64 <= 1e-4 * m.pixels as f64,
+            "{name}: {} mismatches outside float tolerance",
+            m.hard_mismatches
+        );
+    }
+    drop(r);
+    assert_no_validation_messages(&ctx);
+}
+
 /// Spheres crossing the border, one larger than the whole screen (banded
 /// path), sub-pixel spheres, and perspective with a sphere around the view.
 #[test]

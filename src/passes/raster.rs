@@ -4,10 +4,12 @@
 use super::bands::{BandArgs, BandCounters, BandPipelines};
 use super::{LOCAL_SIZE, spirv};
 use crate::error::Result;
+use crate::gpu::GpuSphere;
 use crate::gpu::consts::{R_ARGS, R_BANDS_REQ, R_BANDS_RUN};
 use crate::vk::pipeline::{PipelineDesc, ro, rw, texel, uniform};
 use crate::vk::{Buffer, Context, PassBuilder};
 use bytemuck::{Pod, Zeroable};
+use glam::DVec3;
 
 /// Footprints above this many pixels are split into 8-row bands run by whole
 /// workgroups; below, one invocation loops over the pixels itself. Measured
@@ -50,12 +52,59 @@ pub enum ViewIndex {
 }
 
 pub struct RasterPass {
-    /// Orthographic and perspective views (specialization constant 2).
-    pipes: [BandPipelines; 2],
+    /// Orthographic and perspective camera views (specialization constant
+    /// 2), and the light view visiting the spheres in `order` (constant 3).
+    pipes: [BandPipelines; 3],
     args: BandArgs,
     jobs: Buffer,
     big_area: u32,
     counters: Buffer,
+    /// The light view's sphere order ([`light_order`]), one u32 per sphere.
+    order: Buffer,
+    /// The light direction `order` was sorted for.
+    order_dir: Option<DVec3>,
+}
+
+/// Spheres per run of the light order (one 64-invocation workgroup).
+pub const ORDER_RUN: usize = LOCAL_SIZE as usize;
+
+/// The light direction may turn this far (degrees) before the order is
+/// sorted again: any order rasterizes the same map, a stale one only turns
+/// fewer visits away early.
+pub const ORDER_STALE_DEG: f64 = 30.0;
+
+/// The order in which the light view visits the spheres: runs of
+/// [`ORDER_RUN`] consecutive input spheres (neighbours in space for
+/// molecules, grids and procedural scenes), sorted front to back along the
+/// light by their mean centre, the even-ranked runs first and the odd-ranked
+/// after. On lavapipe each of the two worker threads takes a fixed half of a
+/// dispatch's workgroups, so both halves go front to back, and the
+/// rasterizer's early-depth test turns more of the later, farther visits
+/// away before their 64-bit atomics (issm_raster 47.1 -> 42.6 ms on the 1M
+/// capsid at 1080p with the scene itself so ordered, 6 alternating pairs).
+/// Runs stay contiguous, so a vector's spheres still lie side by side.
+pub fn light_order(geom: &[GpuSphere], dir: DVec3) -> Vec<u32> {
+    let d = dir.normalize_or_zero();
+    let mut runs: Vec<(f64, usize)> = geom
+        .chunks(ORDER_RUN)
+        .enumerate()
+        .map(|(k, run)| {
+            let z: f64 = run
+                .iter()
+                .map(|s| DVec3::new(s[0] as f64, s[1] as f64, s[2] as f64).dot(d))
+                .sum();
+            (z / run.len() as f64, k)
+        })
+        .collect();
+    runs.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let ranked = runs.iter().step_by(2).chain(runs.iter().skip(1).step_by(2));
+    let mut order = Vec::with_capacity(geom.len());
+    for &(_, k) in ranked {
+        let first = k * ORDER_RUN;
+        let end = (first + ORDER_RUN).min(geom.len());
+        order.extend(first as u32..end as u32);
+    }
+    order
 }
 
 /// A visibility buffer with its guard words.
@@ -81,6 +130,8 @@ impl RasterPass {
                 rw("Jobs"),
                 rw("Counters"),
                 texel("visWordTex", ash::vk::Format::R32_UINT),
+                texel("orderTex", ash::vk::Format::R32_UINT),
+                texel("sphereTex", ash::vk::Format::R32G32B32A32_SFLOAT),
             ],
             push_size: std::mem::size_of::<RasterPush>() as u32,
             local_size: LOCAL_SIZE,
@@ -88,24 +139,50 @@ impl RasterPass {
         };
         let ortho = ctx.guard(BandPipelines::new(ctx, &desc, &[0])?);
         let persp = ctx.guard(BandPipelines::new(ctx, &desc, &[1])?);
+        let light = ctx.guard(BandPipelines::new(ctx, &desc, &[0, 1])?);
         let args = ctx.guard(BandArgs::new(ctx, "raster band args")?);
         let jobs = ctx.guard(Buffer::storage(
             ctx,
             "raster band jobs",
             JOB_CAPACITY as u64 * 8,
         )?);
-        let counters = super::bands::counters_buffer(ctx, "raster counters", 32)?;
+        let counters = ctx.guard(super::bands::counters_buffer(ctx, "raster counters", 32)?);
+        let order = Buffer::storage(ctx, "light sphere order", 4)?;
         Ok(RasterPass {
-            pipes: [ortho.keep(), persp.keep()],
+            pipes: [ortho.keep(), persp.keep(), light.keep()],
             args: args.keep(),
             jobs: jobs.keep(),
             big_area: big_area(ctx),
-            counters,
+            counters: counters.keep(),
+            order,
+            order_dir: None,
         })
     }
 
     pub fn memory_bytes(&self) -> u64 {
-        self.jobs.size + self.counters.size
+        self.jobs.size + self.counters.size + self.order.size
+    }
+
+    /// Whether the light order must be sorted (again) for `dir`.
+    pub fn order_stale(&self, dir: DVec3) -> bool {
+        self.order_dir.is_none_or(|o| {
+            o.normalize_or_zero().dot(dir.normalize_or_zero()) < ORDER_STALE_DEG.to_radians().cos()
+        })
+    }
+
+    /// Sorts the light order for these spheres and direction and uploads
+    /// it (no frame may be using it: the caller waits first).
+    pub fn set_light_order(&mut self, ctx: &Context, geom: &[GpuSphere], dir: DVec3) -> Result<()> {
+        let order = light_order(geom, dir);
+        let bytes = (order.len().max(1) * 4) as u64;
+        if self.order.size != bytes {
+            let fresh = Buffer::storage(ctx, "light sphere order", bytes)?;
+            let mut old = std::mem::replace(&mut self.order, fresh);
+            old.destroy(ctx);
+        }
+        self.order.upload(ctx, 0, bytemuck::cast_slice(&order))?;
+        self.order_dir = Some(dir);
+        Ok(())
     }
 
     /// Clears `vis` (its first `pixels` words) and rasterizes every sphere
@@ -130,9 +207,13 @@ impl RasterPass {
             job_capacity: JOB_CAPACITY,
             sphere_count,
         };
+        let pipe = match view {
+            ViewIndex::Camera => &self.pipes[perspective as usize],
+            ViewIndex::Light => &self.pipes[2],
+        };
         self.args.steps(
             p,
-            &self.pipes[perspective as usize],
+            pipe,
             &push,
             &[
                 ("GlobalsBlock", globals),
@@ -141,6 +222,8 @@ impl RasterPass {
                 ("Jobs", &self.jobs),
                 ("Counters", &self.counters),
                 ("visWordTex", vis),
+                ("orderTex", &self.order),
+                ("sphereTex", spheres),
             ],
             sphere_count,
             &self.counters,
@@ -180,5 +263,69 @@ impl RasterPass {
         self.args.destroy(ctx);
         self.jobs.destroy(ctx);
         self.counters.destroy(ctx);
+        self.order.destroy(ctx);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The order is a permutation of whole runs, and each half of it (what
+    /// one lavapipe thread takes) goes front to back along the light.
+    #[test]
+    fn light_order_is_runs_front_to_back_in_each_half() {
+        // 1000 spheres on a jittered line through the origin, in a shuffled
+        // run order: runs lie at different depths along (1, 1, 1).
+        let mut geom: Vec<GpuSphere> = Vec::new();
+        for k in 0..1000u32 {
+            let run = (k / ORDER_RUN as u32 * 7919) % 16;
+            let t = run as f32 * 10.0 + (k % 5) as f32 * 0.1;
+            geom.push([t, t + 0.5, t - 0.5, 1.0]);
+        }
+        let dir = DVec3::new(-1.0, -1.0, -1.0);
+        let order = light_order(&geom, dir);
+        let mut seen = order.clone();
+        seen.sort_unstable();
+        assert_eq!(seen, (0..1000).collect::<Vec<u32>>(), "not a permutation");
+        let runs: Vec<&[u32]> = {
+            let mut v = Vec::new();
+            let mut i = 0;
+            while i < order.len() {
+                let first = order[i] as usize;
+                assert_eq!(first % ORDER_RUN, 0, "a run starts mid-run at {i}");
+                let len = ORDER_RUN.min(geom.len() - first);
+                v.push(&order[i..i + len]);
+                i += len;
+            }
+            v
+        };
+        for r in &runs {
+            assert!(r.windows(2).all(|w| w[1] == w[0] + 1), "run not contiguous");
+        }
+        let depth = |r: &[u32]| {
+            r.iter()
+                .map(|&i| {
+                    let s = geom[i as usize];
+                    DVec3::new(s[0] as f64, s[1] as f64, s[2] as f64).dot(dir.normalize())
+                })
+                .sum::<f64>()
+                / r.len() as f64
+        };
+        let half = runs.len().div_ceil(2);
+        for part in [&runs[..half], &runs[half..]] {
+            let d: Vec<f64> = part.iter().map(|r| depth(r)).collect();
+            assert!(
+                d.windows(2).all(|w| w[0] <= w[1]),
+                "not front to back: {d:?}"
+            );
+        }
+        // nearest to the light first: the largest t along -(1,1,1)
+        assert!(depth(runs[0]) < depth(runs[half - 1]));
+    }
+
+    #[test]
+    fn an_empty_scene_has_an_empty_order() {
+        assert!(light_order(&[], DVec3::Z).is_empty());
     }
 }

@@ -488,7 +488,8 @@ impl<'c> Renderer<'c> {
         for i in 0..crate::vk::FRAME_SLOTS {
             slots.push(FrameSlot::new(ctx, i)?);
         }
-        let raster = ctx.guard(RasterPass::new(ctx)?);
+        let mut raster = ctx.guard(RasterPass::new(ctx)?);
+        raster.set_light_order(ctx, &geom, settings.light)?;
         let coverage = ctx.guard(CoveragePass::new(ctx)?);
 
         let (bs_center, bs_radius) = scene.bounding_sphere();
@@ -706,6 +707,13 @@ impl<'c> Renderer<'c> {
             ));
         }
         self.settings.light = dir;
+        if self.res.raster.order_stale(dir) {
+            // Frames in flight read the order.
+            self.wait_idle()?;
+            self.res
+                .raster
+                .set_light_order(self.ctx, &self.res.geom, dir)?;
+        }
         self.res.light_cached = false;
         for k in &mut self.res.techniques {
             k.stale = true;
