@@ -47,18 +47,23 @@ fn check_against_reference(
         hit > 0,
         "{name}: the reference sees no sphere; the test would prove nothing"
     );
+    assert_ids_agree(name, &m);
+    m.percent()
+}
+
+/// At least 99.9 % of the ids agree, and the mismatches are explainable by
+/// float rounding (ties or silhouettes).
+fn assert_ids_agree(name: &str, m: &IdMatch) {
     assert!(
         m.percent() >= 99.9,
         "{name}: only {:.3}% match",
         m.percent()
     );
-    // Mismatches must be explainable by float rounding (ties or silhouettes).
     assert!(
         m.hard_mismatches as f64 <= 1e-4 * m.pixels as f64,
         "{name}: {} mismatches outside float tolerance",
         m.hard_mismatches
     );
-    m.percent()
 }
 
 #[test]
@@ -130,16 +135,7 @@ fn ordered_light_raster_matches_reference() {
             hit > 1000,
             "{name}: the light sees too little to prove anything"
         );
-        assert!(
-            m.percent() >= 99.9,
-            "{name}: only {:.3}% match",
-            m.percent()
-        );
-        assert!(
-            m.hard_mismatches as f64 <= 1e-4 * m.pixels as f64,
-            "{name}: {} mismatches outside float tolerance",
-            m.hard_mismatches
-        );
+        assert_ids_agree(&name, &m);
     }
     drop(r);
     assert_no_validation_messages(&ctx);
