@@ -25,7 +25,7 @@ pub const PASSES: &[(&str, &str)] = &[
     ),
     (
         "issm_raster",
-        "the same rasterizer from the key light into the ISSM (nearest sphere id per light texel), light view fitted to the spheres",
+        "the same rasterizer from the key light into the ISSM (nearest sphere id per light texel), light view fitted to the spheres; it visits the spheres in runs of 64 sorted front to back along the light (each half of the dispatch in order), so the early-depth test rejects more visits before their atomics",
     ),
     (
         "issm_resolve",
