@@ -265,7 +265,14 @@ fn validated_render_writes_schema_json_and_stable_hash() {
             assert!(p["median_ms"].as_f64().unwrap() > 0.0, "{p}");
             assert!(p["min_ms"].as_f64().unwrap() <= p["max_ms"].as_f64().unwrap());
         }
-        for want in ["raster", "issm_raster", "ssdo_prep", "ssdo", "shade"] {
+        for want in [
+            "raster",
+            "issm_raster",
+            "issm_resolve",
+            "ssdo_prep",
+            "ssdo",
+            "shade",
+        ] {
             assert!(names.contains(&want), "pass {want} missing from {names:?}");
         }
         // spheres this small on screen take per-sphere SSDO, which has no

@@ -159,8 +159,14 @@ impl RasterPass {
         })
     }
 
+    /// Band jobs and counters (with the visibility buffers they serve).
     pub fn memory_bytes(&self) -> u64 {
-        self.jobs.size + self.counters.size + self.order.size
+        self.jobs.size + self.counters.size
+    }
+
+    /// The light order, 4 bytes per sphere (with the scene).
+    pub fn order_bytes(&self) -> u64 {
+        self.order.size
     }
 
     /// Whether the light order must be sorted (again) for `dir`.

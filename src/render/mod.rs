@@ -826,7 +826,10 @@ impl<'c> Renderer<'c> {
         };
         add(
             "scene",
-            self.res.spheres.size + self.res.attrs.size + self.res.colors.size,
+            self.res.spheres.size
+                + self.res.attrs.size
+                + self.res.colors.size
+                + self.res.raster.order_bytes(),
         );
         add(
             "uniforms",
