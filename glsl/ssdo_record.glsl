@@ -6,7 +6,9 @@
 //   z  region ids at the two active hierarchy levels, 15-bit hashes, and the
 //      representative's position in the block (2 bits)
 //   w  direct key-light radiance albedo * max(N.L, 0) * visibility (RGB8,
-//      linear) and the key-light visibility (A8)
+//      linear) and the key-light visibility (A8; with ISSM exact where
+//      N.L > 0 only: the records' lookup skips the own-sphere test, which
+//      matters only where the radiance's max(N.L, 0) is 0)
 // ssdo_prep.comp writes it; src/passes/ssdo.rs unpacks it on the CPU (tests).
 #ifndef SSDO_RECORD_GLSL
 #define SSDO_RECORD_GLSL
