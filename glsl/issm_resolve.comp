@@ -5,7 +5,7 @@
 // texel per patch texel instead of an id and then the sphere it names (on
 // lavapipe a texel fetch costs per lane whatever its width, and the
 // lookup's fetches were its cost), and tests in light space. Empty texels
-// get x = y = ISSM_EMPTY_XY: no ray passes near them.
+// get ISSM_EMPTY (shared.glsl): no ray passes near them.
 #include "shared.glsl"
 
 layout(local_size_x_id = 0) in;
@@ -24,6 +24,5 @@ void main() {
     if (i >= pc.texels) return;
     uint id = texelFetch(issmTex, int(2u * i)).x;
     vec4 s = texelFetch(sphereTex, id == NO_SPHERE ? 0 : int(id));
-    resolved[i] = id == NO_SPHERE ? vec4(ISSM_EMPTY_XY, ISSM_EMPTY_XY, 0.0, 0.0)
-                                  : vec4(light_space(g.light, s.xyz), s.w);
+    resolved[i] = id == NO_SPHERE ? ISSM_EMPTY : vec4(light_space(g.light, s.xyz), s.w);
 }

@@ -87,7 +87,7 @@ vec2 index_closeness(LightPoint lp, int i, float inv2b2) {
 vec2 texel_closeness(LightPoint lp, ivec2 t, int size, float inv2b2) {
     bool inside = all(greaterThanEqual(t, ivec2(0))) && all(lessThan(t, ivec2(size)));
     vec4 o = texelFetch(issmResolvedTex, inside ? t.y * size + t.x : 0);
-    return occluder_closeness(lp, inside ? o : vec4(ISSM_EMPTY_XY, ISSM_EMPTY_XY, 0.0, 0.0), inv2b2);
+    return occluder_closeness(lp, inside ? o : ISSM_EMPTY, inv2b2);
 }
 
 float key_visibility(Surface s, uint pixel) {
@@ -100,9 +100,7 @@ float key_visibility(Surface s, uint pixel) {
         // two computations of the own centre round alike, or nearly.
         lp.own_eps2 = 1e-6 * s.sphere.w * s.sphere.w;
     }
-    float ppu = L.center.w;
-    // Texel coordinates, centres at integers (light_uv - 0.5).
-    vec2 uv = vec2(lp.p.x * ppu + 0.5 * L.right.w - 0.5, 0.5 * L.up.w - lp.p.y * ppu - 0.5);
+    vec2 uv = light_space_uv(L, lp.p) - 0.5; // texel centres at integers
     ivec2 c = ivec2(round(uv));
     int size = int(L.dims.x);
     int t = int(g.shadow_u.x), stride = int(max(g.shadow_u.y, 1u));

@@ -30,7 +30,9 @@ layout(set = 0, binding = 6) uniform usamplerBuffer orderTex;
 // The spheres again, as RGBA32F texels: in the light order a sphere's
 // address is no longer the invocation's, and a storage load at per-lane
 // addresses is a scalar loop per component on lavapipe; a texel fetch is a
-// vector gather.
+// vector gather. The camera views keep the storage load at the
+// invocation's own address: through the texels their raster was 2-3 %
+// slower (5 alternating pairs on the 1M capsid at 1080p).
 layout(set = 0, binding = 7) uniform samplerBuffer sphereTex;
 
 layout(push_constant) uniform Push {

@@ -115,11 +115,6 @@ float hit_depth(View v, vec3 cv, float r, vec2 px, bool persp) {
     return t > 0.0 ? t : -1.0;
 }
 
-// Continuous light-map coordinates of a world point in an orthographic
-// light view: texel (x, y) covers [x, x + 1) x [y, y + 1), rows grow
-// downward. floor() gives the texel holding the point; subtract 0.5 for
-// coordinates where texel centres are integers (round() = nearest centre).
-// The one world -> light-texel projection of every shadow lookup.
 // Coordinates of a world point in an orthographic view (the key light's):
 // along its right, up and direction vectors from its centre, world units.
 vec3 light_space(View L, vec3 p) {
@@ -127,11 +122,22 @@ vec3 light_space(View L, vec3 p) {
     return vec3(dot(q, L.right.xyz), dot(q, L.up.xyz), dot(q, L.dir.xyz));
 }
 
-vec2 light_uv(View L, vec3 p) {
-    vec3 q = p - L.center.xyz;
+// Continuous light-map coordinates of a point given in light space
+// (light_space): texel (x, y) covers [x, x + 1) x [y, y + 1), rows grow
+// downward. floor() gives the texel holding the point; subtract 0.5 for
+// coordinates where texel centres are integers (round() = nearest centre).
+vec2 light_space_uv(View L, vec3 ls) {
     float ppu = L.center.w;
-    return vec2(dot(q, L.right.xyz) * ppu + 0.5 * L.right.w, 0.5 * L.up.w - dot(q, L.up.xyz) * ppu);
+    return vec2(ls.x * ppu + 0.5 * L.right.w, 0.5 * L.up.w - ls.y * ppu);
 }
+
+// The same for a world point: the one world -> light-texel projection of
+// every shadow lookup.
+vec2 light_uv(View L, vec3 p) { return light_space_uv(L, light_space(L, p)); }
+
+// What the ISSM's resolved map holds for an empty texel (issm_resolve.comp):
+// a sphere of radius 0 so far across the light that no test hits it.
+const vec4 ISSM_EMPTY = vec4(ISSM_EMPTY_XY, ISSM_EMPTY_XY, 0.0, 0.0);
 
 // Distance along the view direction (larger = farther from the viewer).
 float view_z(View v, vec3 p, bool persp) {
