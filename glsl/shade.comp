@@ -39,7 +39,7 @@ layout(constant_id = 13) const bool ISSM_QUAD = false;
 layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
 layout(set = 0, binding = 1) uniform usamplerBuffer visTex;
 layout(set = 0, binding = 2) uniform samplerBuffer sphereTex;
-layout(set = 0, binding = 3) uniform usamplerBuffer attrTex;
+layout(set = 0, binding = 3) uniform usamplerBuffer attrTex; // R32UI, ATTR_REGION
 layout(set = 0, binding = 4) uniform usamplerBuffer recordTex;  // per 2x2 block, ssdo_record.glsl
 layout(set = 0, binding = 5) uniform usamplerBuffer aoTex;  // per pixel or 2x2 block, pack_ao
 layout(set = 0, binding = 6) writeonly buffer Color { uint color[]; };
@@ -106,7 +106,7 @@ vec4 background_at(uvec2 px) {
 }
 
 uint region_of(uint id) {
-    return g.counts.w != 0u ? 0u : texelFetch(attrTex, int(id))[pc.level];
+    return g.counts.w != 0u ? 0u : ATTR_REGION(id, pc.level);
 }
 
 // Silhouette lines (as ChimeraX's and Mol*'s): a pixel lies on a line when
@@ -146,7 +146,7 @@ bool on_outline(uvec2 px, bool cov, float z, uint region) {
 void ssdo_at(uvec2 px, float z, vec3 n, uint id, out vec2 v, out vec3 bounce, out float screen_vis) {
     uint hw = g.counts.y, hh = g.counts.z;
     bool regions = g.counts.w == 0u;
-    uint reg = regions ? region_hash(texelFetch(attrTex, int(id))[pc.level]) : 0u;
+    uint reg = regions ? region_hash(ATTR_REGION(id, pc.level)) : 0u;
     vec2 f = (vec2(px) - 0.5) * 0.5;
     vec2 b0 = floor(f);
     vec2 fr = f - b0;

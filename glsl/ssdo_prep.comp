@@ -20,7 +20,7 @@ layout(constant_id = 5) const bool ISSM_QUAD = false;
 layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
 layout(set = 0, binding = 1) uniform usamplerBuffer visTex;
 layout(set = 0, binding = 2) uniform samplerBuffer sphereTex;
-layout(set = 0, binding = 3) uniform usamplerBuffer attrTex;
+layout(set = 0, binding = 3) uniform usamplerBuffer attrTex; // R32UI, ATTR_REGION
 layout(set = 0, binding = 8) uniform usamplerBuffer colorTex;  // RGBA8 per sphere
 #define SURFACE_ALBEDO
 layout(set = 0, binding = 4) writeonly buffer Records { uvec4 records[]; };
@@ -110,9 +110,8 @@ void main() {
         r.region_a = region_hash(s.id);
         r.region_b = r.region_a;
     } else {
-        uvec4 regions = texelFetch(attrTex, int(s.id));
-        r.region_a = region_hash(regions[pc.level_a]);
-        r.region_b = region_hash(regions[pc.level_b]);
+        r.region_a = region_hash(ATTR_REGION(s.id, pc.level_a));
+        r.region_b = region_hash(ATTR_REGION(s.id, pc.level_b));
     }
     r.visibility = key_visibility(s, pixel);
     vec3 l_key = -normalize(g.light_dir.xyz);

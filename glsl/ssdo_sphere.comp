@@ -28,7 +28,7 @@ layout(set = 0, binding = 2) writeonly buffer SphereAo { uvec4 sphere_ao[]; };
 layout(set = 0, binding = 3) readonly buffer List { uint list[]; };
 layout(set = 0, binding = 4) readonly buffer Counters { uint counters[]; };
 layout(set = 0, binding = 5) uniform samplerBuffer sphereTex;
-layout(set = 0, binding = 6) uniform usamplerBuffer attrTex;
+layout(set = 0, binding = 6) uniform usamplerBuffer attrTex; // R32UI, ATTR_REGION
 // The visibility buffer as 32-bit words: depth (odd) and id (even) halves.
 layout(set = 0, binding = 7) uniform usamplerBuffer visWordTex;
 // The taps' depth words, four per 2x2 block (ssdo_prep.comp): the taps'

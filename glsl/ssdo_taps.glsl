@@ -13,8 +13,7 @@ Record record_at(uvec2 b) { return unpack_record(texelFetch(recordTex, int(b.y *
 // `attrTex`); without a hierarchy every sphere is its own region.
 uvec2 regions_of(uint id) {
     if (g.counts.w != 0u) return uvec2(region_hash(id));
-    uvec4 r = texelFetch(attrTex, int(id));
-    return uvec2(region_hash(r[pc.level_a]), region_hash(r[pc.level_b]));
+    return uvec2(region_hash(ATTR_REGION(id, pc.level_a)), region_hash(ATTR_REGION(id, pc.level_b)));
 }
 
 // Occluder weight of a surface with regions (qa, qb) for a receiver (ra, rb).

@@ -65,7 +65,7 @@ pub const SURFACE_BINDINGS: [Binding; 5] = [
     uniform("GlobalsBlock"),
     texel("visTex", Format::R32G32_UINT),
     texel("sphereTex", Format::R32G32B32A32_SFLOAT),
-    texel("attrTex", Format::R32G32B32A32_UINT),
+    texel("attrTex", Format::R32_UINT),
     texel("colorTex", Format::R32_UINT),
 ];
 

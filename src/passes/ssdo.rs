@@ -220,7 +220,7 @@ const SPHERE_BINDINGS: [Binding; 9] = [
     ro("List"),
     ro("Counters"),
     texel("sphereTex", Format::R32G32B32A32_SFLOAT),
-    texel("attrTex", Format::R32G32B32A32_UINT),
+    texel("attrTex", Format::R32_UINT),
     texel("visWordTex", Format::R32_UINT),
     texel("tapDepthTex", Format::R32_UINT),
 ];
@@ -231,7 +231,7 @@ const SSDO_BINDINGS: [Binding; 10] = [
     wo("Ao"),
     texel("visTex", Format::R32G32_UINT),
     texel("sphereTex", Format::R32G32B32A32_SFLOAT),
-    texel("attrTex", Format::R32G32B32A32_UINT),
+    texel("attrTex", Format::R32_UINT),
     texel("visWordTex", Format::R32_UINT),
     wo("Keys"),
     TILE_BINDING,
