@@ -15,6 +15,7 @@
 // spherical harmonics of their cosine-lobe sum (sphere_ao_pack), which
 // shade.comp evaluates at each pixel's normal: per-pixel AO from
 // per-sphere work, without noise to blur.
+#extension GL_EXT_control_flow_attributes : require
 #include "shared.glsl"
 
 layout(local_size_x_id = 0) in;
@@ -119,7 +120,12 @@ void main() {
         bool any = false;
         uvec2 first = uvec2(0u);
         vec3 first_p = vec3(0.0); // the line's first occluder's surface
-        for (uint j = 0u; j < STEPS; ++j) {
+        // Unrolled (STEPS is a specialization constant): the taps' gathers
+        // no longer wait on the previous tap's tests. ssdo 77.5 -> 63.5 ms on
+        // the 1M capsid at 1080p (lavapipe, 3 alternating pairs); unrolling
+        // the azimuths too made it 39 % slower, and the per-pixel march of
+        // ssdo.comp gained nothing from it.
+        [[unroll]] for (uint j = 0u; j < STEPS; ++j) {
             float s = s_lo + (reach - s_lo) * (float(j) + 0.5 * jit) / float(STEPS);
             vec3 p = c + s * u;
             uvec2 qpx;
