@@ -5,7 +5,7 @@
 use sphereshade::passes::spirv;
 use sphereshade::vk::Recorder;
 use sphereshade::vk::descriptors::DescriptorArena;
-use sphereshade::vk::pipeline::{PipelineDesc, ro, texel, uniform, wo};
+use sphereshade::vk::pipeline::{PipelineDesc, image_wo, ro, texel, uniform, wo};
 use sphereshade::vk::{Buffer, ComputePipeline, Context, ContextOptions, Grid, Profiler};
 
 #[repr(C)]
@@ -108,6 +108,28 @@ const CASES: &[(u32, u32, &str)] = &[
         16,
         "the same work in every other workgroup (interleaved)",
     ),
+    (28, 16, "storage buffer vec4 store, per-lane address (16 taps)"),
+    (
+        29,
+        16,
+        "storage texel buffer (rgba32f) imageStore, per-lane address (16 taps)",
+    ),
+    (30, 16, "storage buffer uint store, per-lane address (16 taps)"),
+    (
+        31,
+        16,
+        "storage texel buffer (r32ui) imageStore, per-lane address (16 taps)",
+    ),
+    (
+        32,
+        16,
+        "storage buffer vec4 store, neighbouring addresses (16 taps)",
+    ),
+    (
+        33,
+        16,
+        "storage texel buffer (rgba32f) imageStore, neighbouring addresses (16 taps)",
+    ),
     (12, 16, "fp16 multiply-add chain (128 steps)"),
     (13, 16, "fp32 multiply-add chain (128 steps)"),
 ];
@@ -148,6 +170,9 @@ fn main() {
                     texel("srcTex", ash::vk::Format::R32G32B32A32_SFLOAT),
                     uniform("GlobalsBlock"),
                     texel("srcWordTex", ash::vk::Format::R32_UINT),
+                    image_wo("dstImg", ash::vk::Format::R32G32B32A32_SFLOAT),
+                    image_wo("dstWordImg", ash::vk::Format::R32_UINT),
+                    wo("DstWords"),
                 ],
                 push_size: 16,
                 local_size: 64,
@@ -177,6 +202,9 @@ fn main() {
                                 ("srcTex", &src),
                                 ("GlobalsBlock", &table),
                                 ("srcWordTex", &src),
+                                ("dstImg", &dst),
+                                ("dstWordImg", &dst),
+                                ("DstWords", &dst),
                             ],
                         );
                         Ok(())

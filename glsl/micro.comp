@@ -13,6 +13,9 @@ layout(set = 0, binding = 1) writeonly buffer Dst { vec4 dst[]; };
 layout(set = 0, binding = 2) uniform samplerBuffer srcTex;
 layout(set = 0, binding = 3) uniform GlobalsBlock { vec4 table[64]; };
 layout(set = 0, binding = 4) uniform usamplerBuffer srcWordTex; // Src as R32UI
+layout(set = 0, binding = 5, rgba32f) uniform writeonly imageBuffer dstImg;  // Dst as a storage texel buffer
+layout(set = 0, binding = 6, r32ui) uniform writeonly uimageBuffer dstWordImg; // the same as R32UI
+layout(set = 0, binding = 7) writeonly buffer DstWords { uint dst_words[]; }; // Dst as 32-bit words
 
 layout(push_constant) uniform Push {
     uint n;     // invocations (and source elements)
@@ -97,6 +100,18 @@ void main() {
         for (bool once = pc.flag == 0u; once; once = false) { SIN16(acc) }
     } else if (MODE == 27) { // the one-trip loop, entered by 1 lane in 8
         for (bool once = (i & 7u) == 0u; once; once = false) { SIN16(acc) }
+    } else if (MODE == 28) { // storage buffer vec4 store, per-lane address
+        for (uint k = 0u; k < pc.taps; ++k) dst[addr(i, k)] = acc + float(k);
+    } else if (MODE == 29) { // storage texel buffer (rgba32f) store, per-lane address
+        for (uint k = 0u; k < pc.taps; ++k) imageStore(dstImg, int(addr(i, k)), acc + float(k));
+    } else if (MODE == 30) { // storage buffer uint store, per-lane address
+        for (uint k = 0u; k < pc.taps; ++k) dst_words[addr(i, k)] = i + k;
+    } else if (MODE == 31) { // storage texel buffer (r32ui) store, per-lane address
+        for (uint k = 0u; k < pc.taps; ++k) imageStore(dstWordImg, int(addr(i, k)), uvec4(i + k));
+    } else if (MODE == 32) { // storage buffer vec4 store, neighbouring addresses
+        for (uint k = 0u; k < pc.taps; ++k) dst[(i + k * 1920u) & MASK] = acc + float(k);
+    } else if (MODE == 33) { // storage texel buffer (rgba32f) store, neighbouring addresses
+        for (uint k = 0u; k < pc.taps; ++k) imageStore(dstImg, int((i + k * 1920u) & MASK), acc + float(k));
     } else if (MODE == 12) { // fp16 arithmetic
         f16vec4 h = f16vec4(acc * 1e-6);
         for (uint k = 0u; k < pc.taps * 8u; ++k) h = h * float16_t(0.999) + float16_t(0.001);
