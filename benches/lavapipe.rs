@@ -108,13 +108,21 @@ const CASES: &[(u32, u32, &str)] = &[
         16,
         "the same work in every other workgroup (interleaved)",
     ),
-    (28, 16, "storage buffer vec4 store, per-lane address (16 taps)"),
+    (
+        28,
+        16,
+        "storage buffer vec4 store, per-lane address (16 taps)",
+    ),
     (
         29,
         16,
         "storage texel buffer (rgba32f) imageStore, per-lane address (16 taps)",
     ),
-    (30, 16, "storage buffer uint store, per-lane address (16 taps)"),
+    (
+        30,
+        16,
+        "storage buffer uint store, per-lane address (16 taps)",
+    ),
     (
         31,
         16,
