@@ -29,6 +29,17 @@ pub enum ShadowMode {
     TestConstant,
 }
 
+impl ShadowMode {
+    /// Whether the technique rasterizes the key light's view with the
+    /// sphere rasterizer (ISSM's id map, the baseline's depth map).
+    pub fn draws_light_view(self) -> bool {
+        matches!(
+            self,
+            ShadowMode::Issm | ShadowMode::IssmSoft | ShadowMode::SmPcf
+        )
+    }
+}
+
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, Serialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum SsdoMode {

@@ -98,7 +98,9 @@ fn pdb_1tii_matches_reference() {
 /// along the light, src/passes/raster.rs `light_order`): the ISSM's id map
 /// must still hold each texel's nearest sphere, as the exact caster finds it
 /// through the light view, before and after the light turns far enough for
-/// the order to be sorted again.
+/// the order to be sorted again, and after every sphere moves (a trajectory
+/// frame: sorted again). Techniques that do not draw the light view never
+/// sort it.
 #[test]
 fn ordered_light_raster_matches_reference() {
     let ctx = validated_context();
@@ -106,23 +108,43 @@ fn ordered_light_raster_matches_reference() {
     let mut r = Renderer::new(
         &ctx,
         &s,
-        settings(camera(&s, 96, 96, None), ShadowMode::Issm),
+        settings(camera(&s, 96, 96, None), ShadowMode::Deep),
     )
     .expect("renderer");
+    r.render_frame().expect("frame");
+    assert!(!r.light_order_ready(), "deep lists sorted the light order");
+    r.set_shadows(ShadowMode::Issm).expect("issm");
+    assert!(
+        r.light_order_ready(),
+        "issm chosen, the order is not sorted"
+    );
     let (_, radius) = s.bounding_sphere();
     let tolerance = 2e-5 * (radius as f64).max(1.0);
+    let mut spheres = s.spheres.clone();
     for (k, light) in [
         glam::DVec3::new(-1.0, -1.0, -1.0),
+        glam::DVec3::new(1.0, 0.3, 0.8),
         glam::DVec3::new(1.0, 0.3, 0.8),
     ]
     .into_iter()
     .enumerate()
     {
+        if k == 2 {
+            // Every sphere moves, by up to 2.5 of the mean radius.
+            for (i, sp) in spheres.iter_mut().enumerate() {
+                let w = i as f32 * 0.37;
+                sp.center[0] += 2.0 * w.sin();
+                sp.center[2] += 2.0 * w.cos();
+            }
+            let pos: Vec<[f32; 3]> = spheres.iter().map(|sp| sp.center).collect();
+            r.set_positions(&pos).expect("positions");
+            assert!(r.light_order_ready(), "not sorted again after a move");
+        }
         r.set_light(light).expect("light");
         r.render_frame().expect("frame");
         let (light_cam, _) = r.issm_info().expect("issm active");
         let map = r.read_issm().expect("read map").expect("issm map");
-        let reference = reference::cast(&s.spheres, &light_cam, tolerance);
+        let reference = reference::cast(&spheres, &light_cam, tolerance);
         let name = format!("issm-light-{k}");
         let m = compare_ids(&name, &ids_from_vis(&map), &reference);
         let hit = reference.ids.iter().filter(|&&i| i != u32::MAX).count();
@@ -137,6 +159,15 @@ fn ordered_light_raster_matches_reference() {
         );
         assert_ids_agree(&name, &m);
     }
+    // Moved while a technique without the light view is active: sorted
+    // when ISSM is chosen again.
+    r.set_shadows(ShadowMode::None).expect("none");
+    let pos: Vec<[f32; 3]> = s.spheres.iter().map(|sp| sp.center).collect();
+    r.set_positions(&pos).expect("positions");
+    assert!(!r.light_order_ready(), "sorted for a technique without it");
+    r.set_shadows(ShadowMode::IssmSoft).expect("issm soft");
+    assert!(r.light_order_ready());
+    r.render_frame().expect("frame");
     drop(r);
     assert_no_validation_messages(&ctx);
 }

@@ -61,7 +61,8 @@ pub struct RasterPass {
     counters: Buffer,
     /// The light view's sphere order ([`light_order`]), one u32 per sphere.
     order: Buffer,
-    /// The light direction `order` was sorted for.
+    /// The light direction `order` was sorted for (none: never sorted, or
+    /// the spheres moved since).
     order_dir: Option<DVec3>,
 }
 
@@ -176,6 +177,17 @@ impl RasterPass {
         })
     }
 
+    /// The spheres moved (a trajectory frame): the order is sorted again
+    /// before the light view is next drawn.
+    pub fn spheres_moved(&mut self) {
+        self.order_dir = None;
+    }
+
+    /// Whether an order is sorted for the current spheres.
+    pub fn light_order_ready(&self) -> bool {
+        self.order_dir.is_some()
+    }
+
     /// Sorts the light order for these spheres and direction and uploads
     /// it (no frame may be using it: the caller waits first).
     pub fn set_light_order(&mut self, ctx: &Context, geom: &[GpuSphere], dir: DVec3) -> Result<()> {
@@ -247,6 +259,11 @@ impl RasterPass {
         map: &'b Buffer,
         texels: u64,
     ) -> Result<()> {
+        if self.order_dir.is_none() {
+            return Err(crate::error::Error::Internal(
+                "the light view's sphere order was not sorted".into(),
+            ));
+        }
         rec.pass(name, |p| {
             self.steps(
                 p,

@@ -488,8 +488,7 @@ impl<'c> Renderer<'c> {
         for i in 0..crate::vk::FRAME_SLOTS {
             slots.push(FrameSlot::new(ctx, i)?);
         }
-        let mut raster = ctx.guard(RasterPass::new(ctx)?);
-        raster.set_light_order(ctx, &geom, settings.light)?;
+        let raster = ctx.guard(RasterPass::new(ctx)?);
         let coverage = ctx.guard(CoveragePass::new(ctx)?);
 
         let (bs_center, bs_radius) = scene.bounding_sphere();
@@ -557,6 +556,12 @@ impl<'c> Renderer<'c> {
 
     pub fn sphere_count(&self) -> u32 {
         self.res.sphere_count
+    }
+
+    /// Whether the key light's view has its sphere order (sorted only once
+    /// a technique that draws that view is chosen).
+    pub fn light_order_ready(&self) -> bool {
+        self.res.raster.light_order_ready()
     }
 
     /// The composited colour buffer (RGBA8 or BGRA8 texels, row-major).
@@ -685,6 +690,8 @@ impl<'c> Renderer<'c> {
         } = &mut self.res;
         spheres.upload_with(self.ctx, bytemuck::cast_slice(geom.as_slice()), staging)?;
         self.res.bounds = bounding_sphere(&self.res.geom);
+        self.res.raster.spheres_moved();
+        self.ensure_light_order()?;
         self.res.light_cached = false;
         for k in &mut self.res.techniques {
             k.stale = true;
@@ -707,13 +714,7 @@ impl<'c> Renderer<'c> {
             ));
         }
         self.settings.light = dir;
-        if self.res.raster.order_stale(dir) {
-            // Frames in flight read the order.
-            self.wait_idle()?;
-            self.res
-                .raster
-                .set_light_order(self.ctx, &self.res.geom, dir)?;
-        }
+        self.ensure_light_order()?;
         self.res.light_cached = false;
         for k in &mut self.res.techniques {
             k.stale = true;
@@ -776,7 +777,23 @@ impl<'c> Renderer<'c> {
         }
         self.res.active = index;
         self.settings.shadows = mode;
+        self.ensure_light_order()?;
         self.res.update_light_view(&self.settings);
+        Ok(())
+    }
+
+    /// Sorts the light view's sphere order when the technique draws that
+    /// view and the order is stale (the light turned far, or the spheres
+    /// moved); other techniques never pay for it.
+    fn ensure_light_order(&mut self) -> Result<()> {
+        let dir = self.settings.light;
+        if self.settings.shadows.draws_light_view() && self.res.raster.order_stale(dir) {
+            // Frames in flight read the order.
+            self.wait_idle()?;
+            self.res
+                .raster
+                .set_light_order(self.ctx, &self.res.geom, dir)?;
+        }
         Ok(())
     }
 
