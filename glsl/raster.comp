@@ -10,7 +10,6 @@
 layout(local_size_x_id = 0) in;
 
 layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
-layout(set = 0, binding = 1) readonly buffer Spheres { vec4 spheres[]; };
 layout(set = 0, binding = 2) buffer Vis { uint64_t vis[]; };
 layout(set = 0, binding = 3) buffer Jobs { uvec2 jobs[]; };
 layout(set = 0, binding = 4) buffer Counters { uint counters[]; };
@@ -19,20 +18,17 @@ layout(set = 0, binding = 4) buffer Counters { uint counters[]; };
 // per-lane addresses is a scalar loop).
 layout(set = 0, binding = 5) uniform usamplerBuffer visWordTex;
 
-// The light view visits the spheres in the order of orderTex (ORDERED):
-// 64-sphere runs of the input sorted front to back along the light, the
-// two halves of the dispatch (lavapipe's two threads) each front to back,
-// so the early-depth test turns more of the later visits away before
-// their atomics (glsl/bands.glsl's SPHERE_AT; src/passes/raster.rs).
-layout(constant_id = 3) const bool ORDERED = false;
+// Each view visits the spheres in its order (orderTex): 64-sphere runs of
+// the input sorted front to back along the view, the two halves of the
+// dispatch (lavapipe's two threads) each front to back, so the early-depth
+// test turns more of the later visits away before their atomics and the
+// halves take alike work (glsl/bands.glsl's SPHERE_AT;
+// src/passes/raster.rs `view_order`).
 layout(set = 0, binding = 6) uniform usamplerBuffer orderTex;
-#define SPHERE_AT(i) (ORDERED ? texelFetch(orderTex, int(i)).x : (i))
-// The spheres again, as RGBA32F texels: in the light order a sphere's
-// address is no longer the invocation's, and a storage load at per-lane
-// addresses is a scalar loop per component on lavapipe; a texel fetch is a
-// vector gather. The camera views keep the storage load at the
-// invocation's own address: through the texels their raster was 2-3 %
-// slower (5 alternating pairs on the 1M capsid at 1080p).
+#define SPHERE_AT(i) texelFetch(orderTex, int(i)).x
+// The spheres as RGBA32F texels: in a view's order a sphere's address is
+// not the invocation's, and a storage load at per-lane addresses is a
+// scalar loop per component on lavapipe; a texel fetch is a vector gather.
 layout(set = 0, binding = 7) uniform samplerBuffer sphereTex;
 
 layout(push_constant) uniform Push {
@@ -62,7 +58,7 @@ struct Footprint {
 Footprint band_footprint(uint id) {
     Footprint f;
     f.v = pc.view_index == 0u ? g.cam : g.light;
-    vec4 s = ORDERED ? texelFetch(sphereTex, int(id)) : spheres[id];
+    vec4 s = texelFetch(sphereTex, int(id));
     f.cv = view_space(f.v, s.xyz, PERSP);
     f.r = s.w;
     f.rect = sphere_rect(f.v, f.cv, s.w, PERSP);

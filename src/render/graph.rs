@@ -134,7 +134,7 @@ impl Resources {
                     pixels,
                     ViewIndex::Camera,
                     cam.fov_deg.is_some(),
-                ),
+                )?,
             }
             Ok(())
         })?;

@@ -14,7 +14,7 @@ use crate::error::{Error, Result};
 use crate::gpu::{Globals, GpuSphere, SphereAttr};
 use crate::passes::blur::{BlurPass, BlurPush};
 use crate::passes::coverage::CoveragePass;
-use crate::passes::raster::RasterPass;
+use crate::passes::raster::{RasterPass, ViewIndex};
 use crate::passes::raster_graphics::GraphicsRasterPass;
 use crate::passes::shade::{ShadeMode, ShadePass};
 use crate::passes::shadows::deep::{DeepShadows, DeepStats};
@@ -558,10 +558,10 @@ impl<'c> Renderer<'c> {
         self.res.sphere_count
     }
 
-    /// Whether the key light's view has its sphere order (sorted only once
-    /// a technique that draws that view is chosen).
+    /// Whether the key light's view has its sphere order for the current
+    /// spheres (sorted by the first frame that draws that view).
     pub fn light_order_ready(&self) -> bool {
-        self.res.raster.light_order_ready()
+        self.res.raster.order_ready(ViewIndex::Light)
     }
 
     /// The composited colour buffer (RGBA8 or BGRA8 texels, row-major).
@@ -691,7 +691,6 @@ impl<'c> Renderer<'c> {
         spheres.upload_with(self.ctx, bytemuck::cast_slice(geom.as_slice()), staging)?;
         self.res.bounds = bounding_sphere(&self.res.geom);
         self.res.raster.spheres_moved();
-        self.ensure_light_order()?;
         self.res.light_cached = false;
         for k in &mut self.res.techniques {
             k.stale = true;
@@ -714,7 +713,6 @@ impl<'c> Renderer<'c> {
             ));
         }
         self.settings.light = dir;
-        self.ensure_light_order()?;
         self.res.light_cached = false;
         for k in &mut self.res.techniques {
             k.stale = true;
@@ -777,22 +775,40 @@ impl<'c> Renderer<'c> {
         }
         self.res.active = index;
         self.settings.shadows = mode;
-        self.ensure_light_order()?;
         self.res.update_light_view(&self.settings);
         Ok(())
     }
 
-    /// Sorts the light view's sphere order when the technique draws that
-    /// view and the order is stale (the light turned far, or the spheres
-    /// moved); other techniques never pay for it.
-    fn ensure_light_order(&mut self) -> Result<()> {
-        let dir = self.settings.light;
-        if self.settings.shadows.draws_light_view() && self.res.raster.order_stale(dir) {
-            // Frames in flight read the order.
-            self.wait_idle()?;
-            self.res
-                .raster
-                .set_light_order(self.ctx, &self.res.geom, dir)?;
+    /// Sorts the views' sphere orders that are stale (the view turned far,
+    /// or the spheres moved) before a frame draws them: the camera's when
+    /// the compute rasterizer draws it, the light's when the technique
+    /// draws that view (others never pay for it).
+    fn ensure_orders(&mut self) -> Result<()> {
+        let views = [
+            (
+                ViewIndex::Camera,
+                self.settings.camera.dir,
+                self.settings.raster == RasterMode::Compute,
+            ),
+            (
+                ViewIndex::Light,
+                self.settings.light,
+                self.settings.shadows.draws_light_view(),
+            ),
+        ];
+        for (view, dir, drawn) in views {
+            if drawn && self.res.raster.order_stale(view, dir) {
+                // Frames in flight read the order.
+                self.wait_idle()?;
+                let t = std::time::Instant::now();
+                self.res
+                    .raster
+                    .set_order(self.ctx, view, &self.res.geom, dir)?;
+                log::debug!(
+                    "{view:?} sphere order sorted in {:.1} ms",
+                    t.elapsed().as_secs_f64() * 1e3
+                );
+            }
         }
         Ok(())
     }
@@ -953,6 +969,7 @@ impl<'c> Renderer<'c> {
     /// Records and submits one frame in the next slot (whose previous frame
     /// must have finished); returns the slot.
     fn submit(&mut self) -> Result<usize> {
+        self.ensure_orders()?;
         let ctx = self.ctx;
         let dev = &ctx.device;
         let slot = self.next_slot;
