@@ -66,6 +66,44 @@ fn assert_ids_agree(name: &str, m: &IdMatch) {
     );
 }
 
+/// Moves every sphere by up to `amp` across x and z (a trajectory frame)
+/// and hands the renderer the new positions.
+fn move_all(r: &mut Renderer, spheres: &mut [sphereshade::scene::Sphere], amp: f32) {
+    for (i, sp) in spheres.iter_mut().enumerate() {
+        let w = i as f32 * 0.37;
+        sp.center[0] += amp * w.sin();
+        sp.center[2] += amp * w.cos();
+    }
+    let pos: Vec<[f32; 3]> = spheres.iter().map(|sp| sp.center).collect();
+    r.set_positions(&pos).expect("positions");
+}
+
+/// A view's visibility buffer against the exact caster through the same
+/// view (ties within `tolerance`): at least `min_hit` covered pixels, ids agreeing as
+/// `assert_ids_agree` requires.
+fn assert_view_matches(
+    name: &str,
+    vis: &[u64],
+    spheres: &[sphereshade::scene::Sphere],
+    cam: &sphereshade::camera::Camera,
+    tolerance: f64,
+    min_hit: usize,
+) {
+    let reference = reference::cast(spheres, cam, tolerance);
+    let m = compare_ids(name, &ids_from_vis(vis), &reference);
+    let hit = reference.ids.iter().filter(|&&i| i != u32::MAX).count();
+    eprintln!(
+        "{name}: {:.4}% of {} pixels match ({hit} covered)",
+        m.percent(),
+        m.pixels
+    );
+    assert!(
+        hit >= min_hit,
+        "{name}: the view sees too little to prove anything"
+    );
+    assert_ids_agree(name, &m);
+}
+
 #[test]
 fn random_scene_matches_reference_ortho_and_perspective() {
     let ctx = validated_context();
@@ -127,13 +165,7 @@ fn ordered_light_raster_matches_reference() {
     {
         if k == 2 {
             // Every sphere moves, by up to 2.5 of the mean radius.
-            for (i, sp) in spheres.iter_mut().enumerate() {
-                let w = i as f32 * 0.37;
-                sp.center[0] += 2.0 * w.sin();
-                sp.center[2] += 2.0 * w.cos();
-            }
-            let pos: Vec<[f32; 3]> = spheres.iter().map(|sp| sp.center).collect();
-            r.set_positions(&pos).expect("positions");
+            move_all(&mut r, &mut spheres, 2.0);
             assert!(!r.light_order_ready(), "the order survived a move");
         }
         r.set_light(light).expect("light");
@@ -141,20 +173,14 @@ fn ordered_light_raster_matches_reference() {
         assert!(r.light_order_ready(), "issm drew a frame without its order");
         let (light_cam, _) = r.issm_info().expect("issm active");
         let map = r.read_issm().expect("read map").expect("issm map");
-        let reference = reference::cast(&spheres, &light_cam, tolerance);
-        let name = format!("issm-light-{k}");
-        let m = compare_ids(&name, &ids_from_vis(&map), &reference);
-        let hit = reference.ids.iter().filter(|&&i| i != u32::MAX).count();
-        eprintln!(
-            "{name}: {:.4}% of {} texels match ({hit} covered)",
-            m.percent(),
-            m.pixels
+        assert_view_matches(
+            &format!("issm-light-{k}"),
+            &map,
+            &spheres,
+            &light_cam,
+            tolerance,
+            1000,
         );
-        assert!(
-            hit > 1000,
-            "{name}: the light sees too little to prove anything"
-        );
-        assert_ids_agree(&name, &m);
     }
     // Moved while a technique without the light view is active: sorted
     // when ISSM is chosen again.
@@ -199,34 +225,20 @@ fn ordered_camera_raster_follows_the_view() {
         let mut spheres = s.spheres.clone();
         for (k, cam) in [front, side, side].into_iter().enumerate() {
             if k == 2 {
-                for (i, sp) in spheres.iter_mut().enumerate() {
-                    let w = i as f32 * 0.61;
-                    sp.center[1] += 0.3 * w.sin();
-                    sp.center[2] += 0.3 * w.cos();
-                }
-                let pos: Vec<[f32; 3]> = spheres.iter().map(|sp| sp.center).collect();
-                r.set_positions(&pos).expect("positions");
+                move_all(&mut r, &mut spheres, 0.3);
             }
             r.set_camera(cam).expect("camera");
             r.render_frame().expect("frame");
             let vis = r.read_vis().expect("read vis");
-            let reference = reference::cast(&spheres, &cam, tolerance);
-            let name = format!(
-                "camera-order-{}-{k}",
-                if fov.is_some() { "persp" } else { "ortho" }
+            let view = if fov.is_some() { "persp" } else { "ortho" };
+            assert_view_matches(
+                &format!("camera-order-{view}-{k}"),
+                &vis,
+                &spheres,
+                &cam,
+                tolerance,
+                2000,
             );
-            let m = compare_ids(&name, &ids_from_vis(&vis), &reference);
-            let hit = reference.ids.iter().filter(|&&i| i != u32::MAX).count();
-            eprintln!(
-                "{name}: {:.4}% of {} pixels match ({hit} covered)",
-                m.percent(),
-                m.pixels
-            );
-            assert!(
-                hit > 2000,
-                "{name}: the camera sees too little to prove anything"
-            );
-            assert_ids_agree(&name, &m);
         }
         drop(r);
     }

@@ -1044,6 +1044,7 @@ impl<'c> Renderer<'c> {
     /// submitted and returns the recorder's log of steps and barriers
     /// (tests check it with [`crate::vk::barrier::check_hazards`]).
     pub fn frame_log(&mut self) -> Result<Vec<crate::vk::barrier::Event>> {
+        self.ensure_orders()?;
         let ctx = self.ctx;
         self.res.prepare(ctx, &self.settings)?;
         let cmd = ctx.command_buffer("frame log")?;
