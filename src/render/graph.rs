@@ -21,11 +21,11 @@ pub const SHADOW_DIFFUSE: f32 = 0.05;
 pub const PASSES: &[(&str, &str)] = &[
     (
         "raster",
-        "one invocation per sphere, the spheres visited in runs of 64 sorted front to back along the view (each half of the dispatch in order; sorted again when the camera turns more than 30° or the spheres move): exact ray-sphere test per pixel of the footprint's rectangle (one flat loop; orthographic/perspective a specialization constant), the stored depth read first (a 4-byte texel gather through an R32UI view of the buffer) and the 64-bit `atomicMin(depth<<32 \\| id)` only where nearer; footprints above 1024 px (CPU) / 256 px (GPU) are split into 8-row bands that whole workgroups process (indirect dispatch); `--raster graphics`: the vertex/fragment impostor baseline, same output",
+        "one invocation per sphere, the spheres visited in runs of 64, the dispatch's two halves on the two sides of the view and each sorted front to back (sorted again when the camera turns more than 30° or the spheres move): exact ray-sphere test per pixel of the footprint's rectangle (one flat loop; orthographic/perspective a specialization constant), the stored depth read first (a 4-byte texel gather through an R32UI view of the buffer) and the 64-bit `atomicMin(depth<<32 \\| id)` only where nearer; footprints above 1024 px (CPU) / 256 px (GPU) are split into 8-row bands that whole workgroups process (indirect dispatch); `--raster graphics`: the vertex/fragment impostor baseline, same output",
     ),
     (
         "issm_raster",
-        "the same rasterizer from the key light into the ISSM (nearest sphere id per light texel), light view fitted to the spheres; like `raster` it visits the spheres in runs of 64 sorted front to back along its view, so the early-depth test rejects more visits before their atomics and lavapipe's two threads get alike halves",
+        "the same rasterizer from the key light into the ISSM (nearest sphere id per light texel), light view fitted to the spheres; like `raster` it visits the spheres in runs of 64, each half of the dispatch on one side of its view and front to back, so the early-depth test rejects more visits before their atomics and lavapipe's two threads get alike halves on different cache lines",
     ),
     (
         "issm_resolve",
