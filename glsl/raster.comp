@@ -19,11 +19,11 @@ layout(set = 0, binding = 4) buffer Counters { uint counters[]; };
 layout(set = 0, binding = 5) uniform usamplerBuffer visWordTex;
 
 // Each view visits the spheres in its order (orderTex): 64-sphere runs of
-// the input sorted front to back along the view, the two halves of the
-// dispatch (lavapipe's two threads) each front to back, so the early-depth
-// test turns more of the later visits away before their atomics and the
-// halves take alike work (glsl/bands.glsl's SPHERE_AT;
-// src/passes/raster.rs `view_order`).
+// the input, the two halves of the dispatch (lavapipe's two threads) on
+// either side of the view and each sorted front to back, so the
+// early-depth test turns more of the later visits away before their
+// atomics, and the halves take alike work on different cache lines
+// (glsl/bands.glsl's SPHERE_AT; src/passes/raster.rs `view_order`).
 layout(set = 0, binding = 6) uniform usamplerBuffer orderTex;
 #define SPHERE_AT(i) texelFetch(orderTex, int(i)).x
 // The spheres as RGBA32F texels: in a view's order a sphere's address is

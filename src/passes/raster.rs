@@ -6,6 +6,7 @@ use super::{LOCAL_SIZE, spirv};
 use crate::error::Result;
 use crate::gpu::GpuSphere;
 use crate::gpu::consts::{R_ARGS, R_BANDS_REQ, R_BANDS_RUN};
+use crate::vk::guard::Destroy;
 use crate::vk::pipeline::{PipelineDesc, rw, texel, uniform};
 use crate::vk::{Buffer, Context, PassBuilder};
 use bytemuck::{Pod, Zeroable};
@@ -71,7 +72,7 @@ struct ViewOrder {
     dir: Option<DVec3>,
 }
 
-impl crate::vk::guard::Destroy for ViewOrder {
+impl Destroy for ViewOrder {
     fn destroy_with(&mut self, ctx: &Context) {
         self.buf.destroy(ctx);
     }
@@ -140,8 +141,7 @@ pub const ORDER_STALE_DEG: f64 = 30.0;
 pub fn view_order(geom: &[GpuSphere], dir: DVec3) -> Vec<u32> {
     let d = dir.normalize_or_zero();
     let across = d.any_orthonormal_vector();
-    // (across, depth, run): sums, as every run but the last has ORDER_RUN
-    // spheres and the last goes wherever its sum puts it.
+    // (across, depth, run) of each run's mean centre.
     let mut runs: Vec<(f64, f64, usize)> = geom
         .chunks(ORDER_RUN)
         .enumerate()
@@ -340,7 +340,7 @@ impl RasterPass {
         self.jobs.destroy(ctx);
         self.counters.destroy(ctx);
         for o in &mut self.orders {
-            o.buf.destroy(ctx);
+            o.destroy_with(ctx);
         }
     }
 }
