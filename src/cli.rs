@@ -48,7 +48,7 @@ pub struct RenderArgs {
     pub aov: Aov,
     /// The PNG to write (written atomically: never a partial file); with
     /// --trajectory a pattern with %d or %05d, replaced by the frame index.
-    #[arg(long)]
+    #[arg(long, short = 'o')]
     pub out: Option<PathBuf>,
     /// Also write the run's stats (per-pass ms, memory, image hash) as JSON.
     #[arg(long)]

@@ -37,10 +37,28 @@ fn main() {
             // `{:#}` joins the context and the error on one line; quoted
             // input (file contents, names) cannot break it or reach the
             // terminal as control sequences.
-            eprintln!("{}", printable(&format!("{e:#}")));
+            eprintln!("{}", printable(&one_line(&e)));
             std::process::exit(1);
         }
     }
+}
+
+/// The error and its causes on one line, as `{:#}` joins them, but a cause
+/// that the message before it already ends with (an I/O error whose
+/// Display names its path and its source) is said once.
+fn one_line(e: &anyhow::Error) -> String {
+    let mut line = String::new();
+    for cause in e.chain() {
+        let text = cause.to_string();
+        if line.ends_with(&text) {
+            continue;
+        }
+        if !line.is_empty() {
+            line.push_str(": ");
+        }
+        line.push_str(&text);
+    }
+    line
 }
 
 /// clap's message on one line: its first line and the indented lines that

@@ -102,14 +102,22 @@ fn malformed_files_fail_with_file_and_line_and_no_png() {
         );
         assert!(!out.exists(), "{name}: a PNG was written for a failed run");
     }
-    let o = run(&[
-        "render",
-        "x.unknown",
-        "--out",
-        tmp("u.png").to_str().unwrap(),
-    ]);
+    // (-o is --out's short form)
+    let o = run(&["render", "x.unknown", "-o", tmp("u.png").to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(1));
     assert!(stderr(&o).contains("x.unknown"), "{}", stderr(&o));
+    // a missing file: its name and the system's reason, said once
+    let missing = tmp("missing.pdb");
+    let o = run(&[
+        "render",
+        missing.to_str().unwrap(),
+        "--out",
+        tmp("m.png").to_str().unwrap(),
+    ]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("missing.pdb"), "{err}");
+    assert_eq!(err.matches("os error 2").count(), 1, "{err}");
 }
 
 #[test]
