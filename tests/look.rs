@@ -4,10 +4,14 @@
 //! Debian's `tachyon` on the same camera with the same directional key
 //! light, hard shadows and a 64-sample sky-light ambient occlusion. Over
 //! the pixels both cover:
-//! - the luminance rank correlation (Spearman) must be >= 0.9: the same
+//! - the luminance rank correlation (Spearman) must be >= 0.93: the same
 //!   places are light and dark;
 //! - the luminance spread (standard deviation of the grey level, 0..255)
-//!   must be >= 0.6 x Tachyon's: shadows and occlusion read as clearly.
+//!   must be >= 0.9 x Tachyon's: shadows and occlusion read as clearly.
+//!
+//! (The goals were 0.9 and 0.6x; the composite with the sky light
+//! going as ao³ measures 0.964 / 0.943 and 0.97x / 0.97x on 1TII / 3P3W,
+//! the one before it 0.953 / 0.936 and 0.68x / 0.69x.)
 //!
 //! A side-by-side image (ours left) is written to
 //! target/test-output/look-NAME.png; tools/look-vs-tachyon.sh does the same
@@ -35,10 +39,14 @@ fn check(name: &str) {
     side.save(dir.join(format!("look-{name}.png"))).unwrap();
     eprintln!("{name}: {l}");
     assert!(l.pixels > 20_000, "{name}: {} covered pixels", l.pixels);
-    assert!(l.rho >= 0.9, "{name}: rank correlation {:.3} < 0.9", l.rho);
     assert!(
-        l.ours_sd >= 0.6 * l.ref_sd,
-        "{name}: luminance spread {:.1} < 0.6 x Tachyon's {:.1}",
+        l.rho >= 0.93,
+        "{name}: rank correlation {:.3} < 0.93",
+        l.rho
+    );
+    assert!(
+        l.ours_sd >= 0.9 * l.ref_sd,
+        "{name}: luminance spread {:.1} < 0.9 x Tachyon's {:.1}",
         l.ours_sd,
         l.ref_sd
     );
