@@ -273,7 +273,7 @@ impl RasterPass {
         perspective: bool,
     ) -> Result<()> {
         let order = &self.orders[view as usize];
-        if order.dir.is_none() {
+        if !self.order_ready(view) {
             return Err(crate::error::Error::Internal(format!(
                 "the {} was not sorted",
                 order.name
