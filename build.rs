@@ -1,4 +1,5 @@
-//! Compiles every shader in glsl/ to SPIR-V with shaderc and writes
+//! Compiles every shader in glsl/ (and the test- and bench-only shaders in
+//! glsl/test/, kept apart from the production ones) to SPIR-V with shaderc and writes
 //! `shaders.rs` (one `pub static NAME: Shader` per shader, with its file name
 //! for error messages) into OUT_DIR, so the binary embeds them. Shared
 //! headers are resolved by `#include "x.glsl"`; `constants.glsl` is
@@ -53,6 +54,7 @@ fn main() {
     let glsl_dir = root.join("glsl");
     let out_dir = PathBuf::from(env::var("OUT_DIR").unwrap());
     println!("cargo:rerun-if-changed=glsl");
+    println!("cargo:rerun-if-changed=glsl/test");
     println!("cargo:rerun-if-changed=src/gpu_consts.rs");
     let constants = constants_glsl();
     fs::write(out_dir.join("constants.glsl"), &constants).expect("write constants.glsl");
@@ -60,8 +62,9 @@ fn main() {
     let compiler = shaderc::Compiler::new().expect("shaderc: cannot create compiler");
     let debug = env::var("PROFILE").map(|p| p == "debug").unwrap_or(true);
 
-    let mut entries: Vec<_> = fs::read_dir(&glsl_dir)
-        .expect("glsl/ directory missing")
+    let mut entries: Vec<_> = [glsl_dir.clone(), glsl_dir.join("test")]
+        .iter()
+        .flat_map(|d| fs::read_dir(d).unwrap_or_else(|e| panic!("{}: {e}", d.display())))
         .filter_map(|e| e.ok().map(|e| e.path()))
         .collect();
     entries.sort();

@@ -1,4 +1,4 @@
-//! `cargo bench --bench lavapipe`: times glsl/micro.comp's modes (one per
+//! `cargo bench --bench lavapipe`: times glsl/test/micro.comp's modes (one per
 //! fact in docs/LAVAPIPE.md) with timestamps on the chosen device, 1920x1080
 //! invocations each, median of 5 runs after a warm-up, and prints a table.
 

@@ -1,5 +1,5 @@
 #version 460
-// Separable bilateral blur (seed 001) of the SSDO result (ambient
+// Separable bilateral blur (after the semantic SSDO paper) of the SSDO result (ambient
 // visibility, bounce, screen-space key-light visibility; pack_ao). AXIS
 // (specialization constant 1) picks the direction: one shader, two
 // pipelines. Weights: Gaussian in taps x Gaussian in view depth x normal

@@ -1,5 +1,5 @@
-// Deep shadow lists (seed 002): definitions shared by the deep_*.comp passes.
-// Mirrors the structs of src/passes/deep.rs.
+// Deep shadow lists (after deep shadow maps on the GPU): definitions shared by the deep_*.comp passes.
+// Mirrors the structs of src/stages/shadows/deep.rs.
 //
 // Layout (the CUDA paper's, adapted): the key light's N x N map is split into
 // 8x8-texel tiles; entries live in chunks of 64 in structure-of-arrays

@@ -14,7 +14,7 @@
 // (entry i -> i + 1, last -> DEEP_NONE), the uncompressed transmittance after
 // each entry (running product of 1 - alpha), and the nodes (depth, V) of an
 // epsilon-compressed piecewise-linear visibility function V'(z) with
-// |V' - V| <= eps (seed 002, Eq. 1): greedy segments through a slope window
+// |V' - V| <= eps (deep shadow maps on the GPU, Eq. 1): greedy segments through a slope window
 // as in Lokovic & Veach, a step (|jump| > eps at one depth) being two nodes
 // with the same depth, before and after (the paper's surface rule).
 //

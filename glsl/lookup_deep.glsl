@@ -1,4 +1,4 @@
-// Deep shadow lists lookup (seed 002): the texel of the light map containing
+// Deep shadow lists lookup (after deep shadow maps on the GPU): the texel of the light map containing
 // P's projection lists every sphere whose disk overlaps that texel, hence
 // every sphere the ray from P toward the key light can cross. Walk the list
 // front to back (sorted by depth from the light) and test the ray exactly

@@ -1,4 +1,4 @@
-// Implicit Sphere Shadow Map lookup (seed 000). The light ray from P toward
+// Implicit Sphere Shadow Map lookup (after the ISSM paper). The light ray from P toward
 // the key light is tested exactly against the spheres stored in the
 // (2t+1)^2 texel patch of the ISSM (nearest sphere per light texel) around
 // P's light texel. A sphere never shadows itself.

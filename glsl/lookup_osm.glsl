@@ -1,4 +1,4 @@
-// Opacity shadow maps (seed 004), pass 3: per visible point P, the optical
+// Opacity shadow maps (after the WebGL particle paper), pass 3: per visible point P, the optical
 // depth accumulated from the light up to P's light depth z, read from the
 // prefix-summed slices with linear interpolation between slice ends:
 //   u = (z - z_min) / dz,  k = floor(u),  tau(z) = mix(S[k-1], S[k], u - k)

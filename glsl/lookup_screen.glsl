@@ -1,4 +1,4 @@
-// Screen-space key-light shadows (seed 001), the stand-in when no
+// Screen-space key-light shadows (after the semantic SSDO paper), the stand-in when no
 // light-space technique runs (--shadows none with SSDO on): march the
 // visibility buffer's depths from the visible point toward the key light in
 // fixed steps; a step that passes behind a visible surface (within

@@ -1,4 +1,4 @@
-// Baseline hard shadows (seed 003): depth shadow map lookup with a
+// Baseline hard shadows (after the Metal protein viewer paper): depth shadow map lookup with a
 // slope-scaled depth bias and percentage-closer filtering on a Vogel disk.
 //
 // The map is the key light's visibility buffer written by the compute sphere
@@ -9,7 +9,7 @@
 //   lit  iff  depth(P) - bias <= map depth,
 //   bias = c + s * min(tan(theta), tan_max)     (theta: angle of N to the light)
 // where c and s (world units) come from --sm-bias and --sm-slope-bias times
-// the texel size (s also times the lookup reach, see src/passes/shadow_map.rs).
+// the texel size (s also times the lookup reach, see src/stages/shadows/shadow_map.rs).
 //
 // PCF: `samples` taps at offsets radius * sqrt((k + 0.5) / N) at angles
 // k * 2.4 + phi (the golden-angle Vogel disk of the seed), phi a per-pixel

@@ -1,4 +1,4 @@
-// Opacity shadow maps (seed 004): what osm_raster.comp and osm_shadow.comp
+// Opacity shadow maps (after the WebGL particle paper): what osm_raster.comp and osm_shadow.comp
 // must compute identically (the lookup recomputes the receiver's own deposit
 // to remove it). Define OSM_Z_MIN, OSM_INV_DZ and OSM_SLICES before including.
 #ifndef OSM_COMMON_GLSL

@@ -1,5 +1,5 @@
 #version 460
-// Opacity shadow maps (seed 004), pass 2: per texel, an inclusive prefix sum
+// Opacity shadow maps (after the WebGL particle paper), pass 2: per texel, an inclusive prefix sum
 // over the slices, in place. Slice k's word changes from the fixed-point
 // optical depth deposited in slice k to the float optical depth accumulated
 // from the light through the end of slice k (the seed's "bucket n holds the

@@ -1,5 +1,5 @@
 #version 460
-// Opacity shadow maps (seed 004), pass 1: every sphere adds its optical depth
+// Opacity shadow maps (after the WebGL particle paper), pass 1: every sphere adds its optical depth
 // tau = -ln(1 - alpha) to the depth slice containing its ENTRY depth (the
 // surface point nearest the light) along the light ray through each texel
 // centre its disk covers. Slices are stored slice-major: slice k of the

@@ -23,7 +23,7 @@ layout(set = 0, binding = 5) uniform usamplerBuffer visWordTex;
 // either side of the view and each sorted front to back, so the
 // early-depth test turns more of the later visits away before their
 // atomics, and the halves take alike work on different cache lines
-// (glsl/bands.glsl's SPHERE_AT; src/passes/raster.rs `view_order`).
+// (glsl/bands.glsl's SPHERE_AT; src/stages/raster/compute.rs `view_order`).
 layout(set = 0, binding = 6) uniform usamplerBuffer orderTex;
 #define SPHERE_AT(i) texelFetch(orderTex, int(i)).x
 // The spheres as RGBA32F texels: in a view's order a sphere's address is

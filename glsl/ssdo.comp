@@ -1,6 +1,6 @@
 #version 460
 // Semantic screen-space directional occlusion with one indirect bounce
-// (seed 001). With HALF (spheres large on screen) one receiver per 2x2
+// (after the semantic SSDO paper). With HALF (spheres large on screen) one receiver per 2x2
 // block, the block's representative pixel (ssdo_prep.comp); the blur
 // (blur.comp) runs on the blocks and shade.comp upsamples with depth,
 // normal and region weights. Else every pixel is a receiver (small spheres:

@@ -1,4 +1,4 @@
-// Sampling and view helpers for SSDO (seed 001), shared with the test-only
+// Sampling and view helpers for SSDO (after the semantic SSDO paper), shared with the test-only
 // sample probe so tests check the very code the pass runs.
 #ifndef SSDO_COMMON_GLSL
 #define SSDO_COMMON_GLSL
@@ -49,7 +49,7 @@ vec3 hemisphere_sample(uint i, vec3 n, float rot) {
 }
 
 // A direction of the sample table (tangent space xyz: Halton + Malley,
-// made on the CPU by src/passes/ssdo.rs) rotated about the normal by
+// made on the CPU by src/stages/ssdo/record.rs) rotated about the normal by
 // rot (0..1 of a turn) into the frame of the normal.
 // rotated_frame() folds the rotation into the frame once per pixel.
 mat3 rotated_frame(mat3 frame, float rot) {

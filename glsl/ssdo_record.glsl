@@ -9,7 +9,7 @@
 //      linear) and the key-light visibility (A8; with ISSM exact where
 //      N.L > 0 only: the records' lookup skips the own-sphere test, which
 //      matters only where the radiance's max(N.L, 0) is 0)
-// ssdo_prep.comp writes it; src/passes/ssdo.rs unpacks it on the CPU (tests).
+// ssdo_prep.comp writes it; src/stages/ssdo/record.rs unpacks it on the CPU (tests).
 #ifndef SSDO_RECORD_GLSL
 #define SSDO_RECORD_GLSL
 

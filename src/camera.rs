@@ -213,20 +213,39 @@ pub fn unit(v: DVec3) -> Option<DVec3> {
     Some((v / m).normalize())
 }
 
+/// What the caller fixes of a default camera; the rest is fitted to the
+/// scene (DESIGN.md: centre and height from its bounding sphere).
+#[derive(Clone, Copy, Debug)]
+pub struct CameraFit {
+    pub view_dir: DVec3,
+    pub up: DVec3,
+    /// Look-at point (default: the bounding sphere's centre).
+    pub center: Option<DVec3>,
+    /// World units across the image height (default: the bounding
+    /// sphere's diameter + 5 %).
+    pub view_height: Option<f64>,
+    /// Vertical field of view in degrees (None: orthographic).
+    pub fov: Option<f64>,
+}
+
+impl Default for CameraFit {
+    fn default() -> Self {
+        CameraFit {
+            view_dir: DVec3::NEG_Z,
+            up: DVec3::Y,
+            center: None,
+            view_height: None,
+            fov: None,
+        }
+    }
+}
+
 /// Builds the DESIGN.md default camera for a scene, overridable per field.
-#[allow(clippy::too_many_arguments)]
-pub fn default_camera(
-    scene: &Scene,
-    width: u32,
-    height: u32,
-    view_dir: DVec3,
-    up: DVec3,
-    center: Option<DVec3>,
-    view_height: Option<f64>,
-    fov: Option<f64>,
-) -> Result<Camera> {
+pub fn default_camera(scene: &Scene, width: u32, height: u32, fit: &CameraFit) -> Result<Camera> {
     let (bs_center, bs_radius) = scene.bounding_sphere();
-    let center = center.unwrap_or(bs_center.as_dvec3());
-    let h = view_height.unwrap_or((2.0 * bs_radius as f64 * 1.05).max(1e-3));
-    Camera::new(center, view_dir, up, h, fov, width, height)
+    let center = fit.center.unwrap_or(bs_center.as_dvec3());
+    let h = fit
+        .view_height
+        .unwrap_or((2.0 * bs_radius as f64 * 1.05).max(1e-3));
+    Camera::new(center, fit.view_dir, fit.up, h, fit.fov, width, height)
 }

@@ -224,12 +224,14 @@ fn render(args: RenderArgs) -> Result<Exit> {
     let outcome = run::render_run(
         &ctx,
         &scene,
-        &input,
         settings,
-        args.aov,
-        args.warmup,
-        frames,
-        load_ms,
+        &run::RunRequest {
+            input: &input,
+            aov: args.aov,
+            warmup: args.warmup,
+            frames,
+            load_ms,
+        },
     )?;
     let mut stats = outcome.stats;
     // Tear the device down first so leak reports are counted too.

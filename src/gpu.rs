@@ -1,6 +1,6 @@
 //! Every struct that crosses to the GPU, mirrored in `glsl/shared.glsl`.
 //! Sizes are asserted here at compile time; tests/gpu_layout.rs checks the
-//! field offsets on the device through `glsl/layout_probe.comp`.
+//! field offsets on the device through `glsl/test/layout_probe.comp`.
 
 use bytemuck::{Pod, Zeroable};
 

@@ -1,7 +1,8 @@
 //! sphereshade: a Vulkan compute renderer for millions of spheres.
 //!
 //! Arrows point one way: `cli` → `app` | `bench` → `run` → `render` (the
-//! frame graph) → `passes` → `vk`; `scene`, `camera`, `settings`, `gpu` are
+//! frame graph) → `stages` (each feature's passes, state and knobs) →
+//! `passes` (what the stages share) → `vk`; `scene`, `camera`, `settings`, `gpu` are
 //! leaves (`traj` reads trajectory frames on top of `scene`). `reference` holds the independent CPU references the tests
 //! compare against.
 
@@ -23,6 +24,7 @@ pub mod run;
 pub mod scene;
 pub mod semantic;
 pub mod settings;
+pub mod stages;
 pub mod tachyon;
 pub mod traj;
 pub mod vk;

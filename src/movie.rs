@@ -282,7 +282,8 @@ pub fn render_trajectory(
             r.set_positions(&frame.positions)?;
             // (the orbit angle follows the frame index, not the position in
             // the range, for the same reason as the camera)
-            r.set_camera(camera_for(&base, fitted, k, args.orbit_deg)?)?;
+            let cam = camera_for(&base, fitted, k, args.orbit_deg)?;
+            r.update(|s| s.camera = cam)?;
             lap(&mut t_upload);
             let (img, times) = run::render_supersampled(r, n, tile, true, &mut |_, _| {})?;
             lap(&mut t_render);

@@ -3,8 +3,8 @@
 
 use crate::error::{Error, Result};
 use crate::gpu::VIS_EMPTY;
-use crate::passes::shadows::deep::DeepStats;
 use crate::settings::Aov;
+use crate::stages::shadows::deep::DeepStats;
 use crate::vk::PassTimes;
 use serde::Serialize;
 use sha2::{Digest, Sha256};

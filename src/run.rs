@@ -219,25 +219,30 @@ pub fn aov_image(r: &Renderer, aov: Aov) -> Result<output::AovImage> {
     let cam = &r.settings().camera;
     let (w, h) = (cam.width, cam.height);
     Ok(match aov {
-        Aov::Color => output::color_image(w, h, &r.read_color()?),
-        Aov::Id => output::id_image(w, h, &r.read_vis()?),
+        Aov::Color => output::color_image(w, h, &r.inspect().read_color()?),
+        Aov::Id => output::id_image(w, h, &r.inspect().read_vis()?),
         Aov::Depth => {
-            let d: Vec<f32> = r.read_gpos()?.iter().map(|p| p[3]).collect();
+            let d: Vec<f32> = r.inspect().read_gpos()?.iter().map(|p| p[3]).collect();
             output::depth_image(w, h, &d)
         }
         Aov::Shadow | Aov::Ao => {
             let covered: Vec<bool> = r
+                .inspect()
                 .read_vis()?
                 .iter()
                 .map(|&k| k != crate::gpu::VIS_EMPTY)
                 .collect();
             if aov == Aov::Shadow {
-                output::unit_image(w, h, r.read_shadow()?.into_iter(), &covered)
+                output::unit_image(w, h, r.inspect().read_shadow()?.into_iter(), &covered)
             } else {
                 let ao: Vec<f32> = if r.settings().ssdo == SsdoMode::Off {
                     vec![1.0; covered.len()]
                 } else {
-                    r.read_ambient()?.into_iter().map(|a| a[0]).collect()
+                    r.inspect()
+                        .read_ambient()?
+                        .into_iter()
+                        .map(|a| a[0])
+                        .collect()
                 };
                 // (ambient visibility after the blur, as DESIGN.md specifies)
                 output::unit_image(w, h, ao.into_iter(), &covered)
@@ -266,7 +271,7 @@ pub fn render_supersampled(
     }
     let samples = (n * n) as usize;
     let base = r.settings().clone();
-    let cache = r.light_cache();
+    let cache = r.inspect().light_cache();
     r.set_light_cache(true);
     let result = (|| {
         let mut sum = PassTimes::default();
@@ -276,7 +281,8 @@ pub fn render_supersampled(
         for sy in 0..n {
             for sx in 0..n {
                 let off = |k: u32| (k as f64 + 0.5) / n as f64 - 0.5;
-                r.set_camera(base.shifted(off(sx), off(sy)).camera)?;
+                let cam = base.shifted(off(sx), off(sy)).camera;
+                r.update(|s| s.camera = cam)?;
                 let k = (sy * n + sx) as usize;
                 let (img, t) = r.render_image_with(tile, true, &mut |done, tiles| {
                     progress(k * tiles + done, samples * tiles)
@@ -292,7 +298,7 @@ pub fn render_supersampled(
         Ok((Some(img), sum))
     })();
     r.set_light_cache(cache);
-    r.set_camera(base.camera)?;
+    r.update(|s| s.camera = base.camera)?;
     result
 }
 
@@ -501,51 +507,45 @@ pub struct RunOutcome {
     pub image: output::AovImage,
 }
 
+/// What a render run renders around its settings: the image kind, the
+/// frames, and what its stats record says about the input.
+#[derive(Clone, Copy, Debug)]
+pub struct RunRequest<'a> {
+    /// The input as the stats record names it.
+    pub input: &'a str,
+    pub aov: Aov,
+    /// Unmeasured frames first.
+    pub warmup: u32,
+    /// Measured frames (at least 1).
+    pub frames: u32,
+    /// Scene load time for the stats record.
+    pub load_ms: f64,
+}
+
 /// Loads nothing: renders an already loaded scene with settings, returning
 /// the stats record and the AOV image.
-#[allow(clippy::too_many_arguments)]
 pub fn render_run(
     ctx: &Context,
     scene: &Scene,
-    input: &str,
     settings: RenderSettings,
-    aov: Aov,
-    warmup: u32,
-    frames: u32,
-    load_ms: f64,
+    req: &RunRequest,
 ) -> Result<RunOutcome> {
-    render_run_with(
-        ctx,
-        scene,
-        input,
-        settings,
-        aov,
-        warmup,
-        frames,
-        load_ms,
-        false,
-        &mut |_, _| Ok(()),
-    )
+    render_run_with(ctx, scene, settings, req, false, &mut |_, _| Ok(()))
 }
 
 /// `render_run` calling `before(renderer, k)` ahead of measured frame k
 /// (the benchmark moves the camera along its orbit there); with `cached`, and a light-space shadow technique,
 /// the same frames again reusing its structure (`RunStats::light_cached`).
-#[allow(clippy::too_many_arguments)]
 pub fn render_run_with(
     ctx: &Context,
     scene: &Scene,
-    input: &str,
     settings: RenderSettings,
-    aov: Aov,
-    warmup: u32,
-    frames: u32,
-    load_ms: f64,
+    req: &RunRequest,
     cached: bool,
     before: &mut dyn FnMut(&mut Renderer, u32) -> Result<()>,
 ) -> Result<RunOutcome> {
-    let mut run = PreparedRun::new(ctx, scene, input, settings, aov, warmup, load_ms)?;
-    let frames = frames.max(1);
+    let mut run = PreparedRun::new(ctx, scene, settings, req)?;
+    let frames = req.frames.max(1);
     for k in 0..frames {
         before(run.renderer(), k)?;
         run.frame(k + 1 == frames)?;
@@ -580,16 +580,21 @@ pub struct PreparedRun<'c> {
 }
 
 impl<'c> PreparedRun<'c> {
-    /// Creates the renderer and renders the unmeasured warm-up frames.
+    /// Creates the renderer and renders the unmeasured warm-up frames
+    /// (`req.frames` is the caller's to count).
     pub fn new(
         ctx: &'c Context,
         scene: &Scene,
-        input: &str,
         settings: RenderSettings,
-        aov: Aov,
-        warmup: u32,
-        load_ms: f64,
+        req: &RunRequest,
     ) -> Result<Self> {
+        let RunRequest {
+            input,
+            aov,
+            warmup,
+            load_ms,
+            ..
+        } = *req;
         let mut settings = settings;
         settings.aovs |= matches!(aov, Aov::Shadow | Aov::Ao);
         let samples = settings.ssaa_for(aov);
@@ -620,7 +625,7 @@ impl<'c> PreparedRun<'c> {
 
     /// Device memory of the run's buffers.
     pub fn memory_bytes(&self) -> u64 {
-        self.r.memory_by_class().values().sum()
+        self.r.inspect().memory_by_class().values().sum()
     }
 
     /// Whether the active technique has a light-space structure to cache.
@@ -687,13 +692,13 @@ pub fn run_stats(
     image: &output::AovImage,
 ) -> RunStats {
     let (passes, total_ms) = output::summarize(times);
-    let gpu_memory = r.memory_by_class();
+    let gpu_memory = r.inspect().memory_by_class();
     let s = r.settings();
     RunStats {
         device: ctx.info.name.clone(),
         driver: ctx.info.driver.clone(),
         input: input.to_string(),
-        spheres: r.sphere_count() as u64,
+        spheres: r.inspect().sphere_count() as u64,
         width: s.camera.width,
         height: s.camera.height,
         frames: times.len().max(1) as u32,
@@ -707,7 +712,7 @@ pub fn run_stats(
         gpu_memory_bytes: gpu_memory.values().sum(),
         gpu_memory,
         validation_messages: ctx.validation_messages(),
-        deep: r.deep_stats(),
+        deep: r.inspect().deep_stats(),
         image_sha256: image.sha256(),
         light_cached: None,
         frame_ms: times.iter().map(|t| t.total_ms).collect(),

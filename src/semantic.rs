@@ -1,4 +1,4 @@
-//! Semantic region levels (seed 001): which hierarchy level separates
+//! Semantic region levels (after the semantic SSDO paper): which hierarchy level separates
 //! occluders from receivers, chosen from the camera's zoom and blended
 //! between neighbouring levels so zooming never pops.
 

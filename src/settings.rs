@@ -19,9 +19,9 @@ pub enum ShadowMode {
     Issm,
     IssmSoft,
     Deep,
-    /// Baseline (seed 003): depth shadow map + slope-scaled bias + Vogel PCF.
+    /// Baseline (after the Metal protein viewer paper): depth shadow map + slope-scaled bias + Vogel PCF.
     SmPcf,
-    /// Baseline (seed 004): opacity shadow maps (depth slices, prefix sum).
+    /// Baseline (after the WebGL particle paper): opacity shadow maps (depth slices, prefix sum).
     Osm,
     /// Unit tests only: a trivial technique (constant half shadow) showing
     /// what adding one takes.
@@ -87,7 +87,7 @@ value_name!(SsdoMode);
 value_name!(RasterMode);
 value_name!(Aov);
 
-/// ISSM parameters (seed 000).
+/// Implicit Sphere Shadow Map parameters.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct IssmParams {
     pub size: u32,
@@ -118,8 +118,8 @@ impl Default for IssmParams {
 }
 
 /// Parameters of the two baseline techniques: the depth shadow map with PCF
-/// (`--shadows sm-pcf`, seed 003) and opacity shadow maps (`--shadows osm`,
-/// seed 004). Biases and PCF radii are in shadow-map texels, so they keep
+/// (`--shadows sm-pcf`, the Metal protein viewer paper) and opacity shadow maps (`--shadows osm`,
+/// the WebGL particle paper). Biases and PCF radii are in shadow-map texels, so they keep
 /// their meaning when the map size changes.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ShadowMapParams {
@@ -156,7 +156,7 @@ impl Default for ShadowMapParams {
     }
 }
 
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct RenderSettings {
     pub camera: Camera,
     pub light: DVec3,
@@ -608,11 +608,13 @@ impl Options {
             scene,
             axes.width,
             axes.height,
-            self.view_dir.0,
-            self.up.0,
-            self.view_center.map(|v| v.0),
-            self.view_height,
-            self.fov,
+            &crate::camera::CameraFit {
+                view_dir: self.view_dir.0,
+                up: self.up.0,
+                center: self.view_center.map(|v| v.0),
+                view_height: self.view_height,
+                fov: self.fov,
+            },
         )?;
         if !(0.0..=1.0).contains(&axes.opacity) {
             return input("--opacity must be between 0 and 1".into());

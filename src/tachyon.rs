@@ -233,8 +233,8 @@ pub fn compare_look(
     let light = settings.light;
     let mut r = crate::render::Renderer::new(ctx, scene, settings).map_err(|e| e.to_string())?;
     r.render_frame().map_err(|e| e.to_string())?;
-    let color = r.read_color().map_err(|e| e.to_string())?;
-    let vis = r.read_vis().map_err(|e| e.to_string())?;
+    let color = r.inspect().read_color().map_err(|e| e.to_string())?;
+    let vis = r.inspect().read_vis().map_err(|e| e.to_string())?;
     drop(r);
     let reference = reference_image(scene, &cam, light, work_dir, name)?;
     let (w, h) = (cam.width, cam.height);

@@ -33,8 +33,8 @@ fn agreement_of_every_technique_at_one_million_spheres() {
         st.issm.t = t;
         let mut r = Renderer::new(&ctx, &s, st).expect("renderer");
         r.render_frame().expect("frame");
-        let ids = ids_from_vis(&r.read_vis().expect("vis"));
-        let shadow = r.read_shadow().expect("shadow");
+        let ids = ids_from_vis(&r.inspect().read_vis().expect("vis"));
+        let shadow = r.inspect().read_shadow().expect("shadow");
         let (mut n, mut agree) = (0usize, 0usize);
         for i in 0..ids.len() {
             let Some(rv) = refs[i] else { continue };

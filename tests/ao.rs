@@ -6,10 +6,10 @@
 mod common;
 
 use common::*;
-use sphereshade::passes::ssdo::Receivers;
 use sphereshade::reference::{ambient_occlusion, spearman};
 use sphereshade::render::Renderer;
 use sphereshade::settings::{ShadowMode, SsdoMode};
+use sphereshade::stages::ssdo::passes::Receivers;
 
 /// The first 2,500 atoms of 1TII, replicated `copies` x `copies` x
 /// `copies` (1: as they are).
@@ -38,10 +38,20 @@ fn correlation_at(
     s.ssdo = mode;
     s.blur = true;
     let mut r = Renderer::new(&ctx, &scene, s).expect("renderer");
-    assert_eq!(r.ssdo_receivers(), path, "SSDO receivers at {w}x{h}");
+    assert_eq!(
+        r.inspect().ssdo_receivers(),
+        path,
+        "SSDO receivers at {w}x{h}"
+    );
     r.render_frame().expect("frame");
-    let radius = r.ssdo_far_radius();
-    let ao: Vec<f32> = r.read_ambient().expect("ao").iter().map(|a| a[0]).collect();
+    let radius = r.inspect().ssdo_far_radius();
+    let ao: Vec<f32> = r
+        .inspect()
+        .read_ambient()
+        .expect("ao")
+        .iter()
+        .map(|a| a[0])
+        .collect();
     drop(r);
     assert_no_validation_messages(&ctx);
     let reference = ambient_occlusion(&scene.spheres, &cam, radius, 256, stride);
@@ -238,9 +248,15 @@ fn per_sphere_semantic_without_hierarchy_equals_plain() {
         let mut s = settings(cam, ShadowMode::None);
         s.ssdo = mode;
         let mut r = Renderer::new(&ctx, &scene, s).expect("renderer");
-        assert_eq!(r.ssdo_receivers(), Receivers::Sphere);
+        assert_eq!(r.inspect().ssdo_receivers(), Receivers::Sphere);
         r.render_frame().expect("frame");
-        let ao: Vec<f32> = r.read_ambient().expect("ao").iter().map(|a| a[0]).collect();
+        let ao: Vec<f32> = r
+            .inspect()
+            .read_ambient()
+            .expect("ao")
+            .iter()
+            .map(|a| a[0])
+            .collect();
         ao
     };
     let (plain, semantic) = (ambient(SsdoMode::Plain), ambient(SsdoMode::Semantic));
@@ -273,13 +289,15 @@ fn per_sphere_list_is_exactly_the_visible_spheres() {
         let mut s = settings(cam, ShadowMode::None);
         s.ssdo = SsdoMode::Semantic;
         let mut r = Renderer::new(&ctx, &scene, s).expect("renderer");
-        assert_eq!(r.ssdo_receivers(), Receivers::Sphere);
+        assert_eq!(r.inspect().ssdo_receivers(), Receivers::Sphere);
         r.render_frame().expect("frame");
         let (mut list, groups) = r
+            .inspect()
             .read_sphere_list()
             .expect("list")
             .expect("per-sphere buffers");
         let mut seen: Vec<u32> = r
+            .inspect()
             .read_vis()
             .expect("vis")
             .iter()

@@ -1,10 +1,10 @@
 //! The two baseline shadow techniques against exact CPU shadow rays (f64),
 //! under GPU-assisted + synchronization validation:
-//! - `sm-pcf` (seed 003): the hard mask of the depth shadow map (2048², PCF
+//! - `sm-pcf` (after the Metal protein viewer paper): the hard mask of the depth shadow map (2048², PCF
 //!   off) agrees with exact shadows, and the depth-bias trade-off (acne =
 //!   wrongly shadowed vs peter-panning = wrongly lit) is measured for a few
 //!   bias scales; PCF gives fractional visibility near shadow edges;
-//! - `osm` (seed 004): opacity shadow map transmittance against the exact
+//! - `osm` (after the WebGL particle paper): opacity shadow map transmittance against the exact
 //!   product of (1 - alpha), with the deep lists' error on the same scene for
 //!   comparison.
 
@@ -74,14 +74,14 @@ fn render(ctx: &Context, scene: &Scene, s: RenderSettings) -> Frame {
     let mut r = Renderer::new(ctx, scene, s).expect("renderer");
     let times = r.render_frame().expect("frame");
     let mut map_bytes = 0;
-    if let Some(sm) = r.shadow_map() {
+    if let Some(sm) = r.inspect().shadow_map() {
         assert!(
             sm.guard_ok(ctx).expect("guard"),
             "shadow map guard words overwritten"
         );
         map_bytes = sm.memory_bytes();
     }
-    if let Some(o) = r.opacity_shadows() {
+    if let Some(o) = r.inspect().opacity_shadows() {
         assert!(
             o.guard_ok(ctx).expect("guard"),
             "opacity map guard words overwritten"
@@ -89,13 +89,18 @@ fn render(ctx: &Context, scene: &Scene, s: RenderSettings) -> Frame {
         map_bytes = o.map_bytes();
     }
     if mode == ShadowMode::Deep {
-        let bad = r.deep().expect("deep").damaged_guards(ctx).expect("guards");
+        let bad = r
+            .inspect()
+            .deep()
+            .expect("deep")
+            .damaged_guards(ctx)
+            .expect("guards");
         assert!(bad.is_empty(), "deep guards damaged: {bad:?}");
-        map_bytes = r.deep_stats().expect("deep stats").bytes;
+        map_bytes = r.inspect().deep_stats().expect("deep stats").bytes;
     }
     Frame {
-        shadow: r.read_shadow().expect("shadow"),
-        ids: ids_from_vis(&r.read_vis().expect("vis")),
+        shadow: r.inspect().read_shadow().expect("shadow"),
+        ids: ids_from_vis(&r.inspect().read_vis().expect("vis")),
         names: times.iter().map(|(n, _)| *n).collect(),
         map_bytes,
     }
@@ -169,7 +174,7 @@ fn sm_hard_mask_and_bias_tradeoff_1tii() {
     let reference = reference_for(&scene, &base.camera, base.light, 1.0);
     let texel = {
         let r = Renderer::new(&ctx, &scene, base.clone()).expect("renderer");
-        let l = r.shadow_map().expect("sm").light;
+        let l = r.inspect().shadow_map().expect("sm").light;
         l.view_height / l.width as f64
     };
     let d = ShadowMapParams::default();

@@ -9,9 +9,9 @@ mod common;
 use common::*;
 use glam::DVec3;
 use sphereshade::gpu::consts::{TL_ARGS, TL_BACKGROUND, TL_COVERED, TL_LIST, TL_REGION};
-use sphereshade::passes::ssdo::Receivers;
 use sphereshade::render::Renderer;
 use sphereshade::settings::{RenderSettings, ShadowMode, SsdoMode};
+use sphereshade::stages::ssdo::passes::Receivers;
 use std::collections::BTreeSet;
 
 #[test]
@@ -24,8 +24,8 @@ fn tile_lists_partition_the_regions_by_the_visibility_buffer() {
     s.ssdo = SsdoMode::Semantic;
     let mut r = Renderer::new(&ctx, &scene, s).expect("renderer");
     r.render_frame().expect("frame");
-    let vis = r.read_vis().expect("vis");
-    let words = r.read_tile_lists().expect("lists");
+    let vis = r.inspect().read_vis().expect("vis");
+    let words = r.inspect().read_tile_lists().expect("lists");
     let (rx, ry) = (w.div_ceil(TL_REGION), h.div_ceil(TL_REGION));
     let regions = (rx * ry) as usize;
     let mut want = BTreeSet::new();
@@ -79,11 +79,11 @@ fn images(s: &RenderSettings, scene: &sphereshade::scene::Scene) -> Images {
     let mut r = Renderer::new(&ctx, scene, s.clone()).expect("renderer");
     r.render_frame().expect("frame");
     let out = (
-        r.ssdo_receivers(),
-        r.read_color().expect("colour"),
-        r.read_shadow().expect("shadow"),
-        r.read_ambient().expect("ambient"),
-        r.read_tile_lists().expect("lists"),
+        r.inspect().ssdo_receivers(),
+        r.inspect().read_color().expect("colour"),
+        r.inspect().read_shadow().expect("shadow"),
+        r.inspect().read_ambient().expect("ambient"),
+        r.inspect().read_tile_lists().expect("lists"),
     );
     drop(r);
     assert_no_validation_messages(&ctx);

@@ -1,4 +1,4 @@
-//! Deep shadow lists (seed 002) under GPU-assisted + synchronization
+//! Deep shadow lists (after deep shadow maps on the GPU) under GPU-assisted + synchronization
 //! validation: the GPU lists against a CPU model of the footprint rule and
 //! the allocator (per-texel multisets, order, chunk accounting, links,
 //! guards), pool overflow and growth, exact opaque and translucent shadows
@@ -10,11 +10,11 @@ use common::*;
 use glam::DVec3;
 use sphereshade::camera::Camera;
 use sphereshade::output::ids_from_vis;
-use sphereshade::passes::shadows::deep::{self, CHUNK, DeepRaw, NONE, TILE, TILE_OVERFLOWED};
 use sphereshade::reference;
 use sphereshade::render::Renderer;
 use sphereshade::scene::{self, Scene, Sphere};
 use sphereshade::settings::{RenderSettings, ShadowMode};
+use sphereshade::stages::shadows::deep::{self, CHUNK, DeepRaw, NONE, TILE, TILE_OVERFLOWED};
 use sphereshade::vk::Context;
 use std::collections::{HashMap, HashSet};
 
@@ -496,7 +496,12 @@ fn column_scene(n: usize) -> Scene {
 }
 
 fn guards_ok(name: &str, ctx: &Context, r: &Renderer) {
-    let bad = r.deep().expect("deep").damaged_guards(ctx).expect("guards");
+    let bad = r
+        .inspect()
+        .deep()
+        .expect("deep")
+        .damaged_guards(ctx)
+        .expect("guards");
     assert!(
         bad.is_empty(),
         "{name}: guard words overwritten after {bad:?}"
@@ -531,13 +536,13 @@ fn lists_match_cpu_model() {
         for frame in 0..2 {
             r.render_frame().expect("frame");
             guards_ok(name, &ctx, &r);
-            let d = r.deep().expect("deep");
+            let d = r.inspect().deep().expect("deep");
             let raw = d.read_raw(&ctx).expect("raw");
             let lists = d.read_lists(&ctx).expect("lists");
             if frame == 0 {
                 check_lists(name, &scene, &d.light, &raw, &lists, opacity);
                 let c = d.read_counters(&ctx).expect("counters");
-                let st = r.deep_stats().expect("stats");
+                let st = r.inspect().deep_stats().expect("stats");
                 let slots = st.chunk_capacity * CHUNK as u64;
                 assert!(
                     st.bytes >= slots * deep::BYTES_PER_ENTRY,
@@ -549,7 +554,7 @@ fn lists_match_cpu_model() {
                 eprintln!(
                     "{name}: {} band jobs, stats {:?}",
                     c.band_jobs,
-                    r.deep_stats()
+                    r.inspect().deep_stats()
                 );
                 if name.starts_with("mixed") {
                     assert!(
@@ -577,10 +582,10 @@ fn lists_match_cpu_model() {
                 );
             }
         }
-        let vg = r.read_vis_guard().expect("vis guard");
+        let vg = r.inspect().read_vis_guard().expect("vis guard");
         assert!(
             vg.iter()
-                .all(|&g| g == sphereshade::passes::raster::GUARD_PATTERN)
+                .all(|&g| g == sphereshade::stages::raster::compute::GUARD_PATTERN)
         );
     }
     assert_no_validation_messages(&ctx);
@@ -593,16 +598,22 @@ fn full_band_job_list_falls_back_to_per_sphere_loops() {
     let s = deep_settings(&scene, 96, 80, 64, 1.0);
     let mut r = Renderer::new(&ctx, &scene, s).expect("renderer");
     r.render_frame().expect("frame");
-    let all_jobs = r.deep().unwrap().read_lists(&ctx).expect("lists");
-    let jobs = r.deep().unwrap().read_counters(&ctx).unwrap().band_jobs;
+    let all_jobs = r.inspect().deep().unwrap().read_lists(&ctx).expect("lists");
+    let jobs = r
+        .inspect()
+        .deep()
+        .unwrap()
+        .read_counters(&ctx)
+        .unwrap()
+        .band_jobs;
     assert!(jobs >= 2, "the large spheres should use band jobs");
-    let shadow_jobs = r.read_shadow().expect("shadow");
+    let shadow_jobs = r.inspect().read_shadow().expect("shadow");
     // Room for fewer bands than the first big sphere needs, then none.
     for limit in [jobs - 1, 1, 0] {
-        r.deep().unwrap().set_job_limit(limit);
+        r.inspect().deep().unwrap().set_job_limit(limit);
         r.render_frame().expect("frame");
         guards_ok("job-limit", &ctx, &r);
-        let d = r.deep().unwrap();
+        let d = r.inspect().deep().unwrap();
         let c = d.read_counters(&ctx).unwrap();
         assert!(c.band_jobs <= limit);
         let raw = d.read_raw(&ctx).expect("raw");
@@ -619,7 +630,7 @@ fn full_band_job_list_falls_back_to_per_sphere_loops() {
             lists == all_jobs,
             "job limit {limit}: lists differ from the band-job version"
         );
-        assert_eq!(r.read_shadow().unwrap(), shadow_jobs);
+        assert_eq!(r.inspect().read_shadow().unwrap(), shadow_jobs);
     }
     assert_no_validation_messages(&ctx);
 }
@@ -634,13 +645,13 @@ fn overflow_grows_pool_and_matches_big_pool() {
         let mut r = Renderer::new(&ctx, &scene, s).expect("renderer");
         r.render_frame().expect("frame");
         guards_ok("overflow", &ctx, &r);
-        let stats = r.deep_stats().expect("deep stats");
-        let c = r.deep().unwrap().read_counters(&ctx).unwrap();
+        let stats = r.inspect().deep_stats().expect("deep stats");
+        let c = r.inspect().deep().unwrap().read_counters(&ctx).unwrap();
         assert_eq!(c.fill_errors, 0);
         assert!(!c.overflowed, "the final frame must fit");
         (
-            r.read_color().expect("color"),
-            r.read_shadow().expect("shadow"),
+            r.inspect().read_color().expect("color"),
+            r.inspect().read_shadow().expect("shadow"),
             stats,
         )
     };
@@ -687,8 +698,8 @@ fn deep_agreement(
     let mut r = Renderer::new(ctx, scene, s).expect("renderer");
     r.render_frame().expect("frame");
     guards_ok(name, ctx, &r);
-    let ids = ids_from_vis(&r.read_vis().expect("vis"));
-    let shadow = r.read_shadow().expect("shadow");
+    let ids = ids_from_vis(&r.inspect().read_vis().expect("vis"));
+    let shadow = r.inspect().read_shadow().expect("shadow");
     let (refs, ref_ids) = reference_shadow(scene, &cam, light, opacity as f64);
     let (mut compared, mut agree, mut shadowed) = (0usize, 0usize, 0usize);
     let mut diff = image::RgbImage::new(cam.width, cam.height);
@@ -721,8 +732,8 @@ fn deep_agreement(
         }
     }
     let pct = 100.0 * agree as f64 / compared.max(1) as f64;
-    let st = r.deep_stats().expect("stats");
-    let d = r.deep().expect("deep");
+    let st = r.inspect().deep_stats().expect("stats");
+    let d = r.inspect().deep().expect("deep");
     let (nodes, max_err) = check_nodes(
         name,
         &d.read_raw(ctx).expect("raw"),
@@ -792,13 +803,13 @@ fn a_lone_sphere_never_shadows_itself() {
         let mut r = Renderer::new(&ctx, &scene, deep_settings(&scene, 64, 64, 64, opacity))
             .expect("renderer");
         r.render_frame().expect("frame");
-        let shadow = r.read_shadow().expect("shadow");
+        let shadow = r.inspect().read_shadow().expect("shadow");
         assert!(
             shadow.iter().all(|&v| v == 1.0),
             "opacity {opacity}: a lone sphere shadows itself"
         );
         guards_ok("lone", &ctx, &r);
-        let c = r.deep().unwrap().read_counters(&ctx).unwrap();
+        let c = r.inspect().deep().unwrap().read_counters(&ctx).unwrap();
         assert!(
             c.band_jobs > 0,
             "a map-filling sphere should go through band jobs"
@@ -820,8 +831,8 @@ fn lattice_stress_along_the_light() {
     r.render_frame().expect("frame");
     let secs = t0.elapsed().as_secs_f64();
     guards_ok("lattice", &ctx, &r);
-    let st = r.deep_stats().expect("stats");
-    let c = r.deep().unwrap().read_counters(&ctx).unwrap();
+    let st = r.inspect().deep_stats().expect("stats");
+    let c = r.inspect().deep().unwrap().read_counters(&ctx).unwrap();
     assert_eq!(c.fill_errors, 0);
     assert!(!c.overflowed);
     eprintln!(
@@ -847,8 +858,8 @@ fn lattice_stress_along_the_light() {
         "a 37-deep lattice seen along its axis"
     );
     // The top layer faces the light and nothing lies above it.
-    let ids = ids_from_vis(&r.read_vis().unwrap());
-    let shadow = r.read_shadow().unwrap();
+    let ids = ids_from_vis(&r.inspect().read_vis().unwrap());
+    let shadow = r.inspect().read_shadow().unwrap();
     let visible = ids.iter().filter(|i| i.is_some()).count();
     assert!(visible > 0);
     assert!(

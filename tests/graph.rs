@@ -31,9 +31,9 @@ fn every_mode_records_a_barrier_for_every_hazard() {
                     if raster == RasterMode::Graphics && (ssdo != SsdoMode::Off || blur) {
                         continue;
                     }
-                    r.set_shadows(shadows).unwrap();
-                    r.set_ssdo(ssdo).unwrap();
-                    r.set_blur(blur);
+                    r.update(|set| set.shadows = shadows).unwrap();
+                    r.update(|set| set.ssdo = ssdo).unwrap();
+                    r.update(|set| set.blur = blur).expect("blur");
                     let log = r.frame_log().expect("log");
                     let what = format!("{raster:?} {shadows:?} {ssdo:?} blur {blur}");
                     let problems = check_hazards(&log);

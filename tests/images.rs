@@ -43,10 +43,21 @@ fn defaults_with(scene: &Scene, w: u32, h: u32, edit: impl Fn(&mut Options)) -> 
     resolve(scene, w, h, ShadowMode::IssmSoft, SsdoMode::Semantic, edit)
 }
 
+/// One measured frame, no warm-up.
+fn request(aov: Aov) -> run::RunRequest<'static> {
+    run::RunRequest {
+        input: "test",
+        aov,
+        warmup: 0,
+        frames: 1,
+        load_ms: 0.0,
+    }
+}
+
 fn render(scene: &Scene, settings: RenderSettings, aov: Aov) -> AovImage {
     let ctx = validated_context();
-    let out = run::render_run(&ctx, scene, "test", settings, aov, 0, 1, 0.0)
-        .unwrap_or_else(|e| panic!("{e}"));
+    let out =
+        run::render_run(&ctx, scene, settings, &request(aov)).unwrap_or_else(|e| panic!("{e}"));
     assert_no_validation_messages(&ctx);
     out.image
 }
@@ -158,16 +169,16 @@ fn a_window_without_margin_differs() {
     let whole = defaults(&scene, 256, 200);
     let mut r = sphereshade::render::Renderer::new(&ctx, &scene, whole).unwrap();
     r.render_frame().unwrap();
-    let full = r.read_color().unwrap();
+    let full = r.inspect().read_color().unwrap();
     let win = sphereshade::camera::Window {
         x: 96,
         y: 64,
         width: 64,
         height: 64,
     };
-    r.set_window(Some(win)).unwrap();
+    r.update(|set| set.window = Some(win)).unwrap();
     r.render_frame().unwrap();
-    let part = r.read_color().unwrap();
+    let part = r.inspect().read_color().unwrap();
     drop(r);
     assert_no_validation_messages(&ctx);
     let mut diff = 0;
@@ -626,7 +637,7 @@ fn eight_k_in_tiles_and_4k_with_ssaa_4() {
         o.ssaa = 4;
         o.background = Background::Transparent;
     });
-    let out = run::render_run(&ctx, &scene, "test", s, Aov::Color, 0, 1, 0.0).unwrap();
+    let out = run::render_run(&ctx, &scene, s, &request(Aov::Color)).unwrap();
     assert_no_validation_messages(&ctx);
     let img = rgba(&out.image);
     assert_eq!(img.dimensions(), (3840, 2160));

@@ -34,7 +34,7 @@ fn turned(cam: &Camera, degrees: f64) -> Camera {
 fn fresh(ctx: &Context, scene: &Scene, s: &RenderSettings) -> Vec<u32> {
     let mut r = Renderer::new(ctx, scene, s.clone()).expect("renderer");
     r.render_frame().expect("frame");
-    r.read_color().expect("colour")
+    r.inspect().read_color().expect("colour")
 }
 
 #[test]
@@ -59,12 +59,12 @@ fn cached_light_structures_give_the_rebuilt_image() {
         let mut r = Renderer::new(&ctx, &scene, s.clone()).expect("renderer");
         r.set_light_cache(true);
         let built = names(&r.render_frame().expect("frame 1"));
-        assert!(r.light_cached(), "{mode:?}: cache not kept");
+        assert!(r.inspect().light_cached(), "{mode:?}: cache not kept");
 
         // The camera turns: the light passes are skipped, the image is
         // exactly the one a renderer that builds everything gives.
         s.camera = turned(&cam, 30.0);
-        r.set_camera(s.camera).expect("camera");
+        r.update(|set| set.camera = s.camera).expect("camera");
         let cached = names(&r.render_frame().expect("frame 2"));
         assert!(
             cached.len() < built.len() && cached.iter().all(|n| built.contains(n)),
@@ -72,18 +72,18 @@ fn cached_light_structures_give_the_rebuilt_image() {
         );
         assert!(cached.contains(&"raster") && cached.contains(&"shade"));
         assert!(
-            r.read_color().expect("colour") == fresh(&ctx, &scene, &s),
+            r.inspect().read_color().expect("colour") == fresh(&ctx, &scene, &s),
             "{mode:?}: cached frame differs from a rebuilt one"
         );
 
         // A new light invalidates: the next frame rebuilds, and matches.
         s.light = DVec3::new(1.0, -1.0, -0.5);
-        r.set_light(s.light).expect("light");
-        assert!(!r.light_cached());
+        r.update(|set| set.light = s.light).expect("light");
+        assert!(!r.inspect().light_cached());
         let rebuilt = names(&r.render_frame().expect("frame 3"));
         assert_eq!(rebuilt, built, "{mode:?}");
         assert!(
-            r.read_color().expect("colour") == fresh(&ctx, &scene, &s),
+            r.inspect().read_color().expect("colour") == fresh(&ctx, &scene, &s),
             "{mode:?}: frame after the light moved differs from a fresh one"
         );
 

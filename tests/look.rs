@@ -83,10 +83,10 @@ fn the_old_flat_look_fails_the_goal() {
     let l_key = -settings.light.normalize();
     let mut r = sphereshade::render::Renderer::new(&ctx, &scene, settings).unwrap();
     r.render_frame().unwrap();
-    let gpos = r.read_gpos().unwrap();
-    let vis = r.read_vis().unwrap();
-    let shadow = r.read_shadow().unwrap();
-    let ao = r.read_ambient().unwrap();
+    let gpos = r.inspect().read_gpos().unwrap();
+    let vis = r.inspect().read_vis().unwrap();
+    let shadow = r.inspect().read_shadow().unwrap();
+    let ao = r.inspect().read_ambient().unwrap();
     drop(r);
     assert_no_validation_messages(&ctx);
     let mut old = Vec::new();

@@ -7,11 +7,11 @@ mod common;
 
 use common::*;
 use sphereshade::output::ids_from_vis;
-use sphereshade::passes::raster::{GUARD_PATTERN, VIS_GUARD_WORDS};
 use sphereshade::reference;
 use sphereshade::render::Renderer;
 use sphereshade::scene::{self, Scene};
 use sphereshade::settings::{RasterMode, ShadowMode};
+use sphereshade::stages::raster::compute::{GUARD_PATTERN, VIS_GUARD_WORDS};
 
 /// Renders `scene` with `cam`, compares with the reference, checks guards.
 fn check_against_reference(
@@ -22,8 +22,8 @@ fn check_against_reference(
 ) -> f64 {
     let mut r = Renderer::new(ctx, scene, settings(cam, ShadowMode::None)).expect("renderer");
     r.render_frame().expect("frame");
-    let vis = r.read_vis().expect("read vis");
-    let guard = r.read_vis_guard().expect("read guard");
+    let vis = r.inspect().read_vis().expect("read vis");
+    let guard = r.inspect().read_vis_guard().expect("read guard");
     assert_eq!(guard.len() as u64, VIS_GUARD_WORDS);
     assert!(
         guard.iter().all(|&g| g == GUARD_PATTERN),
@@ -133,7 +133,7 @@ fn pdb_1tii_matches_reference() {
 }
 
 /// The light view visits the spheres in a sorted order (runs front to back
-/// along the light, src/passes/raster.rs `view_order`): the ISSM's id map
+/// along the light, src/stages/raster/compute.rs `view_order`): the ISSM's id map
 /// must still hold each texel's nearest sphere, as the exact caster finds it
 /// through the light view, before and after the light turns far enough for
 /// the order to be sorted again, and after every sphere moves (a trajectory
@@ -150,8 +150,12 @@ fn ordered_light_raster_matches_reference() {
     )
     .expect("renderer");
     r.render_frame().expect("frame");
-    assert!(!r.light_order_ready(), "deep lists sorted the light order");
-    r.set_shadows(ShadowMode::Issm).expect("issm");
+    assert!(
+        !r.inspect().light_order_ready(),
+        "deep lists sorted the light order"
+    );
+    r.update(|set| set.shadows = ShadowMode::Issm)
+        .expect("issm");
     let (_, radius) = s.bounding_sphere();
     let tolerance = 2e-5 * (radius as f64).max(1.0);
     let mut spheres = s.spheres.clone();
@@ -166,13 +170,23 @@ fn ordered_light_raster_matches_reference() {
         if k == 2 {
             // Every sphere moves, by up to 2.5 of the mean radius.
             move_all(&mut r, &mut spheres, 2.0);
-            assert!(!r.light_order_ready(), "the order survived a move");
+            assert!(
+                !r.inspect().light_order_ready(),
+                "the order survived a move"
+            );
         }
-        r.set_light(light).expect("light");
+        r.update(|set| set.light = light).expect("light");
         r.render_frame().expect("frame");
-        assert!(r.light_order_ready(), "issm drew a frame without its order");
-        let (light_cam, _) = r.issm_info().expect("issm active");
-        let map = r.read_issm().expect("read map").expect("issm map");
+        assert!(
+            r.inspect().light_order_ready(),
+            "issm drew a frame without its order"
+        );
+        let (light_cam, _) = r.inspect().issm_info().expect("issm active");
+        let map = r
+            .inspect()
+            .read_issm()
+            .expect("read map")
+            .expect("issm map");
         assert_view_matches(
             &format!("issm-light-{k}"),
             &map,
@@ -184,20 +198,25 @@ fn ordered_light_raster_matches_reference() {
     }
     // Moved while a technique without the light view is active: sorted
     // when ISSM is chosen again.
-    r.set_shadows(ShadowMode::None).expect("none");
+    r.update(|set| set.shadows = ShadowMode::None)
+        .expect("none");
     let pos: Vec<[f32; 3]> = s.spheres.iter().map(|sp| sp.center).collect();
     r.set_positions(&pos).expect("positions");
     r.render_frame().expect("frame");
-    assert!(!r.light_order_ready(), "sorted for a technique without it");
-    r.set_shadows(ShadowMode::IssmSoft).expect("issm soft");
+    assert!(
+        !r.inspect().light_order_ready(),
+        "sorted for a technique without it"
+    );
+    r.update(|set| set.shadows = ShadowMode::IssmSoft)
+        .expect("issm soft");
     r.render_frame().expect("frame");
-    assert!(r.light_order_ready());
+    assert!(r.inspect().light_order_ready());
     drop(r);
     assert_no_validation_messages(&ctx);
 }
 
 /// The camera view visits the spheres front to back along the view
-/// (src/passes/raster.rs `view_order`), sorted again when the camera turns
+/// (src/stages/raster/compute.rs `view_order`), sorted again when the camera turns
 /// far or the spheres move: each frame's ids must match the exact caster,
 /// orthographic and perspective, from the front, after a quarter turn (the
 /// old order then runs back to front until sorted again) and after every
@@ -215,11 +234,11 @@ fn ordered_camera_raster_follows_the_view() {
             &s,
             160,
             120,
-            glam::DVec3::new(-1.0, 0.0, 0.0),
-            glam::DVec3::Y,
-            None,
-            None,
-            fov,
+            &sphereshade::camera::CameraFit {
+                view_dir: glam::DVec3::new(-1.0, 0.0, 0.0),
+                fov,
+                ..Default::default()
+            },
         )
         .expect("camera");
         let mut spheres = s.spheres.clone();
@@ -227,9 +246,9 @@ fn ordered_camera_raster_follows_the_view() {
             if k == 2 {
                 move_all(&mut r, &mut spheres, 0.3);
             }
-            r.set_camera(cam).expect("camera");
+            r.update(|set| set.camera = cam).expect("camera");
             r.render_frame().expect("frame");
-            let vis = r.read_vis().expect("read vis");
+            let vis = r.inspect().read_vis().expect("read vis");
             let view = if fov.is_some() { "persp" } else { "ortho" };
             assert_view_matches(
                 &format!("camera-order-{view}-{k}"),
@@ -322,12 +341,12 @@ fn graphics_raster_matches_compute_and_reference() {
             st.raster = mode;
             let mut r = Renderer::new(&ctx, &s, st).expect("renderer");
             r.render_frame().expect("frame");
-            let guard = r.read_vis_guard().expect("guard");
+            let guard = r.inspect().read_vis_guard().expect("guard");
             assert!(
                 guard.iter().all(|&g| g == GUARD_PATTERN),
                 "guard words overwritten"
             );
-            ids_from_vis(&r.read_vis().expect("vis"))
+            ids_from_vis(&r.inspect().read_vis().expect("vis"))
         };
         let (compute, graphics) = (run(RasterMode::Compute), run(RasterMode::Graphics));
         let same = compute
@@ -370,7 +389,7 @@ fn pipelined_frames_match_synchronous_rendering() {
     let mut r = Renderer::new(&ctx, &s, st.clone()).expect("renderer");
     let mut got = Vec::new();
     for c in &cams {
-        r.set_camera(*c).expect("camera");
+        r.update(|set| set.camera = *c).expect("camera");
         got.push(r.render_frame_pipelined().expect("frame"));
     }
     assert!(
@@ -382,7 +401,7 @@ fn pipelined_frames_match_synchronous_rendering() {
             .as_ref()
             .is_some_and(|t| t.iter().all(|(_, ms)| *ms > 0.0))
     );
-    let pipelined = r.read_color().expect("colour");
+    let pipelined = r.inspect().read_color().expect("colour");
     drop(r);
     let mut sync = st;
     sync.camera = cams[3];
@@ -390,7 +409,7 @@ fn pipelined_frames_match_synchronous_rendering() {
     r.render_frame().expect("frame");
     assert_eq!(
         pipelined,
-        r.read_color().expect("colour"),
+        r.inspect().read_color().expect("colour"),
         "pipelined and synchronous frames differ"
     );
     drop(r);

@@ -36,13 +36,18 @@ fn hard_mask_agreement(ctx: &Context, name: &str, scene: &Scene, s: RenderSettin
     let (cam, light) = (s.camera, s.light);
     let mut r = Renderer::new(ctx, scene, s).expect("renderer");
     r.render_frame().expect("frame");
-    let ids = ids_from_vis(&r.read_vis().expect("vis"));
-    let shadow = r.read_shadow().expect("shadow");
-    let (t, map_size) = r.issm_info().map(|(l, t)| (t, l.width)).unwrap_or((0, 0));
+    let ids = ids_from_vis(&r.inspect().read_vis().expect("vis"));
+    let shadow = r.inspect().read_shadow().expect("shadow");
+    let (t, map_size) = r
+        .inspect()
+        .issm_info()
+        .map(|(l, t)| (t, l.width))
+        .unwrap_or((0, 0));
     let texel = r
+        .inspect()
         .issm_info()
         .map_or(1.0, |(l, _)| l.view_height / l.width as f64);
-    let gpos = r.read_gpos().expect("gpos");
+    let gpos = r.inspect().read_gpos().expect("gpos");
     let mut near_silhouette = 0usize;
     let (refs, ref_ids) = reference_shadow(scene, &cam, light, 1.0);
     let mut m = MaskMatch {
@@ -270,7 +275,7 @@ fn shadow_of(ctx: &Context, scene: &Scene, cam: Camera, mode: ShadowMode, soft_s
     };
     let mut r = Renderer::new(ctx, scene, s).expect("renderer");
     r.render_frame().expect("frame");
-    r.read_shadow().expect("shadow")
+    r.inspect().read_shadow().expect("shadow")
 }
 
 #[test]

@@ -1,4 +1,4 @@
-//! Semantic SSDO (seed 001): sample distribution of the shader's own
+//! Semantic SSDO: sample distribution of the shader's own
 //! Halton/Malley code, occlusion on flat vs. creviced geometry, the semantic
 //! region rule against plain mode, the bilateral blur on a synthetic
 //! G-buffer, and the zoom-driven level choice. All under validation.
@@ -9,13 +9,13 @@ use common::*;
 use glam::DVec3;
 use sphereshade::camera::Camera;
 use sphereshade::gpu::Globals;
-use sphereshade::passes::blur::{Axis, BlurIo, BlurPass, BlurPush};
-use sphereshade::passes::coverage::Tiles;
 use sphereshade::passes::spirv;
-use sphereshade::passes::ssdo::Record;
+use sphereshade::passes::tiles::Tiles;
 use sphereshade::render::{Renderer, level_choice};
 use sphereshade::scene::{self, Scene, Sphere};
 use sphereshade::settings::{ShadowMode, SsdoMode};
+use sphereshade::stages::ssdo::blur::{Axis, BlurIo, BlurPass, BlurPush, BlurShape};
+use sphereshade::stages::ssdo::record::Record;
 use sphereshade::vk::Grid;
 use sphereshade::vk::pipeline::{PipelineDesc, uniform, wo};
 use sphereshade::vk::{Buffer, ComputePipeline, Context};
@@ -47,7 +47,7 @@ fn hemisphere_samples_are_cosine_weighted() {
     let n = 8192u32;
     let mut out = Buffer::storage(&ctx, "samples", n as u64 * 16).expect("buffer");
     // The table SSDO itself binds.
-    let mut ssdo = sphereshade::passes::ssdo::SsdoPass::new(&ctx).expect("ssdo");
+    let mut ssdo = sphereshade::stages::ssdo::passes::SsdoPass::new(&ctx).expect("ssdo");
     for (normal, rot) in [
         ([0.0f32, 0.0, 1.0], 0.0f32),
         ([0.3, -0.8, 0.2], 0.37),
@@ -153,7 +153,8 @@ fn ambient(ctx: &Context, scene: &Scene, cam: Camera, mode: SsdoMode, blur: bool
     s.light = DVec3::new(0.0, -1.0, 0.0);
     let mut r = Renderer::new(ctx, scene, s).expect("renderer");
     r.render_frame().expect("frame");
-    r.read_ambient()
+    r.inspect()
+        .read_ambient()
         .expect("ambient")
         .iter()
         .map(|a| a[0])
@@ -349,7 +350,15 @@ fn blur_keeps_edges(half: bool) {
                 input,
                 output,
             };
-            blur.record(rec, axis, false, (2, half), &io, &push, (w, h), Tiles::All)?;
+            let shape = BlurShape {
+                axis,
+                semantic: false,
+                radius: 2,
+                half,
+                size: (w, h),
+                tiles: Tiles::All,
+            };
+            blur.record(rec, &shape, &io, &push)?;
         }
         Ok(())
     })
@@ -448,9 +457,9 @@ fn packed_records_round_trip() {
     s.ssdo = SsdoMode::Semantic;
     let mut r = Renderer::new(&ctx, &scene, s).expect("renderer");
     r.render_frame().expect("frame");
-    let records = r.read_records().expect("records");
-    let shadow = r.read_shadow().expect("shadow");
-    let choice = r.level_choice().expect("levels");
+    let records = r.inspect().read_records().expect("records");
+    let shadow = r.inspect().read_shadow().expect("shadow");
+    let choice = r.inspect().level_choice().expect("levels");
     drop(r);
     assert_no_validation_messages(&ctx);
 
@@ -494,7 +503,7 @@ fn packed_records_round_trip() {
             let n = (p - centre).normalize();
             let rn = DVec3::from(rec.normal.map(|v| v as f64));
             worst_n = worst_n.max(rn.normalize().dot(n).clamp(-1.0, 1.0).acos());
-            use sphereshade::passes::ssdo::region_hash;
+            use sphereshade::stages::ssdo::record::region_hash;
             assert_eq!(
                 rec.region_a,
                 region_hash(sp.region[choice.level_a as usize])

@@ -387,7 +387,7 @@ impl Renderer {
         let opts = parse_options(words)?;
         self.with(py, move |inner| {
             let settings = opts.options.resolve(&opts.axes, &inner.topology)?;
-            inner.renderer_mut()?.set_camera(settings.camera)
+            inner.renderer_mut()?.update(|s| s.camera = settings.camera)
         })
     }
 

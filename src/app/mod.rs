@@ -174,7 +174,10 @@ impl<'c> App<'c> {
             return Ok(());
         };
         if let Some(r) = &mut self.renderer {
-            r.resize(cam)?;
+            r.update(|s| {
+                s.camera = cam;
+                s.window = None;
+            })?;
         }
         Ok(())
     }
@@ -184,17 +187,16 @@ impl<'c> App<'c> {
             return Ok(());
         };
         let (w, h) = self.size;
-        r.set_camera(crate::camera::Camera::new(
-            o.center, o.dir, o.up, o.height, o.fov, w, h,
-        )?)
+        let cam = crate::camera::Camera::new(o.center, o.dir, o.up, o.height, o.fov, w, h)?;
+        r.update(|s| s.camera = cam)
     }
 
     fn screenshot(&mut self, path: &std::path::Path) -> Result<()> {
         let Some(r) = &self.renderer else {
             return Ok(());
         };
-        let mut color = r.read_color()?;
-        if r.is_bgra() {
+        let mut color = r.inspect().read_color()?;
+        if r.inspect().is_bgra() {
             for c in &mut color {
                 let b = c.to_le_bytes();
                 *c = u32::from_le_bytes([b[2], b[1], b[0], b[3]]);
@@ -219,7 +221,7 @@ impl<'c> App<'c> {
         let gpu: f64 = times.iter().map(|t| t.1).sum();
         let passes: Vec<String> = times.iter().map(|(n, t)| format!("{n} {t:.1}")).collect();
         let Some(r) = &self.renderer else { return };
-        let (n, s) = (r.sphere_count(), r.settings());
+        let (n, s) = (r.inspect().sphere_count(), r.settings());
         let playing = self
             .player
             .as_ref()
@@ -281,7 +283,7 @@ impl<'c> App<'c> {
             eprintln!(
                 "view: renderer ready in {:.0} ms ({} spheres)",
                 started.elapsed().as_secs_f64() * 1e3,
-                r.sphere_count()
+                r.inspect().sphere_count()
             );
             if let Some(t) = &self.cmd.trajectory {
                 let residues: Vec<u32> = if scene.level_names.len() >= 3 {
@@ -405,11 +407,11 @@ impl<'c> App<'c> {
         let s = r.settings().clone();
         let started = Instant::now();
         match key.as_ref() {
-            Key::Character("s" | "S") => r.set_shadows(next(s.shadows))?,
-            Key::Character("o" | "O") => r.set_ssdo(next(s.ssdo))?,
-            Key::Character("b" | "B") => r.set_blur(!s.blur),
-            Key::Character("+" | "=") => r.set_opacity((s.opacity + 0.1).min(1.0))?,
-            Key::Character("-" | "_") => r.set_opacity((s.opacity - 0.1).max(0.0))?,
+            Key::Character("s" | "S") => r.update(|n| n.shadows = next(s.shadows))?,
+            Key::Character("o" | "O") => r.update(|n| n.ssdo = next(s.ssdo))?,
+            Key::Character("b" | "B") => r.update(|n| n.blur = !s.blur)?,
+            Key::Character("+" | "=") => r.update(|n| n.opacity = (s.opacity + 0.1).min(1.0))?,
+            Key::Character("-" | "_") => r.update(|n| n.opacity = (s.opacity - 0.1).max(0.0))?,
             Key::Character("r" | "R") => {
                 self.orbit = self.home;
                 return self.update_camera();
@@ -442,7 +444,8 @@ impl<'c> App<'c> {
             if let Some(r) = &mut self.renderer {
                 let started = Instant::now();
                 let l = r.settings().light;
-                r.set_light(rotate(rotate(l, o.up, dx * 0.01), right, dy * 0.01))?;
+                let light = rotate(rotate(l, o.up, dx * 0.01), right, dy * 0.01);
+                r.update(|s| s.light = light)?;
                 self.drag_times.push(started.elapsed().as_secs_f64());
             }
             return Ok(());

@@ -531,11 +531,14 @@ fn prepare<'c>(
     let run = run::PreparedRun::new(
         ctx,
         &set.scene,
-        &set.name,
         settings,
-        Aov::Color,
-        a.warmup,
-        set.load_ms,
+        &run::RunRequest {
+            input: &set.name,
+            aov: Aov::Color,
+            warmup: a.warmup,
+            frames: a.frames,
+            load_ms: set.load_ms,
+        },
     )?;
     Ok(Pending {
         index,
@@ -570,9 +573,8 @@ fn measure_pool(
     let mut live: Vec<(Pending, Option<Error>)> = pool.into_iter().map(|p| (p, None)).collect();
     let step = |p: &mut Pending, k: u32, f: &mut dyn FnMut(&mut run::PreparedRun) -> Result<()>| {
         if orbit {
-            p.run
-                .renderer()
-                .set_camera(orbit_camera(&p.base, k, frames)?)?;
+            let cam = orbit_camera(&p.base, k, frames)?;
+            p.run.renderer().update(|s| s.camera = cam)?;
         }
         f(&mut p.run)
     };

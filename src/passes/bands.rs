@@ -41,6 +41,18 @@ pub fn counters_buffer(ctx: &Context, name: &str, bytes: u64) -> Result<Buffer> 
     )
 }
 
+/// One band-skeleton job of a pass: which pipelines, what they read and
+/// write (`bindings` serve both pipelines; `counters` is the buffer bound
+/// as "Counters", with its words at `layout`).
+pub struct BandJob<'a, 'b, P> {
+    pub pipes: &'b BandPipelines,
+    pub push: &'a P,
+    pub bindings: &'a [(&'static str, &'b Buffer)],
+    pub sphere_count: u32,
+    pub counters: &'b Buffer,
+    pub layout: &'a BandCounters,
+}
+
 /// The args pipeline (one per owning pass, named after it).
 pub struct BandArgs {
     pipe: ComputePipeline,
@@ -100,31 +112,20 @@ impl BandArgs {
     }
 
     /// Adds the per-sphere dispatch, the args step and the indirect band
-    /// dispatch to a pass (`bindings` serve both pipelines; `counters` is
-    /// the buffer bound as "Counters").
-    #[allow(clippy::too_many_arguments)]
-    pub fn steps<'b, P: Pod>(
-        &'b self,
-        p: &mut PassBuilder<'b>,
-        pipes: &'b BandPipelines,
-        push: &P,
-        bindings: &[(&'static str, &'b Buffer)],
-        sphere_count: u32,
-        counters: &'b Buffer,
-        layout: &BandCounters,
-    ) {
+    /// dispatch of `job` to a pass.
+    pub fn steps<'b, P: Pod>(&'b self, p: &mut PassBuilder<'b>, job: &BandJob<'_, 'b, P>) {
         p.dispatch(
-            &pipes.spheres,
-            push,
-            Grid::Invocations(sphere_count as u64),
-            bindings,
+            &job.pipes.spheres,
+            job.push,
+            Grid::Invocations(job.sphere_count as u64),
+            job.bindings,
         );
-        self.step(p, counters, layout);
+        self.step(p, job.counters, job.layout);
         p.dispatch(
-            &pipes.bands,
-            push,
-            Grid::Indirect(counters, layout.args_offset()),
-            bindings,
+            &job.pipes.bands,
+            job.push,
+            Grid::Indirect(job.counters, job.layout.args_offset()),
+            job.bindings,
         );
     }
 

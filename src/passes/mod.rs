@@ -1,19 +1,12 @@
-//! One file per pass. Each pass owns its pipelines (and private buffers),
-//! exposes `NAME` (its debug label, timestamp scope and JSON name) and a
-//! `record()` that lists its steps on a [`crate::vk::Recorder`]; the
-//! recorder derives the barriers. The shadow techniques share one shape
-//! ([`shadows::ShadowTechnique`]).
+//! The building blocks every stage's passes share: the band-job skeleton
+//! of the sphere rasterizers, pipelines by specialization constants, the
+//! tile lists, the screen-space inputs, and the compiled SPIR-V. A pass
+//! itself lives with the stage that owns it (the stages module).
 
 pub mod bands;
-pub mod blur;
-pub mod coverage;
-pub mod raster;
-pub mod raster_graphics;
-pub mod shade;
-pub mod shadows;
-pub mod ssdo;
-
-use crate::vk::Buffer;
+pub mod screen;
+pub mod tiles;
+pub mod variants;
 
 /// Default workgroup size (specialization constant 0 of most shaders).
 pub const LOCAL_SIZE: u32 = 64;
@@ -23,25 +16,4 @@ pub mod spirv {
     include!(concat!(env!("OUT_DIR"), "/shaders.rs"));
 }
 
-/// What a shadow technique's light-space passes read in a frame: the
-/// scene, the camera's visibility buffer (for per-pixel passes of its own).
-pub struct ShadowInputs<'a> {
-    pub globals: &'a Buffer,
-    pub spheres: &'a Buffer,
-    pub vis: &'a Buffer,
-    /// Sphere opacity for the translucent techniques (1 = opaque).
-    pub opacity: f32,
-    pub pixels: u64,
-    pub sphere_count: u32,
-    /// The compute rasterizer (light-space maps are rasterized with it).
-    pub raster: &'a raster::RasterPass,
-}
-
-crate::impl_destroy!(
-    raster::RasterPass,
-    raster_graphics::GraphicsRasterPass,
-    shade::ShadePass,
-    ssdo::SsdoPass,
-    blur::BlurPass,
-    bands::BandArgs,
-);
+crate::impl_destroy!(bands::BandArgs);

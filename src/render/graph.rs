@@ -1,20 +1,18 @@
-//! THE frame: every pass of a frame, in order, in one function. Each pass
+//! THE frame: every stage of a frame, in order, in one function. Each pass
 //! names its steps and the recorder derives the barriers, so adding a pass
-//! is its file in passes/, its shader, and one call here (plus its row in
-//! [`PASSES`], which the README's "How it works" table is checked against).
+//! is its shader, its stage's module (crate::stages), and one call here
+//! (plus its row in [`PASSES`], which the README's "How it works" table is
+//! checked against).
 
 use super::Resources;
 use crate::error::Result;
-use crate::passes::ShadowInputs;
-use crate::passes::blur::{Axis, BlurIo};
-use crate::passes::coverage::{CoveragePass, Tiles};
-use crate::passes::raster::{RasterPass, ViewIndex};
-use crate::passes::shade::{ScreenInputs, ShadePush};
-use crate::settings::{RenderSettings, SsdoMode};
+use crate::passes::screen::ScreenInputs;
+use crate::settings::RenderSettings;
+use crate::stages::raster::RasterInputs;
+use crate::stages::shading::{ShadeFrame, ShadeInputs};
+use crate::stages::shadows::ShadowInputs;
+use crate::stages::ssdo::{SsdoInputs, SsdoOutputs};
 use crate::vk::{Buffer, Recorder};
-
-/// Fraction of the key light's diffuse term kept in full shadow.
-pub const SHADOW_DIFFUSE: f32 = 0.05;
 
 /// Every pass a frame may record: its name (= debug label = timestamp
 /// scope = JSON name) and what it does.
@@ -33,7 +31,7 @@ pub const PASSES: &[(&str, &str)] = &[
     ),
     (
         "deep_count",
-        "deep shadow lists (seed 002), 8x8-texel tiles, one 64-invocation workgroup each: count the entries per texel (every sphere whose light-space disk overlaps the texel square)",
+        "deep shadow lists (after deep shadow maps on the GPU), 8x8-texel tiles, one 64-invocation workgroup each: count the entries per texel (every sphere whose light-space disk overlaps the texel square)",
     ),
     (
         "deep_alloc",
@@ -49,11 +47,11 @@ pub const PASSES: &[(&str, &str)] = &[
     ),
     (
         "sm_raster",
-        "baseline (seed 003): depth shadow map from the same compute rasterizer (sphere surface depth)",
+        "baseline (after the Metal protein viewer paper): depth shadow map from the same compute rasterizer (sphere surface depth)",
     ),
     (
         "osm_raster",
-        "baseline (seed 004): opacity shadow maps, 64 depth slices of fixed-point optical depth -ln(1-α)",
+        "baseline (after the WebGL particle paper): opacity shadow maps, 64 depth slices of fixed-point optical depth -ln(1-α)",
     ),
     (
         "osm_prefix",
@@ -89,7 +87,7 @@ pub fn pass_names() -> &'static [&'static str] {
         #[allow(unused_mut)]
         let mut names: Vec<_> = PASSES.iter().map(|p| p.0).collect();
         #[cfg(test)]
-        names.push(crate::passes::shadows::constant::NAME);
+        names.push(crate::stages::shadows::constant::NAME);
         names
     })
 }
@@ -104,7 +102,8 @@ pub fn markdown_table() -> String {
 }
 
 impl Resources {
-    /// Records one frame: the whole pass list.
+    /// Records one frame: the stages in order, each one's outputs wired to
+    /// the next ones' inputs.
     pub(super) fn record_frame(
         &self,
         settings: &RenderSettings,
@@ -112,168 +111,89 @@ impl Resources {
         rec: &mut Recorder,
     ) -> Result<()> {
         let t = &self.targets;
-        let pixels = t.pixels;
         let cam = &settings.camera;
+        let size = (t.width, t.height);
 
-        rec.pass(RasterPass::NAME, |p| {
-            match &self.raster_graphics {
-                Some(g) => g.steps(
-                    p,
-                    globals,
-                    &self.spheres,
-                    self.sphere_count,
-                    &t.vis,
-                    (cam.width, cam.height),
-                ),
-                None => self.raster.steps(
-                    p,
-                    globals,
-                    &self.spheres,
-                    self.sphere_count,
-                    &t.vis,
-                    pixels,
-                    ViewIndex::Camera,
-                    cam.fov_deg.is_some(),
-                )?,
-            }
-            Ok(())
-        })?;
+        self.raster.record(
+            rec,
+            &RasterInputs {
+                globals,
+                spheres: &self.spheres,
+                sphere_count: self.sphere_count,
+                perspective: cam.fov_deg.is_some(),
+                image: (cam.width, cam.height),
+                size,
+            },
+            &t.raster,
+        )?;
 
-        if let Some(s) = self.active_shadow()
-            && !self.light_cached
-        {
-            s.record_light(
-                rec,
-                &ShadowInputs {
-                    globals,
-                    spheres: &self.spheres,
-                    vis: &t.vis,
-                    opacity: settings.opacity,
-                    pixels,
-                    sphere_count: self.sphere_count,
-                    raster: &self.raster,
-                },
-            )?;
-        }
+        self.shadows.record(
+            rec,
+            &ShadowInputs {
+                globals,
+                spheres: &self.spheres,
+                vis: &t.raster.vis,
+                opacity: settings.opacity,
+                pixels: t.pixels,
+                sphere_count: self.sphere_count,
+                raster: &self.raster.compute,
+            },
+        )?;
 
-        let tiles = if settings.tile_lists {
-            rec.pass(CoveragePass::NAME, |p| {
-                self.coverage
-                    .steps(p, globals, &t.vis, &t.tiles, (t.width, t.height));
-                Ok(())
-            })?;
-            Tiles::Lists(&t.tiles)
-        } else {
-            Tiles::All
-        };
+        let tiles = self
+            .raster
+            .record_tiles(rec, globals, &t.raster, size, settings.tile_lists)?;
 
-        let lookup = self.lookup(settings);
+        let ssdo_params = self.ssdo_params(settings);
+        let lookup = self.lookup(settings, &ssdo_params);
         let screen = ScreenInputs {
             globals,
-            vis: &t.vis,
+            vis: &t.raster.vis,
             spheres: &self.spheres,
             attrs: &self.attrs,
             colors: &self.colors,
         };
-        let half = t.half();
-        let ssdo = self.ssdo.as_ref().filter(|_| settings.ssdo_on());
-        let ssdo_params = self.ssdo_params(settings);
-        // the per-sphere receivers' buffers, when this frame uses them
-        let spheres = ssdo
-            .and_then(|st| st.spheres.as_ref())
-            .filter(|_| ssdo_params.taps.per_sphere());
-        if let Some(st) = ssdo {
-            let p = &ssdo_params;
-            let semantic = settings.ssdo == SsdoMode::Semantic;
-            // (without per-sphere receivers the flags are not written)
-            let flags = spheres.map_or(&t.keys, |b| &b.flags);
-            st.pass.record_prep(
+        let ssdo = if settings.ssdo_on() {
+            self.ssdo.record(
                 rec,
-                &screen,
-                &lookup,
-                (&t.records, flags, &t.keys),
-                &p.prep,
-                p.taps,
-                half,
-                tiles,
-            )?;
-            if let Some(sb) = spheres {
-                st.pass.record_spheres(
-                    rec,
-                    &screen,
-                    (&t.records, &t.keys),
-                    sb,
-                    &p.ssdo,
-                    semantic,
-                    p.taps,
-                )?;
-            }
-            // receivers: the blocks, or every pixel
-            let grid = if p.taps.per_block() {
-                half
-            } else {
-                (t.width, t.height)
-            };
-            if spheres.is_none() {
-                st.pass.record_ssdo(
-                    rec,
-                    &screen,
-                    &t.records,
-                    (&t.ao, &t.keys),
-                    &p.ssdo,
-                    semantic,
-                    p.taps,
-                    grid,
+                &SsdoInputs {
+                    screen: &screen,
+                    lookup: &lookup,
                     tiles,
-                )?;
+                    size,
+                    // shade writes colour after the blur is done with it
+                    scratch: &t.shade.color,
+                },
+                &t.ssdo,
+                &ssdo_params,
+                super::ssdo_modes(settings),
+            )?
+        } else {
+            // (bound, unread)
+            SsdoOutputs {
+                ao: &t.ssdo.ao,
+                records: &t.ssdo.records,
+                sphere_ao: None,
             }
-            if settings.blur && spheres.is_none() {
-                for (axis, input, output) in [
-                    // colour is free until shade: the blur's scratch
-                    (Axis::Horizontal, &t.ao, &t.color),
-                    (Axis::Vertical, &t.color, &t.ao),
-                ] {
-                    let io = BlurIo {
-                        globals,
-                        records: &t.records,
-                        keys: &t.keys,
-                        input,
-                        output,
-                    };
-                    let shape = (p.blur_radius, p.taps.per_block());
-                    st.blur
-                        .record(rec, axis, semantic, shape, &io, &p.blur, grid, tiles)?;
-                }
-            }
-        }
+        };
 
-        let sphere_ao = spheres.map_or(&t.records, |b| &b.ao);
         self.shade.record(
             rec,
-            &screen,
-            &lookup,
-            self.shade_mode(settings, &lookup),
-            (&t.ao, &t.records, sphere_ao),
-            (&t.color, &t.aov),
-            &ShadePush {
-                // Lighting rule (issue 4, after the ISSM paper): a fully
-                // shadowed point keeps ambient and this fraction of the key's
-                // diffuse term, and loses its specular term.
-                shadow_diffuse: SHADOW_DIFFUSE,
-                outline_px: self.outline_px(settings) as f32,
-                fog_near: settings.look.fog.map_or(0.0, |f| f.0[0] as f32),
-                fog_far: settings.look.fog.map_or(0.0, |f| f.0[1] as f32),
-                // a step of a sphere radius between neighbours is an edge
-                edge_dz: self.typical_radius as f32,
-                level: {
-                    let c = self.level_choice(cam);
-                    if c.blend >= 0.5 { c.level_b } else { c.level_a }
-                },
-                ao_sigma_z: ssdo_params.blur.sigma_z,
-                ao_level_b: ssdo_params.blur.level_b,
+            &ShadeInputs {
+                screen: &screen,
+                lookup: &lookup,
+                ssdo: &ssdo,
+                tiles,
             },
-            (t.width, t.height),
-            tiles,
+            &t.shade,
+            &ShadeFrame::new(
+                settings,
+                &lookup,
+                &ssdo_params,
+                self.bgra,
+                self.typical_radius,
+            ),
+            size,
         )
     }
 }

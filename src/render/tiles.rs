@@ -45,7 +45,7 @@ pub struct Image {
 pub fn max_window_pixels(ctx: &Context) -> u64 {
     let l = &ctx.props.limits;
     let by_range = (l.max_storage_buffer_range as u64 / 8)
-        .saturating_sub(crate::passes::raster::VIS_GUARD_WORDS);
+        .saturating_sub(crate::stages::raster::compute::VIS_GUARD_WORDS);
     let by_texels = l.max_texel_buffer_elements as u64 / 2;
     by_range.min(by_texels)
 }
@@ -160,14 +160,14 @@ impl<'a> Renderer<'a> {
     /// untiled pixels. 0 when no screen-space pass runs.
     pub fn tile_margin(&self) -> u32 {
         let s = &self.settings;
-        let outline = self.res.outline_px(s);
+        let outline = crate::stages::shading::outline_px(s);
         if !s.ssdo_on() {
             return outline;
         }
         let cam = &s.camera;
         let p = self.res.ssdo_params(s);
         let mut reach = p.ssdo.r_far.max(p.ssdo.r_near) as f64;
-        if self.res.active_shadow().is_none() {
+        if self.res.shadows.active().is_none() {
             reach = reach.max(p.screen.f0[0] as f64);
         }
         if p.taps.per_sphere() {
@@ -233,7 +233,7 @@ impl<'a> Renderer<'a> {
         let wide = self.settings.look.color16;
         if tiles.len() == 1 {
             if self.settings.window.is_some() {
-                self.set_window(None)?;
+                self.update(|s| s.window = None)?;
             }
             let times = self.render_frame()?;
             on_tile(1, 1);
@@ -243,10 +243,14 @@ impl<'a> Renderer<'a> {
             let image = Image {
                 width: cam.width,
                 height: cam.height,
-                color: self.read_color()?,
+                color: self.inspect().read_color()?,
                 wide,
-                vis: self.read_vis()?,
-                aov: if aovs { Some(self.read_aov()?) } else { None },
+                vis: self.inspect().read_vis()?,
+                aov: if aovs {
+                    Some(self.inspect().read_aov()?)
+                } else {
+                    None
+                },
                 tiles: 1,
             };
             return Ok((Some(image), times));
@@ -262,7 +266,7 @@ impl<'a> Renderer<'a> {
             tiles: tiles.len(),
         };
         let mut sum = PassTimes::default();
-        let cache = self.res.light_cache;
+        let cache = self.res.shadows.cache();
         // the light structure is built by the first tile, reused by the rest
         self.set_light_cache(true);
         let result = (|| {
@@ -270,7 +274,7 @@ impl<'a> Renderer<'a> {
                 self.set_tile(tile.window, tile.kept)?;
                 let t = self.render_frame()?;
                 sum.add(&t);
-                let color = self.read_color()?;
+                let color = self.inspect().read_color()?;
                 if wide {
                     place::<[u32; 2]>(
                         bytemuck::cast_slice_mut(&mut image.color),
@@ -281,9 +285,9 @@ impl<'a> Renderer<'a> {
                 } else {
                     place(&mut image.color, cam.width, tile, &color);
                 }
-                place(&mut image.vis, cam.width, tile, &self.read_vis()?);
+                place(&mut image.vis, cam.width, tile, &self.inspect().read_vis()?);
                 if let Some(a) = image.aov.as_mut() {
-                    place(a, cam.width, tile, &self.read_aov()?);
+                    place(a, cam.width, tile, &self.inspect().read_aov()?);
                 }
                 on_tile(k + 1, tiles.len());
             }

@@ -7,6 +7,7 @@ pub mod buffer;
 pub mod cache;
 pub mod debug;
 pub mod descriptors;
+pub mod grid;
 pub mod guard;
 pub mod pipeline;
 pub mod record;
@@ -22,8 +23,9 @@ use std::sync::Mutex;
 
 pub use buffer::Buffer;
 pub use debug::MessageLog;
+pub use grid::Grid;
 pub use pipeline::ComputePipeline;
-pub use record::{Grid, PassBuilder, Recorder};
+pub use record::{PassBuilder, Recorder};
 pub use timestamps::{PassTimes, Profiler};
 
 const VALIDATION_LAYER: &CStr = c"VK_LAYER_KHRONOS_validation";

@@ -10,7 +10,7 @@
 
 use super::barrier::{Stage, Use};
 use super::descriptors::DescriptorArena;
-use super::record::Grid;
+use super::grid::Grid;
 use super::reflect::{self, Access};
 use super::{Buffer, Context};
 use crate::error::{Error, Result, VkContext};

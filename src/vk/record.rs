@@ -17,22 +17,11 @@
 
 use super::barrier::{Barrier, Event, Stage, Tracker, Use};
 use super::descriptors::DescriptorArena;
+use super::grid::Grid;
 use super::pipeline::ComputePipeline;
 use super::{Buffer, Context, Profiler};
 use crate::error::{Error, Result};
 use ash::vk;
-
-/// How many workgroups a dispatch runs.
-#[derive(Clone, Copy)]
-pub enum Grid<'b> {
-    /// Enough groups for this many invocations along x (folded into y
-    /// beyond [`crate::gpu::consts::MAX_GROUPS_X`] groups).
-    Invocations(u64),
-    /// Exactly these group counts.
-    Groups([u32; 3]),
-    /// Group counts read by the GPU from a buffer at a byte offset.
-    Indirect(&'b Buffer, u64),
-}
 
 /// Work recorded by a closure (the graphics raster baseline), with the
 /// buffers it touches declared.

@@ -5,8 +5,8 @@
 
 use glam::DVec3;
 use sphereshade::camera::Camera;
+use sphereshade::camera::{CameraFit, default_camera};
 use sphereshade::reference::RefImage;
-use sphereshade::render::default_camera;
 use sphereshade::scene::{Scene, Sphere};
 use sphereshade::settings::{
     IssmParams, RasterMode, RenderSettings, ShadowMapParams, ShadowMode, SsdoMode,
@@ -101,11 +101,11 @@ pub fn camera(scene: &Scene, w: u32, h: u32, fov: Option<f64>) -> Camera {
         scene,
         w,
         h,
-        DVec3::new(0.0, 0.0, -1.0),
-        DVec3::Y,
-        None,
-        None,
-        fov,
+        &CameraFit {
+            view_dir: DVec3::new(0.0, 0.0, -1.0),
+            fov,
+            ..Default::default()
+        },
     )
     .expect("camera")
 }

@@ -13,8 +13,10 @@ pub mod deep;
 pub mod issm;
 pub mod osm;
 pub mod shadow_map;
+pub mod stage;
 
-use super::ShadowInputs;
+pub use stage::ShadowStage;
+
 use crate::camera::Camera;
 use crate::error::Result;
 use crate::gpu::GpuSphere;
@@ -23,6 +25,20 @@ use crate::vk::pipeline::Binding;
 use crate::vk::{Buffer, Context, Recorder};
 use glam::DVec3;
 use std::any::Any;
+
+/// What a shadow technique's light-space passes read in a frame: the
+/// scene, the camera's visibility buffer (for per-pixel passes of its own).
+pub struct ShadowInputs<'a> {
+    pub globals: &'a Buffer,
+    pub spheres: &'a Buffer,
+    pub vis: &'a Buffer,
+    /// Sphere opacity for the translucent techniques (1 = opaque).
+    pub opacity: f32,
+    pub pixels: u64,
+    pub sphere_count: u32,
+    /// The compute rasterizer (light-space maps are rasterized with it).
+    pub raster: &'a crate::stages::raster::compute::RasterPass,
+}
 
 /// What a technique needs to (re)fit itself: the spheres (CPU copy), the
 /// key-light direction and the settings.
@@ -70,6 +86,31 @@ pub enum LookupKind {
     Screen,
     /// A per-pixel visibility buffer a technique's own pass wrote.
     Buffer,
+}
+
+impl LookupKind {
+    /// The variant of shade.comp (`shade`) or ssdo_prep.comp compiled with
+    /// this lookup.
+    pub fn shader(self, shade: bool) -> crate::vk::pipeline::Shader {
+        use crate::passes::spirv;
+        use LookupKind::*;
+        match (self, shade) {
+            (None, true) => spirv::SHADE_COMP_SHADOW_NONE,
+            (Issm, true) => spirv::SHADE_COMP_SHADOW_ISSM,
+            (Deep, true) => spirv::SHADE_COMP_SHADOW_DEEP,
+            (ShadowMap, true) => spirv::SHADE_COMP_SHADOW_SM,
+            (Opacity, true) => spirv::SHADE_COMP_SHADOW_OSM,
+            (Screen, true) => spirv::SHADE_COMP_SHADOW_SCREEN,
+            (Buffer, true) => spirv::SHADE_COMP_SHADOW_BUFFER,
+            (None, false) => spirv::SSDO_PREP_COMP_SHADOW_NONE,
+            (Issm, false) => spirv::SSDO_PREP_COMP_SHADOW_ISSM,
+            (Deep, false) => spirv::SSDO_PREP_COMP_SHADOW_DEEP,
+            (ShadowMap, false) => spirv::SSDO_PREP_COMP_SHADOW_SM,
+            (Opacity, false) => spirv::SSDO_PREP_COMP_SHADOW_OSM,
+            (Screen, false) => spirv::SSDO_PREP_COMP_SHADOW_SCREEN,
+            (Buffer, false) => spirv::SSDO_PREP_COMP_SHADOW_BUFFER,
+        }
+    }
 }
 
 /// Parameters of a lookup, carried in `Globals.shadow_*` (each lookup

@@ -5,10 +5,10 @@
 //! value, one arm in `shadows::create` (and, for a real one, its row in the
 //! pass list).
 
+use super::ShadowInputs;
 use super::{Lookup, LookupKind, ShadowParams, ShadowSetup, ShadowTechnique};
 use crate::camera::Camera;
 use crate::error::Result;
-use crate::passes::ShadowInputs;
 use crate::settings::ShadowMode;
 use crate::vk::pipeline::{Binding, texel};
 use crate::vk::{Buffer, Context, Recorder};
@@ -110,12 +110,16 @@ mod tests {
         let times = r.render_frame().expect("frame");
         assert!(times.iter().any(|(n, _)| *n == super::NAME), "{times:?}");
         // AOVs are off by default (colour-only frames): reading them says so.
-        let err = r.read_shadow().expect_err("AOVs are off").to_string();
+        let err = r
+            .inspect()
+            .read_shadow()
+            .expect_err("AOVs are off")
+            .to_string();
         assert!(err.contains("AOVs are off"), "{err}");
-        r.set_aovs(true).unwrap();
+        r.update(|s| s.aovs = true).unwrap();
         r.render_frame().expect("frame");
-        let vis = r.read_vis().unwrap();
-        let shadow = r.read_shadow().unwrap();
+        let vis = r.inspect().read_vis().unwrap();
+        let shadow = r.inspect().read_shadow().unwrap();
         let covered = vis.iter().filter(|&&k| k != crate::gpu::VIS_EMPTY).count();
         assert!(covered > 0);
         // (the shadow AOV is unorm16: 0.5 reads back as 32768 / 65535)

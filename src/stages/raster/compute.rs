@@ -1,11 +1,11 @@
 //! Compute rasterization of sphere impostors into a 64-bit depth|id
 //! visibility buffer (camera view or key-light view, same code).
 
-use super::bands::{BandArgs, BandCounters, BandPipelines};
-use super::{LOCAL_SIZE, spirv};
 use crate::error::Result;
 use crate::gpu::GpuSphere;
 use crate::gpu::consts::{R_ARGS, R_BANDS_REQ, R_BANDS_RUN};
+use crate::passes::bands::{BandArgs, BandCounters, BandJob, BandPipelines};
+use crate::passes::{LOCAL_SIZE, spirv};
 use crate::vk::guard::Destroy;
 use crate::vk::pipeline::{PipelineDesc, rw, texel, uniform};
 use crate::vk::{Buffer, Context, PassBuilder};
@@ -50,6 +50,18 @@ struct RasterPush {
 pub enum ViewIndex {
     Camera = 0,
     Light = 1,
+}
+
+/// What one rasterization reads and writes: the spheres, and the
+/// depth|id target (the camera's visibility buffer or a light map).
+#[derive(Clone, Copy)]
+pub struct RasterIo<'b> {
+    pub globals: &'b Buffer,
+    pub spheres: &'b Buffer,
+    pub sphere_count: u32,
+    pub target: &'b Buffer,
+    /// Texels of `target` (cleared first).
+    pub texels: u64,
 }
 
 pub struct RasterPass {
@@ -205,7 +217,11 @@ impl RasterPass {
             "raster band jobs",
             JOB_CAPACITY as u64 * 8,
         )?);
-        let counters = ctx.guard(super::bands::counters_buffer(ctx, "raster counters", 32)?);
+        let counters = ctx.guard(crate::passes::bands::counters_buffer(
+            ctx,
+            "raster counters",
+            32,
+        )?);
         let camera = ctx.guard(ViewOrder::new(ctx, "camera sphere order")?);
         let light = ViewOrder::new(ctx, "light sphere order")?;
         Ok(RasterPass {
@@ -258,20 +274,22 @@ impl RasterPass {
         self.orders[view as usize].set(ctx, geom, dir)
     }
 
-    /// Clears `vis` (its first `pixels` words) and rasterizes every sphere
-    /// (steps of the caller's pass).
-    #[allow(clippy::too_many_arguments)]
+    /// Clears `io.target` (its first `io.texels` words) and rasterizes
+    /// every sphere into it from `view` (steps of the caller's pass).
     pub fn steps<'b>(
         &'b self,
         p: &mut PassBuilder<'b>,
-        globals: &'b Buffer,
-        spheres: &'b Buffer,
-        sphere_count: u32,
-        vis: &'b Buffer,
-        pixels: u64,
+        io: &RasterIo<'b>,
         view: ViewIndex,
         perspective: bool,
     ) -> Result<()> {
+        let RasterIo {
+            globals,
+            spheres,
+            sphere_count,
+            target: vis,
+            texels: pixels,
+        } = *io;
         let order = &self.orders[view as usize];
         if !self.order_ready(view) {
             return Err(crate::error::Error::Internal(format!(
@@ -290,20 +308,22 @@ impl RasterPass {
         let pipe = &self.pipes[(view == ViewIndex::Camera && perspective) as usize];
         self.args.steps(
             p,
-            pipe,
-            &push,
-            &[
-                ("GlobalsBlock", globals),
-                ("Vis", vis),
-                ("Jobs", &self.jobs),
-                ("Counters", &self.counters),
-                ("visWordTex", vis),
-                ("orderTex", &order.buf),
-                ("sphereTex", spheres),
-            ],
-            sphere_count,
-            &self.counters,
-            &RASTER_COUNTERS,
+            &BandJob {
+                pipes: pipe,
+                push: &push,
+                bindings: &[
+                    ("GlobalsBlock", globals),
+                    ("Vis", vis),
+                    ("Jobs", &self.jobs),
+                    ("Counters", &self.counters),
+                    ("visWordTex", vis),
+                    ("orderTex", &order.buf),
+                    ("sphereTex", spheres),
+                ],
+                sphere_count,
+                counters: &self.counters,
+                layout: &RASTER_COUNTERS,
+            },
         );
         Ok(())
     }
@@ -314,18 +334,20 @@ impl RasterPass {
         &'b self,
         rec: &mut crate::vk::Recorder,
         name: &'static str,
-        f: &super::ShadowInputs<'b>,
+        f: &crate::stages::shadows::ShadowInputs<'b>,
         map: &'b Buffer,
         texels: u64,
     ) -> Result<()> {
         rec.pass(name, |p| {
             self.steps(
                 p,
-                f.globals,
-                f.spheres,
-                f.sphere_count,
-                map,
-                texels,
+                &RasterIo {
+                    globals: f.globals,
+                    spheres: f.spheres,
+                    sphere_count: f.sphere_count,
+                    target: map,
+                    texels,
+                },
                 ViewIndex::Light,
                 false,
             )
@@ -445,3 +467,4 @@ mod tests {
         assert!(view_order(&[], DVec3::Z).is_empty());
     }
 }
+crate::impl_destroy!(RasterPass);

@@ -1,10 +1,11 @@
-//! Opacity shadow maps (seed 004), the baseline for translucent shadows:
+//! Opacity shadow maps (after the WebGL particle paper), the baseline for translucent shadows:
 //! `--osm-slices` depth slices evenly covering the light-space depth range of
 //! the scene, each an `--osm-size`² map, stored slice-major in one storage
 //! buffer (the seed's 8 x 8 atlas of slices is the same array addressed by
 //! tile).
 //!
-//! Passes, each its own timestamp scope followed by a full barrier:
+//! Passes, each its own timestamp scope; the frame graph derives the
+//! barrier between them from what each reads and writes:
 //! - `osm_raster`: clear, then every sphere adds its optical depth
 //!   `tau = -ln(1 - alpha)` (fixed point, integer atomicAdd) to the slice of
 //!   its entry depth at each texel centre its disk covers; big footprints go
@@ -26,13 +27,14 @@
 //! [`ALPHA_MAX`], so a fully opaque sphere leaves 0.001 of the light through
 //! (below one 8-bit step).
 
+use super::ShadowInputs;
 use super::{Lookup, LookupKind, ShadowParams, ShadowSetup, ShadowTechnique};
 use crate::camera::Camera;
 use crate::error::{Error, Result};
-use crate::passes::bands::{BandArgs, BandCounters, BandPipelines};
-use crate::passes::raster::RASTER_COUNTERS;
-use crate::passes::{LOCAL_SIZE, ShadowInputs, spirv};
+use crate::passes::bands::{BandArgs, BandCounters, BandJob, BandPipelines};
+use crate::passes::{LOCAL_SIZE, spirv};
 use crate::settings::ShadowMode;
+use crate::stages::raster::compute::RASTER_COUNTERS;
 use crate::vk::pipeline::{Binding, PipelineDesc, ro, rw, texel, uniform};
 use crate::vk::{Buffer, ComputePipeline, Context, Grid, Recorder};
 use bytemuck::{Pod, Zeroable};
@@ -294,18 +296,20 @@ impl ShadowTechnique for OpacityShadows {
             };
             self.args.steps(
                 p,
-                &self.raster,
-                &push,
-                &[
-                    ("GlobalsBlock", f.globals),
-                    ("Spheres", f.spheres),
-                    ("Opacity", &self.opacity_map),
-                    ("Jobs", &self.jobs),
-                    ("Counters", &self.counters),
-                ],
-                self.sphere_count,
-                &self.counters,
-                &OSM_COUNTERS,
+                &BandJob {
+                    pipes: &self.raster,
+                    push: &push,
+                    bindings: &[
+                        ("GlobalsBlock", f.globals),
+                        ("Spheres", f.spheres),
+                        ("Opacity", &self.opacity_map),
+                        ("Jobs", &self.jobs),
+                        ("Counters", &self.counters),
+                    ],
+                    sphere_count: self.sphere_count,
+                    counters: &self.counters,
+                    layout: &OSM_COUNTERS,
+                },
             );
             Ok(())
         })?;

@@ -4,11 +4,11 @@
 //! resolution and the semantic region test are specialization constants.
 //! See glsl/blur.comp.
 
-use super::coverage::{TILE_BINDING, Tiles};
-use super::shade::Variants;
-use super::spirv;
 use crate::error::Result;
-use crate::vk::pipeline::{Binding, texel, uniform, wo};
+use crate::passes::tiles::{TILE_BINDING, Tiles};
+use crate::passes::variants::{TiledDispatch, Variants};
+use crate::passes::{LOCAL_SIZE, spirv};
+use crate::vk::pipeline::{Binding, PipelineDesc, texel, uniform, wo};
 use crate::vk::{Buffer, Context, Recorder};
 use ash::vk::Format;
 use bytemuck::{Pod, Zeroable};
@@ -59,6 +59,18 @@ pub struct BlurPass {
     variants: Variants,
 }
 
+/// How one blur dispatch runs: its axis, the region test, the taps each
+/// side, per block (`half`) or per pixel, on a `size` grid of them.
+#[derive(Clone, Copy)]
+pub struct BlurShape<'a> {
+    pub axis: Axis,
+    pub semantic: bool,
+    pub radius: i32,
+    pub half: bool,
+    pub size: (u32, u32),
+    pub tiles: Tiles<'a>,
+}
+
 /// What one blur dispatch reads and writes.
 pub struct BlurIo<'a> {
     pub globals: &'a Buffer,
@@ -90,11 +102,14 @@ impl BlurPass {
                 for axis in [Axis::Horizontal, Axis::Vertical] {
                     self.variants.ensure_tiled(
                         ctx,
-                        axis.name(),
-                        spirv::BLUR_COMP,
-                        &BINDINGS,
-                        std::mem::size_of::<BlurPush>() as u32,
-                        &Self::constants(axis, semantic, radius, half),
+                        &PipelineDesc {
+                            name: axis.name(),
+                            shader: spirv::BLUR_COMP,
+                            bindings: &BINDINGS,
+                            push_size: std::mem::size_of::<BlurPush>() as u32,
+                            local_size: LOCAL_SIZE,
+                            constants: &Self::constants(axis, semantic, radius, half),
+                        },
                         lists,
                     )?;
                 }
@@ -103,37 +118,43 @@ impl BlurPass {
         Ok(())
     }
 
-    /// Blurs `input` into `output` along `axis`, as the pass `axis.name()`:
-    /// per 2x2 block when `half` (`size` is then the half-resolution grid),
-    /// else per pixel.
-    #[allow(clippy::too_many_arguments)]
+    /// Blurs `io.input` into `io.output` along `shape.axis`, as the pass
+    /// `shape.axis.name()`: per 2x2 block when `shape.half` (its `size` is
+    /// then the half-resolution grid), else per pixel.
     pub fn record(
         &self,
         rec: &mut Recorder,
-        axis: Axis,
-        semantic: bool,
-        (radius, half): (i32, bool),
+        shape: &BlurShape,
         io: &BlurIo,
         push: &BlurPush,
-        size: (u32, u32),
-        tiles: Tiles,
     ) -> Result<()> {
+        let BlurShape {
+            axis,
+            semantic,
+            radius,
+            half,
+            size,
+            tiles,
+        } = *shape;
         rec.pass(axis.name(), |p| {
             self.variants.dispatch_tiled(
                 p,
-                axis.name(),
-                spirv::BLUR_COMP,
-                &Self::constants(axis, semantic, radius, half),
-                push,
-                tiles,
-                (size, half),
-                &[
-                    ("GlobalsBlock", io.globals),
-                    ("recordTex", io.records),
-                    ("inTex", io.input),
-                    ("Out", io.output),
-                    ("keyTex", io.keys),
-                ],
+                &TiledDispatch {
+                    name: axis.name(),
+                    shader: spirv::BLUR_COMP,
+                    constants: &Self::constants(axis, semantic, radius, half),
+                    push,
+                    tiles,
+                    size,
+                    half,
+                    bufs: &[
+                        ("GlobalsBlock", io.globals),
+                        ("recordTex", io.records),
+                        ("inTex", io.input),
+                        ("Out", io.output),
+                        ("keyTex", io.keys),
+                    ],
+                },
             )
         })
     }
@@ -142,3 +163,4 @@ impl BlurPass {
         self.variants.destroy(ctx);
     }
 }
+crate::impl_destroy!(BlurPass);

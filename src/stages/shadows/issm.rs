@@ -1,15 +1,16 @@
-//! Implicit Sphere Shadow Maps (seed 000): the key light's view is
+//! Implicit Sphere Shadow Maps (after the ISSM paper): the key light's view is
 //! rasterized by the compute sphere rasterizer into an id map
 //! (`issm_raster`), resolved to a light-space sphere record per texel
 //! (`issm_resolve`); the lookup (in `shade`) tests each visible point's
 //! light ray against the spheres of a (2t+1)^2 texel patch.
 
+use super::ShadowInputs;
 use super::{Lookup, LookupKind, ShadowParams, ShadowSetup, ShadowTechnique};
 use crate::camera::Camera;
 use crate::error::Result;
-use crate::passes::raster;
-use crate::passes::{LOCAL_SIZE, ShadowInputs, spirv};
+use crate::passes::{LOCAL_SIZE, spirv};
 use crate::settings::{IssmParams, ShadowMode};
+use crate::stages::raster::compute as raster;
 use crate::vk::pipeline::{Binding, PipelineDesc, texel, uniform, wo};
 use crate::vk::{Buffer, ComputePipeline, Context, Grid, Recorder};
 use ash::vk::Format;

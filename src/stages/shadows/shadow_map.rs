@@ -1,4 +1,4 @@
-//! Baseline hard shadows (seed 003): a depth shadow map of the key light,
+//! Baseline hard shadows (after the Metal protein viewer paper): a depth shadow map of the key light,
 //! rendered by the compute sphere rasterizer into its own visibility buffer
 //! (`sm_raster`, sphere surface depth, tight orthographic fit from
 //! [`crate::camera::light_view`]), then `sm_shadow` compares each visible
@@ -25,12 +25,12 @@
 //! sphere (the id the rasterizer stores beside the depth) counts as
 //! unoccluded; everything else is the plain biased depth test.
 
+use super::ShadowInputs;
 use super::{Lookup, LookupKind, ShadowParams, ShadowSetup, ShadowTechnique};
 use crate::camera::Camera;
 use crate::error::Result;
-use crate::passes::ShadowInputs;
-use crate::passes::raster;
 use crate::settings::{ShadowMapParams, ShadowMode};
+use crate::stages::raster::compute as raster;
 use crate::vk::pipeline::{Binding, texel};
 use crate::vk::{Buffer, Context, Recorder};
 use bytemuck::{Pod, Zeroable};

@@ -1,4 +1,4 @@
-//! Deep shadow lists (seed 002): per-tile chunked lists of every sphere whose
+//! Deep shadow lists (after deep shadow maps on the GPU): per-tile chunked lists of every sphere whose
 //! light-space disk overlaps each texel of the key light's map, sorted by
 //! depth, walked with exact ray tests for hard or translucent shadows.
 //!
@@ -16,7 +16,7 @@
 //!
 //! The visibility function of a texel is kept uncompressed (transmittance
 //! after each entry) and in its epsilon-compressed piecewise-linear form
-//! (|V' - V| <= [`EPSILON`], seed 002 Eq. 1): nodes (depth, V) in two
+//! (|V' - V| <= [`EPSILON`], Eq. 1 of deep shadow maps on the GPU): nodes (depth, V) in two
 //! structure-of-arrays buffers of twice the entry capacity, the texel whose
 //! entries start at `head` owning node slots `2 * head ..` (`nodes` of them,
 //! in depth order; a step is two nodes at the same depth, before and after).
@@ -25,7 +25,8 @@
 //! the nodes: it tests the listed spheres exactly instead of interpolating
 //! V(z), which would need a per-texel depth, not a sphere's.
 //!
-//! Passes, each its own timestamp scope followed by a full barrier:
+//! Passes, each its own timestamp scope; the frame graph derives the
+//! barrier between them from what each reads and writes:
 //! - `deep_count`: clear, then count entries per texel (atomicAdd); large
 //!   footprints are cut into 8-row band jobs run by whole workgroups;
 //! - `deep_alloc`: per tile, a shared-memory prefix sum of texel counts and
@@ -44,12 +45,13 @@
 //! every list and counter buffer carries [`GUARD_WORDS`] guard words after
 //! its payload, filled once with [`GUARD_PATTERN`]; see [`DeepShadows::damaged_guards`].
 
+use super::ShadowInputs;
 use super::{FrameCheck, Lookup, LookupKind, ShadowParams, ShadowSetup, ShadowTechnique};
 use crate::camera::Camera;
 use crate::error::{Error, Result};
 use crate::gpu::consts;
-use crate::passes::bands::{BandArgs, BandCounters, BandPipelines};
-use crate::passes::{LOCAL_SIZE, ShadowInputs, spirv};
+use crate::passes::bands::{BandArgs, BandCounters, BandJob, BandPipelines};
+use crate::passes::{LOCAL_SIZE, spirv};
 use crate::settings::ShadowMode;
 use crate::vk::pipeline::{Binding, PipelineDesc, ro, rw, uniform, wo};
 use crate::vk::{Buffer, ComputePipeline, Context, Grid, Recorder};
@@ -646,12 +648,14 @@ impl DeepShadows {
             p.fill(&self.inline_bits, inline_words * 4, 0);
             self.args.steps(
                 p,
-                &self.count,
-                &splat,
-                &splat_bufs,
-                self.sphere_count,
-                &self.counters,
-                &band_counters,
+                &BandJob {
+                    pipes: &self.count,
+                    push: &splat,
+                    bindings: &splat_bufs,
+                    sphere_count: self.sphere_count,
+                    counters: &self.counters,
+                    layout: &band_counters,
+                },
             );
             Ok(())
         })?;
@@ -676,12 +680,14 @@ impl DeepShadows {
             // invocation and keeps one recorded sequence for both modes.
             self.args.steps(
                 p,
-                &self.fill,
-                &splat,
-                &splat_bufs,
-                self.sphere_count,
-                &self.counters,
-                &band_counters,
+                &BandJob {
+                    pipes: &self.fill,
+                    push: &splat,
+                    bindings: &splat_bufs,
+                    sphere_count: self.sphere_count,
+                    counters: &self.counters,
+                    layout: &band_counters,
+                },
             );
             Ok(())
         })?;

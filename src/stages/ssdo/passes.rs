@@ -1,26 +1,26 @@
-//! Semantic SSDO with one bounce at half resolution (seed 001):
+//! The SSDO passes (after the semantic SSDO paper), one bounce:
 //! `ssdo_prep` picks one representative pixel per 2x2 block and packs its
 //! record (glsl/ssdo_record.glsl: view distance, octahedral normal, region
 //! hashes, the key light it reflects). `ssdo` runs for every pixel when
 //! spheres are small on screen, else once per block for its representative,
 //! over the sample table's directions (a uniform buffer made once here);
-//! the blur (passes/blur.rs) smooths the result and shade upsamples the
+//! the blur (stages/ssdo/blur.rs) smooths the result and shade upsamples the
 //! blocks'. See glsl/ssdo.comp.
 
-use super::bands::{BandArgs, BandCounters, counters_buffer};
-use super::coverage::{TILE_BINDING, Tiles};
-use super::shade::{SURFACE_BINDINGS, ScreenInputs, Variants, variant};
-use super::shadows::{Lookup, LookupKind};
-use super::{LOCAL_SIZE, spirv};
 use crate::error::{Error, Result};
 use crate::gpu::consts::{S_ARGS, S_GROUPS, S_RUN};
+use crate::passes::bands::{BandArgs, BandCounters, counters_buffer};
+use crate::passes::screen::{SURFACE_BINDINGS, ScreenInputs};
+use crate::passes::tiles::{TILE_BINDING, Tiles};
+use crate::passes::variants::{TiledDispatch, Variants};
+use crate::passes::{LOCAL_SIZE, spirv};
+use crate::stages::shadows::{Lookup, LookupKind};
 use crate::vk::pipeline::{Binding, PipelineDesc, ro, rw, texel, uniform, wo};
 use crate::vk::{Buffer, ComputePipeline, Context, Grid, Recorder};
 use ash::vk::Format;
 use bytemuck::{Pod, Zeroable};
 
-/// Entries of the sample table (at most this many directions).
-pub const TABLE_SIZE: usize = 64;
+use super::record::{TABLE_SIZE, sample_table};
 
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
@@ -91,41 +91,40 @@ impl Taps {
     }
 }
 
-/// Radical inverse in base b (the Halton sequence), as glsl/ssdo_common.glsl.
-pub fn halton(mut i: u32, b: u32) -> f64 {
-    let (mut f, mut r) = (1.0, 0.0);
-    while i > 0 {
-        f /= b as f64;
-        r += f * (i % b) as f64;
-        i /= b;
-    }
-    r
+/// What `ssdo_prep` writes: the half-resolution records, the flags of the
+/// spheres seen (per-sphere receivers; any buffer the pass may write
+/// otherwise: unwritten) and the taps' block-ordered depth words.
+pub struct PrepIo<'a> {
+    pub records: &'a Buffer,
+    pub flags: &'a Buffer,
+    pub tap_depth: &'a Buffer,
 }
 
-/// The sample table: cosine-weighted tangent-space directions (Halton
-/// points in bases 2 and 3 through Malley's concentric disk mapping) and a
-/// base-5 Halton value for the near sample's distance.
-pub fn sample_table() -> [[f32; 4]; TABLE_SIZE] {
-    let mut t = [[0.0f32; 4]; TABLE_SIZE];
-    for (k, e) in t.iter_mut().enumerate() {
-        let i = k as u32 + 1;
-        let (u, v) = (halton(i, 2), halton(i, 3));
-        let (ox, oy) = (2.0 * u - 1.0, 2.0 * v - 1.0);
-        let (mut dx, mut dy) = (0.0, 0.0);
-        if ox != 0.0 || oy != 0.0 {
-            let pi4 = std::f64::consts::FRAC_PI_4;
-            let (r, th) = if ox.abs() > oy.abs() {
-                (ox, pi4 * (oy / ox))
-            } else {
-                (oy, 2.0 * pi4 - pi4 * (ox / oy))
-            };
-            dx = r * th.cos();
-            dy = r * th.sin();
-        }
-        let z = (1.0 - dx * dx - dy * dy).max(0.0).sqrt();
-        *e = [dx as f32, dy as f32, z as f32, halton(i, 5) as f32];
-    }
-    t
+/// What per-sphere `ssdo` reads (the records and tap depth `ssdo_prep`
+/// wrote) and writes (the spheres' buffers: list, counters, result).
+pub struct SphereIo<'a> {
+    pub records: &'a Buffer,
+    pub tap_depth: &'a Buffer,
+    pub spheres: &'a SphereBuffers,
+}
+
+/// What per-pixel or per-block `ssdo` reads (the records) and writes: the
+/// result and, per pixel, the blur's edge keys.
+pub struct SsdoIo<'a> {
+    pub records: &'a Buffer,
+    pub ao: &'a Buffer,
+    pub keys: &'a Buffer,
+}
+
+/// How a frame's SSDO passes run: the tap set, the region test, the
+/// receivers' grid (blocks or pixels; `ssdo_prep`: always blocks) and the
+/// tiles.
+#[derive(Clone, Copy)]
+pub struct Shape<'a> {
+    pub taps: Taps,
+    pub semantic: bool,
+    pub grid: (u32, u32),
+    pub tiles: Tiles<'a>,
 }
 
 pub struct SsdoPass {
@@ -287,11 +286,14 @@ impl SsdoPass {
         }
         self.prep.ensure_tiled(
             ctx,
-            Self::PREP_NAME,
-            variant(lookup.kind, false),
-            &Self::prep_bindings(lookup),
-            std::mem::size_of::<PrepPush>() as u32,
-            &Self::prep_constants(lookup, taps),
+            &PipelineDesc {
+                name: Self::PREP_NAME,
+                shader: lookup.kind.shader(false),
+                bindings: &Self::prep_bindings(lookup),
+                push_size: std::mem::size_of::<PrepPush>() as u32,
+                local_size: LOCAL_SIZE,
+                constants: &Self::prep_constants(lookup, taps),
+            },
             lists,
         )?;
         if taps.per_sphere() {
@@ -313,20 +315,26 @@ impl SsdoPass {
             }
             return self.sphere.ensure(
                 ctx,
-                Self::NAME,
-                spirv::SSDO_SPHERE_COMP,
-                &SPHERE_BINDINGS,
-                std::mem::size_of::<SsdoPush>() as u32,
-                &taps.sphere_constants(semantic),
+                &PipelineDesc {
+                    name: Self::NAME,
+                    shader: spirv::SSDO_SPHERE_COMP,
+                    bindings: &SPHERE_BINDINGS,
+                    push_size: std::mem::size_of::<SsdoPush>() as u32,
+                    local_size: LOCAL_SIZE,
+                    constants: &taps.sphere_constants(semantic),
+                },
             );
         }
         self.ssdo.ensure_tiled(
             ctx,
-            Self::NAME,
-            spirv::SSDO_COMP,
-            &SSDO_BINDINGS,
-            std::mem::size_of::<SsdoPush>() as u32,
-            &taps.constants(semantic),
+            &PipelineDesc {
+                name: Self::NAME,
+                shader: spirv::SSDO_COMP,
+                bindings: &SSDO_BINDINGS,
+                push_size: std::mem::size_of::<SsdoPush>() as u32,
+                local_size: LOCAL_SIZE,
+                constants: &taps.constants(semantic),
+            },
             lists,
         )
     }
@@ -347,59 +355,57 @@ impl SsdoPass {
     }
 
     /// `ssdo_prep`: the half-resolution records, and with per-sphere
-    /// receivers the flags of the spheres seen (into `flags`: the sphere
-    /// buffers' then; any buffer the pass may write otherwise) and the
-    /// taps' block-ordered depth words (into `tap_depth`).
-    #[allow(clippy::too_many_arguments)]
+    /// receivers the flags of the spheres seen and the taps' block-ordered
+    /// depth words.
     pub fn record_prep(
         &self,
         rec: &mut Recorder,
-        io: &ScreenInputs,
+        screen: &ScreenInputs,
         lookup: &Lookup,
-        (records, flags, tap_depth): (&Buffer, &Buffer, &Buffer),
+        io: &PrepIo,
         push: &PrepPush,
-        taps: Taps,
-        half: (u32, u32),
-        tiles: Tiles,
+        shape: &Shape,
     ) -> Result<()> {
-        let mut bufs = io.surface_buffers();
+        let mut bufs = screen.surface_buffers();
         bufs.extend([
-            ("Records", records),
-            ("Flags", flags),
-            ("TapDepth", tap_depth),
+            ("Records", io.records),
+            ("Flags", io.flags),
+            ("TapDepth", io.tap_depth),
         ]);
         bufs.extend(lookup.buffers.iter().copied());
+        let taps = shape.taps;
         rec.pass(Self::PREP_NAME, |p| {
             if taps.per_sphere() {
-                p.fill(flags, flags.size, 0);
+                p.fill(io.flags, io.flags.size, 0);
             }
             self.prep.dispatch_tiled(
                 p,
-                Self::PREP_NAME,
-                variant(lookup.kind, false),
-                &Self::prep_constants(lookup, taps),
-                push,
-                tiles,
-                (half, true),
-                &bufs,
+                &TiledDispatch {
+                    name: Self::PREP_NAME,
+                    shader: lookup.kind.shader(false),
+                    constants: &Self::prep_constants(lookup, taps),
+                    push,
+                    tiles: shape.tiles,
+                    size: shape.grid,
+                    half: true,
+                    bufs: &bufs,
+                },
             )
         })
     }
 
     /// `ssdo` with per-sphere receivers: the flagged spheres listed, the
     /// list's dispatch arguments, then one invocation per listed sphere
-    /// into `sb.ao`; the taps read `tap_depth` (what `ssdo_prep` wrote).
-    #[allow(clippy::too_many_arguments)]
+    /// into the spheres' result; the taps read the tap depth words.
     pub fn record_spheres(
         &self,
         rec: &mut Recorder,
-        io: &ScreenInputs,
-        (records, tap_depth): (&Buffer, &Buffer),
-        sb: &SphereBuffers,
+        screen: &ScreenInputs,
+        io: &SphereIo,
         push: &SsdoPush,
-        semantic: bool,
-        taps: Taps,
+        shape: &Shape,
     ) -> Result<()> {
+        let (sb, io_, semantic, taps) = (io.spheres, screen, shape.semantic, shape.taps);
         let missing = || Error::Internal("ssdo: per-sphere pipelines not prepared".into());
         let list = self.list.as_ref().ok_or_else(missing)?;
         let args = self.args.as_ref().ok_or_else(missing)?;
@@ -431,57 +437,56 @@ impl SsdoPass {
                 push,
                 Grid::Indirect(&sb.counters, LIST_COUNTERS.args_offset()),
                 &[
-                    ("GlobalsBlock", io.globals),
-                    ("recordTex", records),
+                    ("GlobalsBlock", io_.globals),
+                    ("recordTex", io.records),
                     ("SphereAo", &sb.ao),
                     ("List", &sb.list),
                     ("Counters", &sb.counters),
-                    ("sphereTex", io.spheres),
-                    ("attrTex", io.attrs),
-                    ("visWordTex", io.vis),
-                    ("tapDepthTex", tap_depth),
+                    ("sphereTex", io_.spheres),
+                    ("attrTex", io_.attrs),
+                    ("visWordTex", io_.vis),
+                    ("tapDepthTex", io.tap_depth),
                 ],
             );
             Ok(())
         })
     }
 
-    /// `ssdo`: ambient visibility + bounce per receiver into `ao` (and per
-    /// pixel the blur's edge keys into `keys`); `size`
-    /// is the receivers' grid (half resolution per block).
-    #[allow(clippy::too_many_arguments)]
+    /// `ssdo`: ambient visibility + bounce per receiver (the shape's grid:
+    /// blocks or pixels) into the result, and per pixel the blur's edge
+    /// keys.
     pub fn record_ssdo(
         &self,
         rec: &mut Recorder,
-        io: &ScreenInputs,
-        records: &Buffer,
-        (ao, keys): (&Buffer, &Buffer),
+        screen: &ScreenInputs,
+        io: &SsdoIo,
         push: &SsdoPush,
-        semantic: bool,
-        taps: Taps,
-        size: (u32, u32),
-        tiles: Tiles,
+        shape: &Shape,
     ) -> Result<()> {
+        let taps = shape.taps;
         rec.pass(Self::NAME, |p| {
             self.ssdo.dispatch_tiled(
                 p,
-                Self::NAME,
-                spirv::SSDO_COMP,
-                &taps.constants(semantic),
-                push,
-                tiles,
-                (size, taps.per_block()),
-                &[
-                    ("GlobalsBlock", io.globals),
-                    ("recordTex", records),
-                    ("SampleTable", &self.table),
-                    ("Ao", ao),
-                    ("visTex", io.vis),
-                    ("sphereTex", io.spheres),
-                    ("attrTex", io.attrs),
-                    ("visWordTex", io.vis),
-                    ("Keys", keys),
-                ],
+                &TiledDispatch {
+                    name: Self::NAME,
+                    shader: spirv::SSDO_COMP,
+                    constants: &taps.constants(shape.semantic),
+                    push,
+                    tiles: shape.tiles,
+                    size: shape.grid,
+                    half: taps.per_block(),
+                    bufs: &[
+                        ("GlobalsBlock", screen.globals),
+                        ("recordTex", io.records),
+                        ("SampleTable", &self.table),
+                        ("Ao", io.ao),
+                        ("visTex", screen.vis),
+                        ("sphereTex", screen.spheres),
+                        ("attrTex", screen.attrs),
+                        ("visWordTex", screen.vis),
+                        ("Keys", io.keys),
+                    ],
+                },
             )
         })
     }
@@ -500,100 +505,4 @@ impl SsdoPass {
     }
 }
 
-/// A record as the GPU packs it (glsl/ssdo_record.glsl), unpacked on the
-/// CPU for tests and debugging.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Record {
-    pub z: f32,
-    pub normal: [f32; 3],
-    pub region_a: u32,
-    pub region_b: u32,
-    pub sub: [u32; 2],
-    pub radiance: [f32; 3],
-    pub visibility: f32,
-    pub covered: bool,
-}
-
-/// 15-bit hash of a region id, as `region_hash` in GLSL.
-pub fn region_hash(r: u32) -> u32 {
-    r.wrapping_mul(2_654_435_761) >> 17
-}
-
-fn unpack_snorm16(u: u32) -> f32 {
-    (u as u16 as i16 as f32 / 32767.0).clamp(-1.0, 1.0)
-}
-
-/// Octahedral normal decode, as `unpack_normal` in GLSL.
-pub fn unpack_normal(u: u32) -> [f32; 3] {
-    let (ex, ey) = (unpack_snorm16(u & 0xFFFF), unpack_snorm16(u >> 16));
-    let mut n = [ex, ey, 1.0 - ex.abs() - ey.abs()];
-    if n[2] < 0.0 {
-        let (x, y) = (n[0], n[1]);
-        n[0] = (1.0 - y.abs()) * if x >= 0.0 { 1.0 } else { -1.0 };
-        n[1] = (1.0 - x.abs()) * if y >= 0.0 { 1.0 } else { -1.0 };
-    }
-    let l = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
-    [n[0] / l, n[1] / l, n[2] / l]
-}
-
-fn pack_snorm16(v: f32) -> u32 {
-    ((v.clamp(-1.0, 1.0) * 32767.0).round() as i16) as u16 as u32
-}
-
-/// Octahedral normal encode, as `pack_normal` in GLSL.
-pub fn pack_normal(n: [f32; 3]) -> u32 {
-    let l1 = n[0].abs() + n[1].abs() + n[2].abs();
-    let (mut x, mut y) = (n[0] / l1, n[1] / l1);
-    if n[2] < 0.0 {
-        let (ox, oy) = (x, y);
-        x = (1.0 - oy.abs()) * if ox >= 0.0 { 1.0 } else { -1.0 };
-        y = (1.0 - ox.abs()) * if oy >= 0.0 { 1.0 } else { -1.0 };
-    }
-    pack_snorm16(x) | (pack_snorm16(y) << 16)
-}
-
-fn unorm8(v: f32) -> u32 {
-    (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u32
-}
-
-/// RGBA8 packing, as `pack_rgba8` in GLSL (R in the low byte).
-pub fn pack_rgba8(c: [f32; 4]) -> u32 {
-    unorm8(c[0]) | (unorm8(c[1]) << 8) | (unorm8(c[2]) << 16) | (unorm8(c[3]) << 24)
-}
-
-impl Record {
-    /// Packs as `pack_record` in GLSL (tests feed the blur with it).
-    pub fn pack(&self) -> [u32; 4] {
-        if !self.covered {
-            return [f32::INFINITY.to_bits(), 0, 0, 0];
-        }
-        let [r, g, b] = self.radiance;
-        [
-            self.z.to_bits(),
-            pack_normal(self.normal),
-            (self.region_a & 0x7FFF)
-                | ((self.region_b & 0x7FFF) << 15)
-                | ((self.sub[0] | (self.sub[1] << 1)) << 30),
-            pack_rgba8([r, g, b, self.visibility]),
-        ]
-    }
-
-    pub fn unpack(t: [u32; 4]) -> Record {
-        let z = f32::from_bits(t[0]);
-        let c = t[3].to_le_bytes();
-        Record {
-            z,
-            covered: !z.is_infinite(),
-            normal: unpack_normal(t[1]),
-            region_a: t[2] & 0x7FFF,
-            region_b: (t[2] >> 15) & 0x7FFF,
-            sub: [(t[2] >> 30) & 1, t[2] >> 31],
-            radiance: [
-                c[0] as f32 / 255.0,
-                c[1] as f32 / 255.0,
-                c[2] as f32 / 255.0,
-            ],
-            visibility: c[3] as f32 / 255.0,
-        }
-    }
-}
+crate::impl_destroy!(SsdoPass);

@@ -3,8 +3,9 @@
 //! same 64-bit atomicMin into the visibility buffer), drawn with dynamic
 //! rendering and no attachments.
 
-use super::spirv;
+use super::compute::RasterIo;
 use crate::error::{Error, Result, VkContext};
+use crate::passes::spirv;
 use crate::vk::barrier::{Stage, Use};
 use crate::vk::descriptors::DescriptorArena;
 use crate::vk::{Buffer, Context, PassBuilder};
@@ -135,15 +136,14 @@ impl GraphicsRasterPass {
 
     /// Steps of the `raster` pass: clear `vis`, draw every sphere of view 0
     /// (the camera) at `w`x`h`.
-    pub fn steps<'b>(
-        &'b self,
-        p: &mut PassBuilder<'b>,
-        globals: &'b Buffer,
-        spheres: &'b Buffer,
-        sphere_count: u32,
-        vis: &'b Buffer,
-        (w, h): (u32, u32),
-    ) {
+    pub fn steps<'b>(&'b self, p: &mut PassBuilder<'b>, io: &RasterIo<'b>, (w, h): (u32, u32)) {
+        let RasterIo {
+            globals,
+            spheres,
+            sphere_count,
+            target: vis,
+            ..
+        } = *io;
         p.fill(vis, w as u64 * h as u64 * 8, u32::MAX);
         let uses = vec![
             Use {
@@ -267,3 +267,4 @@ impl GraphicsRasterPass {
         );
     }
 }
+crate::impl_destroy!(GraphicsRasterPass);

@@ -1,0 +1,280 @@
+//! Read-backs and state of a renderer (tests, debugging, the JSON
+//! record): [`super::Renderer::inspect`].
+
+use super::Renderer;
+use crate::camera::Camera;
+use crate::error::{Error, Result};
+use crate::semantic::LevelChoice;
+use crate::stages::raster::compute::ViewIndex;
+use crate::stages::shadows::deep::{DeepShadows, DeepStats};
+use crate::stages::shadows::issm::Issm;
+use crate::stages::shadows::osm::OpacityShadows;
+use crate::stages::shadows::shadow_map::ShadowMap;
+use crate::stages::ssdo::passes::Receivers;
+use std::collections::BTreeMap;
+
+/// A renderer seen from outside, borrowed.
+pub struct Inspect<'r, 'c> {
+    pub(super) r: &'r Renderer<'c>,
+}
+
+impl<'r> Inspect<'r, '_> {
+    pub fn sphere_count(&self) -> u32 {
+        self.r.res.sphere_count
+    }
+
+    /// Whether the key light's view has its sphere order for the current
+    /// spheres (sorted by the first frame that draws that view).
+    pub fn light_order_ready(&self) -> bool {
+        self.r.res.raster.compute.order_ready(ViewIndex::Light)
+    }
+
+    pub fn is_bgra(&self) -> bool {
+        self.r.res.bgra
+    }
+
+    /// Whether the light cache is on.
+    pub fn light_cache(&self) -> bool {
+        self.r.res.shadows.cache()
+    }
+
+    /// Whether the next frame reuses the light-space structure.
+    pub fn light_cached(&self) -> bool {
+        self.r.res.shadows.cached()
+    }
+
+    pub fn pixels(&self) -> u64 {
+        self.r.res.targets.pixels
+    }
+
+    /// Device memory of this renderer's buffers by class (bytes requested,
+    /// before allocator alignment): what a user sizing a data set needs to
+    /// know is which part grows with spheres, pixels or the light map.
+    pub fn memory_by_class(&self) -> BTreeMap<String, u64> {
+        let mut m = BTreeMap::new();
+        let mut add = |class: &str, bytes: u64| {
+            if bytes > 0 {
+                *m.entry(class.to_string()).or_insert(0) += bytes;
+            }
+        };
+        let (order, bands) = self.r.res.raster.memory();
+        add(
+            "scene",
+            self.r.res.spheres.size + self.r.res.attrs.size + self.r.res.colors.size + order,
+        );
+        add(
+            "uniforms",
+            self.r.slots.iter().map(|f| f.globals.size).sum::<u64>(),
+        );
+        let (vis, gbuffer, ssdo) = self.r.res.targets.memory();
+        add("visibility", vis + bands);
+        add("gbuffer", gbuffer);
+        add("ssdo", ssdo);
+        if let Some(b) = self.r.res.ssdo.sphere_buffers() {
+            add("ssdo_spheres", b.bytes());
+        }
+        for (class, bytes) in self.r.res.shadows.memory() {
+            add(class, bytes);
+        }
+        m
+    }
+
+    /// Visibility buffer (depth|id per pixel), without the guard words.
+    pub fn read_vis(&self) -> Result<Vec<u64>> {
+        self.r
+            .res
+            .targets
+            .raster
+            .vis
+            .download_pod(self.r.ctx, 0, self.pixels())
+    }
+
+    /// The guard words after the visibility buffer (must stay GUARD_PATTERN).
+    pub fn read_vis_guard(&self) -> Result<Vec<u64>> {
+        self.r.res.targets.raster.vis.download_pod(
+            self.r.ctx,
+            self.pixels(),
+            crate::stages::raster::compute::VIS_GUARD_WORDS,
+        )
+    }
+
+    /// The colour buffer: one RGBA8 word per pixel, or two (RGBA16) with
+    /// `look.color16`.
+    pub fn read_color(&self) -> Result<Vec<u32>> {
+        let words = if self.r.res.targets.shade.wide { 2 } else { 1 };
+        self.r
+            .res
+            .targets
+            .shade
+            .color
+            .download_pod(self.r.ctx, 0, self.pixels() * words)
+    }
+
+    /// Visible positions: xyz world (the shader's reconstruction from the
+    /// pixel ray and the sphere, redone on the CPU in f32), w the depth key
+    /// (-1 = background).
+    pub fn read_gpos(&self) -> Result<Vec<[f32; 4]>> {
+        let cam = &self.r.settings.camera;
+        let vis = self.read_vis()?;
+        Ok(vis
+            .iter()
+            .enumerate()
+            .map(|(i, &k)| {
+                if k == crate::gpu::VIS_EMPTY {
+                    return [0.0, 0.0, 0.0, -1.0];
+                }
+                let s = self.r.res.geom[(k & 0xFFFF_FFFF) as usize];
+                let win = self.r.settings.window();
+                let (x, y) = (i as u32 % win.width + win.x, i as u32 / win.width + win.y);
+                let c = glam::DVec3::new(s[0] as f64, s[1] as f64, s[2] as f64);
+                let p = crate::reference::visible_point(cam, x, y, c, s[3] as f64);
+                [
+                    p.x as f32,
+                    p.y as f32,
+                    p.z as f32,
+                    f32::from_bits((k >> 32) as u32),
+                ]
+            })
+            .collect())
+    }
+
+    /// The shadow and ao AOVs as shade wrote them (unorm16 each).
+    pub(crate) fn read_aov(&self) -> Result<Vec<u32>> {
+        if !self.r.res.targets.shade.aovs {
+            return Err(Error::Input(
+                "the shadow and ao AOVs are off: set RenderSettings::aovs or call set_aovs(true) \
+                 before rendering"
+                    .into(),
+            ));
+        }
+        self.r
+            .res
+            .targets
+            .shade
+            .aov
+            .download_pod(self.r.ctx, 0, self.pixels())
+    }
+
+    /// Key-light visibility per pixel (1 on background), 16-bit precision.
+    pub fn read_shadow(&self) -> Result<Vec<f32>> {
+        Ok(self
+            .read_aov()?
+            .into_iter()
+            .map(|a| (a & 0xFFFF) as f32 / 65535.0)
+            .collect())
+    }
+
+    /// Ambient visibility per pixel as shade used it (x: after the blur
+    /// and the upsample; the bounce, yzw, is not kept at full resolution
+    /// and reads 0), 16-bit precision; 1 without SSDO.
+    pub fn read_ambient(&self) -> Result<Vec<[f32; 4]>> {
+        Ok(self
+            .read_aov()?
+            .into_iter()
+            .map(|a| [(a >> 16) as f32 / 65535.0, 0.0, 0.0, 0.0])
+            .collect())
+    }
+
+    /// The last frame's tile lists (stages/raster/coverage.rs, TL_* words), whole.
+    pub fn read_tile_lists(&self) -> Result<Vec<u32>> {
+        let b = &self.r.res.targets.raster.tiles;
+        b.download_pod(self.r.ctx, 0, b.size / 4)
+    }
+
+    /// The last frame's per-sphere SSDO list (the spheres `ssdo_prep`
+    /// flagged, in list order) and the workgroups counted for it; `None`
+    /// without per-sphere buffers (tests).
+    pub fn read_sphere_list(&self) -> Result<Option<(Vec<u32>, u32)>> {
+        let Some(sb) = self.r.res.ssdo.sphere_buffers() else {
+            return Ok(None);
+        };
+        let counters: Vec<u32> = sb.counters.download_pod(self.r.ctx, 0, 4)?;
+        let n = counters[crate::gpu::consts::S_LISTED as usize];
+        if n > sb.spheres {
+            return Err(Error::Internal(format!(
+                "per-sphere list: {n} entries for {} spheres",
+                sb.spheres
+            )));
+        }
+        let list = sb.list.download_pod(self.r.ctx, 0, n as u64)?;
+        Ok(Some((
+            list,
+            counters[crate::gpu::consts::S_GROUPS as usize],
+        )))
+    }
+
+    /// The half-resolution SSDO records of the last frame (tests).
+    pub fn read_records(&self) -> Result<Vec<crate::stages::ssdo::record::Record>> {
+        let (hw, hh) = self.r.res.targets.half();
+        let raw: Vec<[u32; 4]> =
+            self.r
+                .res
+                .targets
+                .ssdo
+                .records
+                .download_pod(self.r.ctx, 0, hw as u64 * hh as u64)?;
+        Ok(raw
+            .into_iter()
+            .map(crate::stages::ssdo::record::Record::unpack)
+            .collect())
+    }
+
+    /// The ISSM light view and patch half-size t, when ISSM is active.
+    pub fn issm_info(&self) -> Option<(Camera, u32)> {
+        self.r
+            .res
+            .shadows
+            .technique::<Issm>()
+            .map(|s| (s.light, s.push.t as u32))
+    }
+
+    pub fn read_issm(&self) -> Result<Option<Vec<u64>>> {
+        self.r
+            .res
+            .shadows
+            .technique::<Issm>()
+            .map(|s| s.read_map(self.r.ctx))
+            .transpose()
+    }
+
+    /// The baseline depth shadow map, when `--shadows sm-pcf` is active.
+    pub fn shadow_map(&self) -> Option<&'r ShadowMap> {
+        self.r.res.shadows.technique::<ShadowMap>()
+    }
+
+    /// The baseline opacity shadow maps, when `--shadows osm` is active.
+    pub fn opacity_shadows(&self) -> Option<&'r OpacityShadows> {
+        self.r.res.shadows.technique::<OpacityShadows>()
+    }
+
+    /// The deep shadow lists, when `--shadows deep` is active.
+    pub fn deep(&self) -> Option<&'r DeepShadows> {
+        self.r.res.shadows.technique::<DeepShadows>()
+    }
+
+    /// Stats of the last frame's deep lists (after any pool growth).
+    pub fn deep_stats(&self) -> Option<DeepStats> {
+        self.deep().and_then(|d| d.stats.clone())
+    }
+
+    /// SSDO's far search radius for the current camera (world units): the
+    /// reach of its occlusion (the AO reference uses the same).
+    pub fn ssdo_far_radius(&self) -> f64 {
+        self.r.res.ssdo_params(&self.r.settings).ssdo.r_far as f64
+    }
+
+    /// Who receives SSDO for the current camera: per 2x2 block (spheres
+    /// large on screen), per pixel, or per visible sphere (a few pixels
+    /// wide).
+    pub fn ssdo_receivers(&self) -> Receivers {
+        self.r.res.ssdo_params(&self.r.settings).taps.receivers
+    }
+
+    /// The semantic level choice of this frame, when SSDO runs.
+    pub fn level_choice(&self) -> Option<LevelChoice> {
+        self.r
+            .settings
+            .ssdo_on()
+            .then(|| self.r.res.ssdo_params(&self.r.settings).choice)
+    }
+}

@@ -1,0 +1,213 @@
+//! Frames: recorded into a frame slot, submitted, waited for, their
+//! timestamps read; the deep lists may ask for a frame again.
+
+use super::{Renderer, graph};
+use crate::error::{Error, Result};
+use crate::settings::RasterMode;
+use crate::stages::raster::compute::ViewIndex;
+use crate::stages::shadows::FrameCheck;
+use crate::vk::{PassTimes, Recorder};
+use ash::vk;
+
+/// Frames the deep lists may ask to render again (pool growth) before the
+/// frame fails.
+const MAX_RETRIES: usize = 4;
+
+impl Renderer<'_> {
+    /// Sorts the views' sphere orders that are stale (the view turned far,
+    /// or the spheres moved) before a frame draws them: the camera's when
+    /// the compute rasterizer draws it, the light's when the technique
+    /// draws that view (others never pay for it).
+    fn ensure_orders(&mut self) -> Result<()> {
+        let views = [
+            (
+                ViewIndex::Camera,
+                self.settings.camera.dir,
+                self.settings.raster == RasterMode::Compute,
+            ),
+            (
+                ViewIndex::Light,
+                self.settings.light,
+                self.settings.shadows.draws_light_view(),
+            ),
+        ];
+        for (view, dir, drawn) in views {
+            if drawn && self.res.raster.compute.order_stale(view, dir) {
+                // Frames in flight read the order.
+                self.wait_idle()?;
+                let t = std::time::Instant::now();
+                self.res
+                    .raster
+                    .compute
+                    .set_order(self.ctx, view, &self.res.geom, dir)?;
+                log::debug!(
+                    "{view:?} sphere order sorted in {:.1} ms",
+                    t.elapsed().as_secs_f64() * 1e3
+                );
+            }
+        }
+        Ok(())
+    }
+
+    /// Renders one frame and waits for it; when the active technique asks
+    /// (the deep lists grew their pool), renders it again.
+    pub fn render_frame(&mut self) -> Result<PassTimes> {
+        for _ in 0..=MAX_RETRIES {
+            let slot = self.submit()?;
+            let times = self
+                .finish_slot(slot)?
+                .ok_or_else(|| Error::Internal("frame results missing".into()))?;
+            if self.after_frame()? == FrameCheck::Done {
+                return Ok(times);
+            }
+        }
+        Err(Error::DeviceLimit(
+            "deep shadow list pool still overflows after growing it".into(),
+        ))
+    }
+
+    fn after_frame(&mut self) -> Result<FrameCheck> {
+        self.res.shadows.after_frame(self.ctx)
+    }
+
+    /// Records and submits the next frame without waiting for it; returns
+    /// the per-pass times of the frame that used this slot before (already
+    /// finished, or waited for: at most one other frame stays in flight).
+    /// A technique that checks each frame (deep lists) makes this wait like
+    /// `render_frame`.
+    pub fn render_frame_pipelined(&mut self) -> Result<Option<PassTimes>> {
+        if self.res.shadows.checks_frames() {
+            return self.render_frame().map(Some);
+        }
+        let slot = self.next_slot;
+        let previous = self.finish_slot(slot)?;
+        self.submit()?;
+        Ok(previous)
+    }
+
+    /// Waits for every frame in flight.
+    pub fn wait_idle(&mut self) -> Result<()> {
+        for i in 0..self.slots.len() {
+            self.slots[i].wait(self.ctx)?;
+        }
+        Ok(())
+    }
+
+    /// Waits for the frame last submitted with `slot` and reads its timings.
+    fn finish_slot(&mut self, slot: usize) -> Result<Option<PassTimes>> {
+        let fs = &mut self.slots[slot];
+        fs.wait(self.ctx)?;
+        if !fs.pending {
+            return Ok(None);
+        }
+        fs.pending = false;
+        fs.profiler.results(self.ctx).map(Some)
+    }
+
+    /// Records and submits one frame in the next slot (whose previous frame
+    /// must have finished); returns the slot.
+    fn submit(&mut self) -> Result<usize> {
+        self.ensure_orders()?;
+        let ctx = self.ctx;
+        let dev = &ctx.device;
+        let slot = self.next_slot;
+        self.next_slot = (slot + 1) % self.slots.len();
+        let Renderer {
+            settings,
+            slots,
+            res,
+            ..
+        } = self;
+        res.prepare(ctx, settings)?;
+        let fs = &mut slots[slot];
+        fs.wait(ctx)?;
+        match fs.globals.mapped_mut() {
+            Some(m) => m.copy_from_slice(bytemuck::bytes_of(&res.globals)),
+            None => fs
+                .globals
+                .upload(ctx, 0, bytemuck::bytes_of(&res.globals))?,
+        }
+        // This slot's previous frame finished: its descriptor sets are free.
+        fs.arena.reset(ctx)?;
+        let cmd = fs.cmd;
+        // SAFETY: the slot's previous submission finished (its fence).
+        unsafe {
+            dev.reset_command_buffer(cmd, vk::CommandBufferResetFlags::empty())
+                .map_err(|result| Error::Vk {
+                    call: "vkResetCommandBuffer",
+                    result,
+                })?;
+            let begin = vk::CommandBufferBeginInfo::default()
+                .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
+            dev.begin_command_buffer(cmd, &begin)
+                .map_err(|result| Error::Vk {
+                    call: "vkBeginCommandBuffer",
+                    result,
+                })?;
+        }
+        fs.profiler.begin_frame(ctx, cmd);
+        let recorded = {
+            let mut rec = Recorder::new(ctx, cmd, &mut fs.arena, Some(&mut fs.profiler));
+            rec.restrict_to(graph::pass_names());
+            res.record_frame(settings, &fs.globals, &mut rec)
+        };
+        // SAFETY: cmd is in the recording state.
+        unsafe { dev.end_command_buffer(cmd) }.map_err(|result| Error::Vk {
+            call: "vkEndCommandBuffer",
+            result,
+        })?;
+        recorded?;
+        // The light-space structure this frame builds serves the next ones
+        // until something it depends on changes.
+        res.shadows.recorded();
+        let cmds = [cmd];
+        let submit = [vk::SubmitInfo::default().command_buffers(&cmds)];
+        // SAFETY: the fence is unsignalled only by this submission.
+        unsafe {
+            dev.reset_fences(&[fs.fence]).map_err(|result| Error::Vk {
+                call: "vkResetFences",
+                result,
+            })?;
+            dev.queue_submit(ctx.queue, &submit, fs.fence)
+                .map_err(|result| Error::Vk {
+                    call: "vkQueueSubmit",
+                    result,
+                })?;
+        }
+        fs.pending = true;
+        Ok(slot)
+    }
+
+    /// Records the frame into a throwaway command buffer that is never
+    /// submitted and returns the recorder's log of steps and barriers
+    /// (tests check it with [`crate::vk::barrier::check_hazards`]).
+    pub fn frame_log(&mut self) -> Result<Vec<crate::vk::barrier::Event>> {
+        self.ensure_orders()?;
+        let ctx = self.ctx;
+        self.res.prepare(ctx, &self.settings)?;
+        let cmd = ctx.command_buffer("frame log")?;
+        let mut arena = crate::vk::descriptors::DescriptorArena::default();
+        let begin = vk::CommandBufferBeginInfo::default();
+        // SAFETY: a fresh command buffer, freed below, never submitted.
+        let result = unsafe { ctx.device.begin_command_buffer(cmd, &begin) }
+            .map_err(|result| Error::Vk {
+                call: "vkBeginCommandBuffer",
+                result,
+            })
+            .and_then(|_| {
+                let mut rec = Recorder::new(ctx, cmd, &mut arena, None);
+                rec.restrict_to(graph::pass_names());
+                rec.keep_log();
+                self.res
+                    .record_frame(&self.settings, &self.slots[0].globals, &mut rec)?;
+                Ok(rec.take_log())
+            });
+        // SAFETY: the object is not used by any pending GPU work (waited for above / by the owner).
+        unsafe {
+            let _ = ctx.device.end_command_buffer(cmd);
+            ctx.device.free_command_buffers(ctx.command_pool, &[cmd]);
+        }
+        arena.destroy(ctx);
+        result
+    }
+}

@@ -1,0 +1,136 @@
+//! The raster stage: the camera's visibility buffer (64-bit depth|id per
+//! pixel) from the compute rasterizer ([`compute`], which also draws the
+//! light-space maps) or the graphics baseline ([`graphics`]), and the tile
+//! lists of the covered regions ([`coverage`]) the per-pixel passes after
+//! it run on.
+
+pub mod compute;
+pub mod coverage;
+pub mod graphics;
+
+use crate::error::Result;
+use crate::passes::tiles::{Tiles, lists_buffer};
+use crate::vk::guard::Destroy;
+use crate::vk::{Buffer, Context, Recorder};
+use compute::{RasterIo, RasterPass, ViewIndex};
+use coverage::CoveragePass;
+use graphics::GraphicsRasterPass;
+
+/// The stage's screen targets: the visibility buffer (8 B/px + guard
+/// words) and the tile lists (4 B per 256 pixels).
+pub struct RasterTargets {
+    pub vis: Buffer,
+    pub tiles: Buffer,
+}
+
+impl RasterTargets {
+    pub fn new(ctx: &Context, width: u32, height: u32) -> Result<Self> {
+        let pixels = width as u64 * height as u64;
+        let vis = ctx.guard(compute::vis_buffer(ctx, "visibility", pixels)?);
+        let tiles = lists_buffer(ctx, width, height)?;
+        Ok(RasterTargets {
+            vis: vis.keep(),
+            tiles,
+        })
+    }
+
+    pub fn bytes(&self) -> u64 {
+        self.vis.size + self.tiles.size
+    }
+
+    pub fn destroy(&mut self, ctx: &Context) {
+        self.vis.destroy(ctx);
+        self.tiles.destroy(ctx);
+    }
+}
+
+crate::impl_destroy!(RasterTargets);
+
+/// What the stage draws: the spheres, seen by the camera (`globals`).
+pub struct RasterInputs<'a> {
+    pub globals: &'a Buffer,
+    pub spheres: &'a Buffer,
+    pub sphere_count: u32,
+    pub perspective: bool,
+    /// The image (graphics baseline) and the frame's buffers (compute:
+    /// the window) in pixels.
+    pub image: (u32, u32),
+    pub size: (u32, u32),
+}
+
+pub struct RasterStage {
+    /// The compute rasterizer (also the light views' and its sphere orders).
+    pub compute: RasterPass,
+    coverage: CoveragePass,
+    /// The vertex/fragment baseline, when `--raster graphics`.
+    graphics: Option<GraphicsRasterPass>,
+}
+
+impl RasterStage {
+    pub fn new(ctx: &Context, graphics: bool) -> Result<Self> {
+        let graphics = ctx.guard(if graphics {
+            Some(GraphicsRasterPass::new(ctx)?)
+        } else {
+            None
+        });
+        let compute = ctx.guard(RasterPass::new(ctx)?);
+        let coverage = CoveragePass::new(ctx)?;
+        Ok(RasterStage {
+            compute: compute.keep(),
+            coverage,
+            graphics: graphics.keep(),
+        })
+    }
+
+    /// `raster`: the camera's visibility buffer.
+    pub fn record(&self, rec: &mut Recorder, io: &RasterInputs, t: &RasterTargets) -> Result<()> {
+        let (w, h) = io.size;
+        let target = RasterIo {
+            globals: io.globals,
+            spheres: io.spheres,
+            sphere_count: io.sphere_count,
+            target: &t.vis,
+            texels: w as u64 * h as u64,
+        };
+        rec.pass(RasterPass::NAME, |p| {
+            match &self.graphics {
+                Some(g) => g.steps(p, &target, io.image),
+                None => self
+                    .compute
+                    .steps(p, &target, ViewIndex::Camera, io.perspective)?,
+            }
+            Ok(())
+        })
+    }
+
+    /// `coverage` (with tile lists): the tiles the per-pixel passes run.
+    pub fn record_tiles<'a>(
+        &self,
+        rec: &mut Recorder,
+        globals: &Buffer,
+        t: &'a RasterTargets,
+        size: (u32, u32),
+        lists: bool,
+    ) -> Result<Tiles<'a>> {
+        if !lists {
+            return Ok(Tiles::All);
+        }
+        rec.pass(CoveragePass::NAME, |p| {
+            self.coverage.steps(p, globals, &t.vis, &t.tiles, size);
+            Ok(())
+        })?;
+        Ok(Tiles::Lists(&t.tiles))
+    }
+
+    /// Device memory of the sphere orders (scene) and the rasterizer's
+    /// band buffers (visibility).
+    pub fn memory(&self) -> (u64, u64) {
+        (self.compute.order_bytes(), self.compute.memory_bytes())
+    }
+
+    pub fn destroy(&mut self, ctx: &Context) {
+        self.compute.destroy(ctx);
+        self.coverage.destroy(ctx);
+        self.graphics.destroy_with(ctx);
+    }
+}

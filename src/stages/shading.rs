@@ -1,0 +1,300 @@
+//! `shade`: the one full-resolution pass after the rasterizer (see
+//! glsl/shade.comp): visible surface from (pixel ray, sphere id), the active
+//! technique's key-light lookup, the SSDO result upsampled, three-point
+//! lighting into the colour buffer, shadow and ao AOVs. One shader compiled
+//! per technique (the lookup's bindings differ), mode switches as
+//! specialization constants; pipelines are made the first time a
+//! combination is used and kept.
+
+use super::shadows::{Lookup, LookupKind};
+use super::ssdo::{SsdoOutputs, SsdoParams};
+use crate::error::Result;
+use crate::passes::LOCAL_SIZE;
+use crate::passes::screen::{SURFACE_BINDINGS, ScreenInputs};
+use crate::passes::tiles::{TILE_BINDING, Tiles};
+use crate::passes::variants::{TiledDispatch, Variants};
+use crate::settings::RenderSettings;
+use crate::vk::pipeline::{Binding, PipelineDesc, texel, wo};
+use crate::vk::{Buffer, Context, Recorder};
+use ash::vk::Format;
+use bytemuck::{Pod, Zeroable};
+
+/// Fraction of the key light's diffuse term kept in full shadow: the
+/// lighting rule of the ISSM paper (a fully shadowed point keeps ambient
+/// and this fraction of the key's diffuse term, and loses its specular).
+pub const SHADOW_DIFFUSE: f32 = 0.05;
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct ShadePush {
+    /// Fraction of the key light's diffuse term kept in full shadow.
+    pub shadow_diffuse: f32,
+    /// Silhouette line width in pixels (with ShadeMode::outline).
+    pub outline_px: f32,
+    /// Depth cue from view_z fog_near to fog_far (used with ShadeMode::fog).
+    pub fog_near: f32,
+    pub fog_far: f32,
+    /// A neighbour nearer by more than this (world units) makes a line.
+    pub edge_dz: f32,
+    /// Hierarchy level whose region changes make lines.
+    pub level: u32,
+    /// Depth tolerance (world units) of the SSDO upsample.
+    pub ao_sigma_z: f32,
+    /// 1: the upsample compares regions at the records' level b, 0: level a.
+    pub ao_level_b: u32,
+}
+
+pub struct ShadePass {
+    variants: Variants,
+}
+
+/// The stage's screen targets: colour (RGBA8 or BGRA8; RGBA16 in two
+/// words when `wide`) and the shadow|ao AOVs (one unorm16 each per pixel;
+/// one word, never written, when they are off).
+pub struct ShadeTargets {
+    pub color: Buffer,
+    pub aov: Buffer,
+    pub aovs: bool,
+    pub wide: bool,
+}
+
+impl ShadeTargets {
+    pub fn new(ctx: &Context, pixels: u64, aovs: bool, wide: bool) -> Result<Self> {
+        let color = ctx.guard(Buffer::storage(
+            ctx,
+            "colour",
+            pixels * if wide { 8 } else { 4 },
+        )?);
+        let aov = Buffer::storage(ctx, "shadow and ao", if aovs { pixels * 4 } else { 4 })?;
+        Ok(ShadeTargets {
+            color: color.keep(),
+            aov,
+            aovs,
+            wide,
+        })
+    }
+
+    pub fn bytes(&self) -> u64 {
+        self.color.size + self.aov.size
+    }
+
+    pub fn destroy(&mut self, ctx: &Context) {
+        self.color.destroy(ctx);
+        self.aov.destroy(ctx);
+    }
+}
+
+crate::impl_destroy!(ShadeTargets);
+
+/// What `shade` reads in a frame.
+pub struct ShadeInputs<'a> {
+    pub screen: &'a ScreenInputs<'a>,
+    pub lookup: &'a Lookup<'a>,
+    /// The SSDO stage's outputs (its targets, unread, without SSDO).
+    pub ssdo: &'a SsdoOutputs<'a>,
+    pub tiles: Tiles<'a>,
+}
+
+/// The stage's pipeline choice and push constants for one frame, computed
+/// in one place ([`ShadeFrame::new`]).
+#[derive(Clone, Copy, Debug)]
+pub struct ShadeFrame {
+    pub mode: ShadeMode,
+    pub push: ShadePush,
+}
+
+impl ShadeFrame {
+    /// From the settings, the frame's key-light lookup and SSDO parameters
+    /// (whether SSDO runs or not: the upsample's tolerances and the
+    /// outlines' level come from them), the swapchain's channel order and
+    /// the typical sphere radius (world units).
+    pub fn new(
+        settings: &RenderSettings,
+        lookup: &Lookup,
+        ssdo: &SsdoParams,
+        bgra: bool,
+        typical_radius: f64,
+    ) -> Self {
+        let on = settings.ssdo_on();
+        let outline_px = outline_px(settings);
+        let fog = settings.look.fog;
+        ShadeFrame {
+            mode: ShadeMode {
+                kind: lookup.kind,
+                soft: lookup.soft,
+                ao: on,
+                ao_half: on && ssdo.taps.per_block(),
+                ao_sphere: on && ssdo.taps.per_sphere(),
+                swap_rb: bgra,
+                aovs: settings.aovs,
+                core_only: lookup.core_only(),
+                quad: lookup.quad(),
+                outline: outline_px > 0,
+                wide: settings.look.color16,
+                fog: fog.is_some_and(|f| f.0[1] > f.0[0]),
+                perspective: settings.camera.fov_deg.is_some(),
+                lists: settings.tile_lists && outline_px == 0,
+            },
+            push: ShadePush {
+                shadow_diffuse: SHADOW_DIFFUSE,
+                outline_px: outline_px as f32,
+                fog_near: fog.map_or(0.0, |f| f.0[0] as f32),
+                fog_far: fog.map_or(0.0, |f| f.0[1] as f32),
+                // a step of a sphere radius between neighbours is an edge
+                edge_dz: typical_radius as f32,
+                level: ssdo.main_level(),
+                ao_sigma_z: ssdo.blur.sigma_z,
+                ao_level_b: ssdo.blur.level_b,
+            },
+        }
+    }
+}
+
+/// Silhouette line width in buffer pixels.
+pub fn outline_px(settings: &RenderSettings) -> u32 {
+    settings.look.outline.round() as u32
+}
+
+/// Everything that picks a shade pipeline.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ShadeMode {
+    pub kind: LookupKind,
+    pub soft: bool,
+    pub ao: bool,
+    /// The SSDO result is per 2x2 block: upsample it.
+    pub ao_half: bool,
+    /// The SSDO result is per sphere: weight it by the pixel's normal.
+    pub ao_sphere: bool,
+    pub swap_rb: bool,
+    /// Write the shadow and ao AOVs.
+    pub aovs: bool,
+    /// ISSM reads only its 3x3 core ([`Lookup::core_only`]).
+    pub core_only: bool,
+    /// ISSM reads only the 2x2 texels around the point ([`Lookup::quad`]).
+    pub quad: bool,
+    /// Silhouette lines.
+    pub outline: bool,
+    /// RGBA16 colour.
+    pub wide: bool,
+    /// Depth cue: the push constants' fog range is not empty (the one place
+    /// that decides; the shader reads the range only then).
+    pub fog: bool,
+    /// Perspective camera.
+    pub perspective: bool,
+    /// Run on the tile lists (not with silhouette lines, which reach from
+    /// covered pixels into background regions).
+    pub lists: bool,
+}
+
+impl ShadeMode {
+    fn constants(&self) -> [u32; 13] {
+        let use_shadow = !matches!(self.kind, LookupKind::None | LookupKind::Screen);
+        [
+            self.soft as u32,
+            self.ao as u32,
+            self.swap_rb as u32,
+            use_shadow as u32,
+            self.aovs as u32,
+            self.core_only as u32,
+            self.outline as u32,
+            self.wide as u32,
+            self.ao_half as u32,
+            self.ao_sphere as u32,
+            self.fog as u32,
+            self.perspective as u32,
+            self.quad as u32,
+        ]
+    }
+}
+
+const SHADE_OUTPUTS: [Binding; 5] = [
+    texel("aoTex", Format::R32_UINT),
+    texel("recordTex", Format::R32G32B32A32_UINT),
+    wo("Color"),
+    wo("Aov"),
+    texel("sphereAoTex", Format::R32G32B32A32_UINT),
+];
+
+impl ShadePass {
+    pub const NAME: &'static str = "shade";
+
+    pub fn new() -> Self {
+        ShadePass {
+            variants: Variants::default(),
+        }
+    }
+
+    fn bindings(lookup: &Lookup) -> Vec<Binding> {
+        let mut b: Vec<Binding> = SURFACE_BINDINGS.to_vec();
+        b.extend_from_slice(&SHADE_OUTPUTS);
+        b.push(TILE_BINDING);
+        b.extend_from_slice(lookup.bindings);
+        b
+    }
+
+    /// Makes the pipelines of `mode` if this is their first use.
+    pub fn prepare(&mut self, ctx: &Context, mode: ShadeMode, lookup: &Lookup) -> Result<()> {
+        self.variants.ensure_tiled(
+            ctx,
+            &PipelineDesc {
+                name: Self::NAME,
+                shader: mode.kind.shader(true),
+                bindings: &Self::bindings(lookup),
+                push_size: std::mem::size_of::<ShadePush>() as u32,
+                local_size: LOCAL_SIZE,
+                constants: &mode.constants(),
+            },
+            mode.lists,
+        )
+    }
+
+    /// `shade` into the targets, from the SSDO outputs (upsampling the
+    /// per-block result with its records, or weighting the per-sphere
+    /// result; bound and unread without SSDO).
+    pub fn record(
+        &self,
+        rec: &mut Recorder,
+        io: &ShadeInputs,
+        targets: &ShadeTargets,
+        frame: &ShadeFrame,
+        size: (u32, u32),
+    ) -> Result<()> {
+        let mode = frame.mode;
+        let tiles = if mode.lists { io.tiles } else { Tiles::All };
+        let mut bufs = io.screen.surface_buffers();
+        bufs.extend([
+            ("aoTex", io.ssdo.ao),
+            ("recordTex", io.ssdo.records),
+            ("Color", &targets.color),
+            ("Aov", &targets.aov),
+            ("sphereAoTex", io.ssdo.sphere_ao.unwrap_or(io.ssdo.records)),
+        ]);
+        bufs.extend(io.lookup.buffers.iter().copied());
+        rec.pass(Self::NAME, |p| {
+            self.variants.dispatch_tiled(
+                p,
+                &TiledDispatch {
+                    name: Self::NAME,
+                    shader: mode.kind.shader(true),
+                    constants: &mode.constants(),
+                    push: &frame.push,
+                    tiles,
+                    size,
+                    half: false,
+                    bufs: &bufs,
+                },
+            )
+        })
+    }
+
+    pub fn destroy(&mut self, ctx: &Context) {
+        self.variants.destroy(ctx);
+    }
+}
+
+impl Default for ShadePass {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+crate::impl_destroy!(ShadePass);
