@@ -8,12 +8,7 @@
 
 layout(local_size_x = 1) in;
 layout(set = 0, binding = 0) buffer Counters { uint counters[]; };
-layout(push_constant) uniform Push {
-    uint job_capacity;
-    uint requested; // word: bands requested (atomic counter of the splat)
-    uint run;       // word: bands that fit and will run
-    uint args;      // words args..args+2: vkCmdDispatchIndirect arguments
-} pc;
+#include "push/band_args.glsl"
 
 void main() {
     uint n = min(counters[pc.requested], pc.job_capacity);

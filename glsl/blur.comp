@@ -14,12 +14,7 @@
 #include "ssdo_record.glsl"
 
 layout(local_size_x_id = 0) in;
-layout(constant_id = 1) const uint AXIS = 0;
-layout(constant_id = 2) const bool SEMANTIC = true;
-// Taps on each side, in pixels or (HALF) blocks: a constant so the loop unrolls and its
-// spatial weights fold (lavapipe runs a loop to its slowest lane).
-layout(constant_id = 3) const int RADIUS = 2;
-layout(constant_id = 4) const bool HALF = true;
+#include "spec/blur.glsl"
 
 layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
 layout(set = 0, binding = 1) uniform usamplerBuffer recordTex;
@@ -27,13 +22,9 @@ layout(set = 0, binding = 2) uniform usamplerBuffer inTex;
 layout(set = 0, binding = 3) writeonly buffer Out { uint outv[]; };
 layout(set = 0, binding = 4) uniform usamplerBuffer keyTex;  // per pixel: blur_key
 
-layout(push_constant) uniform Push {
-    float sigma_z;   // depth tolerance (world units)
-    uint level_b;    // HALF: region test at the records' level b (else a)
-    uint pad0, pad1;
-} pc;
+#include "push/blur.glsl"
 
-#define TILE_LIST_ID 5
+#define TILE_LIST_ID SPEC_NEXT_ID
 #define TILE_LIST_BINDING 5
 #include "tiles.glsl"
 

@@ -19,9 +19,7 @@ layout(set = 0, binding = 1) buffer Texels { DeepTexel texels[]; };
 layout(set = 0, binding = 2) writeonly buffer Tiles { DeepTile tiles[]; };
 layout(set = 0, binding = 3) buffer Counters { uint counters[]; };
 
-layout(push_constant) uniform Push {
-    uint chunk_capacity; // chunks in the pool
-} pc;
+#include "push/deep_alloc.glsl"
 
 shared uint s_scan[64];
 shared uint s_first;

@@ -52,10 +52,7 @@ layout(set = 0, binding = 9) writeonly buffer NodeVisEven { float n_vis0[]; };
 layout(set = 0, binding = 10) writeonly buffer NodeDepthOdd { float n_depth1[]; };
 layout(set = 0, binding = 11) writeonly buffer NodeVisOdd { float n_vis1[]; };
 
-layout(push_constant) uniform Push {
-    float eps;           // compression tolerance on V
-    uint entry_capacity; // entries of the list arrays
-} pc;
+#include "push/deep_sort.glsl"
 
 bool before(float da, uint ia, float db, uint ib) {
     return da < db || (da == db && ia < ib);

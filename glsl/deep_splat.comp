@@ -39,14 +39,7 @@ layout(set = 0, binding = 9) buffer Inline { uint inline_bits[]; };
 
 layout(constant_id = 2) const uint MODE = DEEP_COUNT;
 
-layout(push_constant) uniform Push {
-    uint sphere_count;
-    uint big_area;       // footprints above this many texels go to band jobs
-    uint job_capacity;   // entries of jobs[]
-    uint entry_capacity; // entries of the list arrays (pool chunks * 64)
-    float opacity;       // alpha of every entry
-    uint pad0, pad1, pad2;
-} pc;
+#include "push/deep_splat.glsl"
 
 Footprint band_footprint(uint id) { return deep_footprint(g.light, spheres[id]); }
 

@@ -15,9 +15,7 @@ layout(set = 0, binding = 1) uniform usamplerBuffer issmTex; // R32UI view: even
 layout(set = 0, binding = 2) uniform samplerBuffer sphereTex;
 layout(set = 0, binding = 3) writeonly buffer Resolved { vec4 resolved[]; };
 
-layout(push_constant) uniform Push {
-    uint texels;
-} pc;
+#include "push/issm_resolve.glsl"
 
 void main() {
     uint i = FLAT_ID;

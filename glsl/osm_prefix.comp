@@ -12,11 +12,7 @@ layout(local_size_x_id = 0) in;
 
 layout(set = 0, binding = 0) buffer Opacity { uint opacity[]; };
 
-layout(push_constant) uniform Push {
-    uint texels;     // N * N
-    uint slices;
-    float inv_scale; // 2^-16: fixed point -> optical depth
-} pc;
+#include "push/osm_prefix.glsl"
 
 void main() {
     uint t = FLAT_ID;

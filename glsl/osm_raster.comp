@@ -23,16 +23,7 @@ layout(set = 0, binding = 2) buffer Opacity { uint opacity[]; };
 layout(set = 0, binding = 3) buffer Jobs { uvec2 jobs[]; };
 layout(set = 0, binding = 4) buffer Counters { uint counters[]; };
 
-layout(push_constant) uniform Push {
-    uint sphere_count;
-    uint big_area;     // footprints above this many texels go to band jobs
-    uint job_capacity;
-    uint tau_fixed;    // optical depth of one sphere, fixed point 2^16
-    uint slices;
-    float z_min;       // light depth (relative to the light's centre plane) of slice 0's start
-    float inv_dz;      // slices per world unit
-    uint pad;
-} pc;
+#include "push/osm_raster.glsl"
 
 #define OSM_Z_MIN pc.z_min
 #define OSM_INV_DZ pc.inv_dz

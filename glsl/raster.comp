@@ -31,12 +31,7 @@ layout(set = 0, binding = 6) uniform usamplerBuffer orderTex;
 // scalar loop per component on lavapipe; a texel fetch is a vector gather.
 layout(set = 0, binding = 7) uniform samplerBuffer sphereTex;
 
-layout(push_constant) uniform Push {
-    uint view_index;   // 0 camera, 1 key light
-    uint big_area;     // footprints larger than this (pixels) go to bands
-    uint job_capacity; // entries in jobs[]
-    uint sphere_count;
-} pc;
+#include "push/raster.glsl"
 
 // Perspective camera (specialization constant 2; the light view is
 // always orthographic): a branch on the view's data would run both sides.

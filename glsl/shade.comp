@@ -12,29 +12,7 @@
 #include "shared.glsl"
 
 layout(local_size_x_id = 0) in;
-layout(constant_id = 1) const bool SOFT = false;
-layout(constant_id = 2) const bool AO = false;       // SSDO ran: upsample its result
-layout(constant_id = 3) const bool SWAP_RB = false;  // write BGRA (swapchains that want it)
-layout(constant_id = 4) const bool USE_SHADOW = false;
-// The shadow and ao AOVs are written only when asked for (read_shadow,
-// read_ambient, --aov shadow|ao): 4 B/px less traffic and memory.
-layout(constant_id = 5) const bool AOVS = false;
-layout(constant_id = 6) const bool ISSM_CORE_ONLY = false;  // lookup_issm.glsl
-layout(constant_id = 7) const bool OUTLINE = false;  // --outline: silhouette lines
-// RGBA16 colour (--png-depth 16): two words per pixel, R|G<<16, B|A<<16.
-layout(constant_id = 8) const bool WIDE = false;
-// The SSDO result is per 2x2 block (spheres large on screen): upsample it.
-layout(constant_id = 9) const bool AO_HALF = false;
-// The SSDO result is per sphere (spheres a few pixels wide): weight its
-// directions by the pixel's normal (ssdo_common.glsl sphere_ao_at).
-layout(constant_id = 10) const bool AO_SPHERE = false;
-// Depth cue (--fog): a constant, because lavapipe runs the straight-line
-// code of an if no lane takes (the fog's background and pows every pixel).
-layout(constant_id = 11) const bool FOG = false;
-// Perspective camera (surface.glsl, shared.glsl's view functions).
-layout(constant_id = 12) const bool PERSP = false;
-// ISSM t = 0: the 2x2 texels around P (lookup_issm.glsl).
-layout(constant_id = 13) const bool ISSM_QUAD = false;
+#include "spec/shade.glsl"
 
 layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
 layout(set = 0, binding = 1) uniform usamplerBuffer visTex;
@@ -48,23 +26,14 @@ layout(set = 0, binding = 8) uniform usamplerBuffer sphereAoTex;  // per sphere 
 layout(set = 0, binding = 10) uniform usamplerBuffer colorTex;  // RGBA8 per sphere
 #define SURFACE_ALBEDO
 
-layout(push_constant) uniform Push {
-    float shadow_diffuse; // fraction of key diffuse kept in full shadow
-    float outline_px;     // line width in pixels (OUTLINE)
-    float fog_near;       // view_z where the depth cue starts and ends
-    float fog_far;        // (read with FOG, which the host sets when far > near)
-    float edge_dz;        // a neighbour nearer by more than this is an edge
-    uint level;           // hierarchy level whose region changes are edges
-    float ao_sigma_z;     // depth tolerance of the SSDO upsample
-    uint ao_level_b;      // the upsample's region test at the records' level b
-} pc;
+#include "push/shade.glsl"
 
 // The shadow AOV counts other spheres only (lookup_issm.glsl).
 #define ISSM_SELF_TEST AOVS
 #include "lookup.glsl"
 #include "ssdo_common.glsl"
 #include "ssdo_record.glsl"
-#define TILE_LIST_ID 14
+#define TILE_LIST_ID SPEC_NEXT_ID
 #define TILE_LIST_BINDING 9
 #include "tiles.glsl"
 

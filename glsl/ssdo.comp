@@ -27,16 +27,7 @@
 #include "shared.glsl"
 
 layout(local_size_x_id = 0) in;
-layout(constant_id = 1) const bool SEMANTIC = true;
-layout(constant_id = 2) const uint DIRS = 12;
-layout(constant_id = 3) const uint STEPS = 4;
-// Perspective camera: the taps work in world space. Orthographic (the
-// default): in view space, where a tap's projection and the occluder's
-// position are two multiply-adds each instead of dot products and divides.
-layout(constant_id = 4) const bool PERSP = false;
-// Half resolution: one receiver per 2x2 block (spheres large on screen,
-// where the AO is smooth over a block); else one per pixel.
-layout(constant_id = 5) const bool HALF = true;
+#include "spec/ssdo.glsl"
 
 layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
 layout(set = 0, binding = 1) uniform usamplerBuffer recordTex;
@@ -51,21 +42,12 @@ layout(set = 0, binding = 7) uniform usamplerBuffer visWordTex;
 // Per pixel (not HALF): the blur's edge key of each pixel (blur_key).
 layout(set = 0, binding = 8) writeonly buffer Keys { uint keys[]; };
 
-layout(push_constant) uniform Push {
-    float r_near;
-    float r_far;
-    float blend;   // weight of level b in the region test
-    float bounce;  // bounce strength
-    uint level_a;
-    uint level_b;
-    uint blur_level_b;  // the blur's region test at level b (else a)
-    uint pad1;
-} pc;
+#include "push/ssdo.glsl"
 
 #include "surface.glsl"
 #include "ssdo_common.glsl"
 #include "ssdo_record.glsl"
-#define TILE_LIST_ID 6
+#define TILE_LIST_ID SPEC_NEXT_ID
 #define TILE_LIST_BINDING 9
 #include "tiles.glsl"
 #include "ssdo_taps.glsl"

@@ -13,11 +13,7 @@ layout(set = 0, binding = 0) readonly buffer Flags { uint flags[]; };
 layout(set = 0, binding = 1) writeonly buffer List { uint list[]; };
 layout(set = 0, binding = 2) buffer Counters { uint counters[]; };
 
-layout(push_constant) uniform Push {
-    uint words;        // flag words: ceil(sphere_count / 32)
-    uint group_shift;  // log2 of ssdo_sphere.comp's workgroup size
-    uint pad0, pad1;
-} pc;
+#include "push/ssdo_list.glsl"
 
 void main() {
     uint w = FLAT_ID;

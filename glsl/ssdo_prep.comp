@@ -8,14 +8,7 @@
 #include "shared.glsl"
 
 layout(local_size_x_id = 0) in;
-layout(constant_id = 1) const bool SOFT = false;
-layout(constant_id = 2) const bool ISSM_CORE_ONLY = false;  // lookup_issm.glsl
-// Per-sphere SSDO (ssdo_sphere.comp): mark every sphere seen in the block.
-layout(constant_id = 3) const bool MARK = false;
-// Perspective camera (surface.glsl, shared.glsl's view functions).
-layout(constant_id = 4) const bool PERSP = false;
-// ISSM t = 0: the 2x2 texels around P (lookup_issm.glsl).
-layout(constant_id = 5) const bool ISSM_QUAD = false;
+#include "spec/ssdo_prep.glsl"
 
 layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
 layout(set = 0, binding = 1) uniform usamplerBuffer visTex;
@@ -32,17 +25,13 @@ layout(set = 0, binding = 5) buffer Flags { uint flags[]; };
 // per tap neighbourhood (the taps' fetches were mostly cache misses).
 layout(set = 0, binding = 7) writeonly buffer TapDepth { uvec4 tap_depth[]; };
 
-layout(push_constant) uniform Push {
-    uint level_a;
-    uint level_b;
-    uint pad0, pad1;
-} pc;
+#include "push/ssdo_prep.glsl"
 
 // Records feed the colour only: no self test (lookup_issm.glsl).
 #define ISSM_SELF_TEST false
 #include "lookup.glsl"
 #include "ssdo_record.glsl"
-#define TILE_LIST_ID 6
+#define TILE_LIST_ID SPEC_NEXT_ID
 #define TILE_LIST_BINDING 6
 #include "tiles.glsl"
 

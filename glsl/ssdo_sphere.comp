@@ -19,9 +19,7 @@
 #include "shared.glsl"
 
 layout(local_size_x_id = 0) in;
-layout(constant_id = 1) const bool SEMANTIC = true;
-layout(constant_id = 2) const uint STEPS = 12;  // taps per azimuth line
-layout(constant_id = 3) const bool PERSP = false;
+#include "spec/ssdo_sphere.glsl"
 
 layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
 layout(set = 0, binding = 1) uniform usamplerBuffer recordTex;
@@ -37,16 +35,7 @@ layout(set = 0, binding = 7) uniform usamplerBuffer visWordTex;
 layout(set = 0, binding = 8) uniform usamplerBuffer tapDepthTex;
 #define TAP_DEPTH_BLOCKED
 
-layout(push_constant) uniform Push {
-    float r_near;
-    float r_far;
-    float blend;   // weight of level b in the region test
-    float bounce;  // bounce strength
-    uint level_a;
-    uint level_b;
-    uint blur_level_b;
-    uint pad1;
-} pc;
+#include "push/ssdo.glsl"
 
 #include "ssdo_common.glsl"
 #include "ssdo_record.glsl"

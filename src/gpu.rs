@@ -79,3 +79,51 @@ macro_rules! gpu_constants {
 pub mod consts {
     include!("gpu_consts.rs");
 }
+
+/// Turns the shared push blocks into `#[repr(C)]` Pod structs (build.rs
+/// turns the same list into `push/NAME.glsl`).
+macro_rules! gpu_push {
+    ($($(#[doc = $sdoc:expr])* $name:ident $file:literal {
+        $($(#[doc = $doc:expr])* $field:ident : $ty:ty,)*
+    })*) => {
+        $(
+            $(#[doc = $sdoc])*
+            #[doc = concat!("\n\nGLSL: `#include \"push/", $file, ".glsl\"`.")]
+            #[repr(C)]
+            #[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+            pub struct $name {
+                $( $(#[doc = $doc])* pub $field: $ty, )*
+            }
+        )*
+    };
+}
+
+/// Turns the shared specialization blocks into structs whose
+/// `constants()` are the values of constant ids 1, 2, ... (build.rs turns
+/// the same list into `spec/NAME.glsl`).
+macro_rules! gpu_spec {
+    ($($(#[doc = $sdoc:expr])* $name:ident $file:literal {
+        $($(#[doc = $doc:expr])* $field:ident : $ty:ty = $glsl:ident,)*
+    })*) => {
+        $(
+            $(#[doc = $sdoc])*
+            #[doc = concat!("\n\nGLSL: `#include \"spec/", $file, ".glsl\"`.")]
+            #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+            pub struct $name {
+                $( $(#[doc = $doc])* #[doc = concat!("\n\nGLSL `", stringify!($glsl), "`.")] pub $field: $ty, )*
+            }
+
+            impl $name {
+                /// The specialization constants, ids 1, 2, ... in field order.
+                pub fn constants(&self) -> Vec<u32> {
+                    vec![$(self.$field as u32),*]
+                }
+            }
+        )*
+    };
+}
+
+/// Push-constant blocks and specialization constants shared with GLSL.
+pub mod blocks {
+    include!("gpu_blocks.rs");
+}

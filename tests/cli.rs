@@ -25,19 +25,27 @@ fn run(args: &[&str]) -> Output {
     bin().args(args).output().expect("run sphereshade")
 }
 
-/// `bench` on a small procedural matrix: scene, sphere counts, sizes,
-/// shadow modes, SSDO off, `frames` measured after `warmup`, then `extra`.
-#[allow(clippy::too_many_arguments)]
-fn bench(
-    scene: &str,
-    atoms: &str,
-    size: &str,
-    shadows: &str,
-    frames: &str,
-    warmup: &str,
-    json: &std::path::Path,
-    extra: &[&str],
-) -> Output {
+/// A small procedural bench matrix: scene, sphere counts, sizes, shadow
+/// modes, `frames` measured after `warmup` (SSDO off).
+struct Matrix<'a> {
+    scene: &'a str,
+    atoms: &'a str,
+    size: &'a str,
+    shadows: &'a str,
+    frames: &'a str,
+    warmup: &'a str,
+}
+
+/// `bench` on matrix `m` into `json`, then `extra`.
+fn bench(m: &Matrix, json: &std::path::Path, extra: &[&str]) -> Output {
+    let Matrix {
+        scene,
+        atoms,
+        size,
+        shadows,
+        frames,
+        warmup,
+    } = *m;
     let mut a = vec![
         "bench",
         "--scene",
@@ -358,12 +366,14 @@ fn aov_encodings_follow_design() {
 fn bench_writes_runs_and_ratios() {
     let json = tmp("bench.json");
     let o = bench(
-        "random",
-        "1500",
-        "64x48",
-        "none,issm,issm-soft",
-        "2",
-        "0",
+        &Matrix {
+            scene: "random",
+            atoms: "1500",
+            size: "64x48",
+            shadows: "none,issm,issm-soft",
+            frames: "2",
+            warmup: "0",
+        },
         &json,
         &[],
     );
@@ -412,12 +422,14 @@ fn bench_writes_runs_and_ratios() {
     );
     // --compare against itself: every ratio is exactly 1
     let o = bench(
-        "random",
-        "1500",
-        "64x48",
-        "none",
-        "1",
-        "0",
+        &Matrix {
+            scene: "random",
+            atoms: "1500",
+            size: "64x48",
+            shadows: "none",
+            frames: "1",
+            warmup: "0",
+        },
         &tmp("bench2.json"),
         &["--compare", json.to_str().unwrap()],
     );
@@ -434,12 +446,14 @@ fn bench_keeps_going_past_a_failed_run() {
     // (a 16384x16384 image no longer fails: it renders in tiles; an
     // 8192² ISSM map, 512 MiB, does)
     let o = bench(
-        "random",
-        "300",
-        "64x48",
-        "none,issm",
-        "1",
-        "0",
+        &Matrix {
+            scene: "random",
+            atoms: "300",
+            size: "64x48",
+            shadows: "none,issm",
+            frames: "1",
+            warmup: "0",
+        },
         &json,
         &["--validate", "--issm-size", "8192"],
     );
@@ -474,12 +488,14 @@ fn bench_keeps_going_past_a_failed_run() {
 fn graphics_runs_leave_compute_timings_alone() {
     let json = tmp("bench-graphics.json");
     let o = bench(
-        "capsid",
-        "3000",
-        "96x64",
-        "none,issm",
-        "2",
-        "1",
+        &Matrix {
+            scene: "capsid",
+            atoms: "3000",
+            size: "96x64",
+            shadows: "none,issm",
+            frames: "2",
+            warmup: "1",
+        },
         &json,
         &["--raster", "graphics,compute"],
     );

@@ -68,8 +68,8 @@ fn kwargs_to_args(kwargs: Option<&Bound<'_, PyDict>>) -> PyResult<Vec<String>> {
         } else {
             v.str()?.to_string()
         };
-        args.push(flag);
-        args.push(text);
+        // `--flag=value`: a negative value is the option's, not a flag
+        args.push(format!("{flag}={text}"));
     }
     Ok(args)
 }
@@ -319,33 +319,22 @@ impl Renderer {
 
 #[pymethods]
 impl Renderer {
+    /// `width`, `height`, `shadows`, `ssdo` and every other option come
+    /// in `options` as the CLI's (their defaults: 1920x1080, issm-soft,
+    /// semantic).
     #[new]
-    #[pyo3(signature = (positions, radii, colors=None, regions=None, *, width=1920, height=1080, shadows="issm-soft", ssdo="semantic", camera=None, **options))]
-    #[allow(clippy::too_many_arguments)]
+    #[pyo3(signature = (positions, radii, colors=None, regions=None, *, camera=None, **options))]
     fn new(
         py: Python<'_>,
         positions: &Bound<'_, PyAny>,
         radii: &Bound<'_, PyAny>,
         colors: Option<&Bound<'_, PyAny>>,
         regions: Option<&Bound<'_, PyAny>>,
-        width: u32,
-        height: u32,
-        shadows: &str,
-        ssdo: &str,
         camera: Option<&Bound<'_, PyDict>>,
         options: Option<&Bound<'_, PyDict>>,
     ) -> PyResult<Self> {
         let scene = scene_of(positions, radii, colors, regions)?;
-        let mut words = vec![
-            "--width".into(),
-            width.to_string(),
-            "--height".into(),
-            height.to_string(),
-            "--shadows".into(),
-            shadows.to_string(),
-            "--ssdo".into(),
-            ssdo.to_string(),
-        ];
+        let mut words: Vec<String> = Vec::new();
         words.extend(kwargs_to_args(camera)?);
         words.extend(kwargs_to_args(options)?);
         let opts = parse_options(words)?;

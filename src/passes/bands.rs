@@ -5,23 +5,10 @@
 //! band pipeline (same shader, BAND_PASS = 1) then runs every band.
 
 use crate::error::Result;
+pub use crate::gpu::blocks::BandCounters;
 use crate::vk::pipeline::{PipelineDesc, rw};
 use crate::vk::{Buffer, ComputePipeline, Context, Grid, PassBuilder};
-use bytemuck::{Pod, Zeroable};
-
-/// Where the sequence's words live in the pass's counter buffer.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable)]
-pub struct BandCounters {
-    /// Most band jobs the job buffer holds.
-    pub job_capacity: u32,
-    /// Word the per-sphere pass counts requested bands in.
-    pub requested: u32,
-    /// Word that receives the number of bands that run.
-    pub run: u32,
-    /// First of the three indirect dispatch words.
-    pub args: u32,
-}
+use bytemuck::Pod;
 
 impl BandCounters {
     /// Byte offset of the indirect dispatch arguments.

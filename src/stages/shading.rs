@@ -9,6 +9,8 @@
 use super::shadows::{Lookup, LookupKind};
 use super::ssdo::{SsdoOutputs, SsdoParams};
 use crate::error::Result;
+pub use crate::gpu::blocks::ShadePush;
+use crate::gpu::blocks::ShadeSpec;
 use crate::passes::LOCAL_SIZE;
 use crate::passes::screen::{SURFACE_BINDINGS, ScreenInputs};
 use crate::passes::tiles::{TILE_BINDING, Tiles};
@@ -17,32 +19,11 @@ use crate::settings::RenderSettings;
 use crate::vk::pipeline::{Binding, PipelineDesc, texel, wo};
 use crate::vk::{Buffer, Context, Recorder};
 use ash::vk::Format;
-use bytemuck::{Pod, Zeroable};
 
 /// Fraction of the key light's diffuse term kept in full shadow: the
 /// lighting rule of the ISSM paper (a fully shadowed point keeps ambient
 /// and this fraction of the key's diffuse term, and loses its specular).
 pub const SHADOW_DIFFUSE: f32 = 0.05;
-
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable)]
-pub struct ShadePush {
-    /// Fraction of the key light's diffuse term kept in full shadow.
-    pub shadow_diffuse: f32,
-    /// Silhouette line width in pixels (with ShadeMode::outline).
-    pub outline_px: f32,
-    /// Depth cue from view_z fog_near to fog_far (used with ShadeMode::fog).
-    pub fog_near: f32,
-    pub fog_far: f32,
-    /// A neighbour nearer by more than this (world units) makes a line.
-    pub edge_dz: f32,
-    /// Hierarchy level whose region changes make lines.
-    pub level: u32,
-    /// Depth tolerance (world units) of the SSDO upsample.
-    pub ao_sigma_z: f32,
-    /// 1: the upsample compares regions at the records' level b, 0: level a.
-    pub ao_level_b: u32,
-}
 
 pub struct ShadePass {
     variants: Variants,
@@ -121,19 +102,24 @@ impl ShadeFrame {
         ShadeFrame {
             mode: ShadeMode {
                 kind: lookup.kind,
-                soft: lookup.soft,
-                ao: on,
-                ao_half: on && ssdo.taps.per_block(),
-                ao_sphere: on && ssdo.taps.per_sphere(),
-                swap_rb: bgra,
-                aovs: settings.aovs,
-                core_only: lookup.core_only(),
-                quad: lookup.quad(),
-                outline: outline_px > 0,
-                wide: settings.look.color16,
-                fog: fog.is_some_and(|f| f.0[1] > f.0[0]),
-                perspective: settings.camera.fov_deg.is_some(),
                 lists: settings.tile_lists && outline_px == 0,
+                spec: ShadeSpec {
+                    soft: lookup.soft,
+                    ao: on,
+                    swap_rb: bgra,
+                    use_shadow: !matches!(lookup.kind, LookupKind::None | LookupKind::Screen),
+                    aovs: settings.aovs,
+                    core_only: lookup.core_only(),
+                    outline: outline_px > 0,
+                    wide: settings.look.color16,
+                    ao_half: on && ssdo.taps.per_block(),
+                    ao_sphere: on && ssdo.taps.per_sphere(),
+                    // the one place that decides; the shader reads the
+                    // fog range only then
+                    fog: fog.is_some_and(|f| f.0[1] > f.0[0]),
+                    perspective: settings.camera.fov_deg.is_some(),
+                    quad: lookup.quad(),
+                },
             },
             push: ShadePush {
                 shadow_diffuse: SHADOW_DIFFUSE,
@@ -158,52 +144,18 @@ pub fn outline_px(settings: &RenderSettings) -> u32 {
 /// Everything that picks a shade pipeline.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ShadeMode {
+    /// The lookup compiled in (the shader variant).
     pub kind: LookupKind,
-    pub soft: bool,
-    pub ao: bool,
-    /// The SSDO result is per 2x2 block: upsample it.
-    pub ao_half: bool,
-    /// The SSDO result is per sphere: weight it by the pixel's normal.
-    pub ao_sphere: bool,
-    pub swap_rb: bool,
-    /// Write the shadow and ao AOVs.
-    pub aovs: bool,
-    /// ISSM reads only its 3x3 core ([`Lookup::core_only`]).
-    pub core_only: bool,
-    /// ISSM reads only the 2x2 texels around the point ([`Lookup::quad`]).
-    pub quad: bool,
-    /// Silhouette lines.
-    pub outline: bool,
-    /// RGBA16 colour.
-    pub wide: bool,
-    /// Depth cue: the push constants' fog range is not empty (the one place
-    /// that decides; the shader reads the range only then).
-    pub fog: bool,
-    /// Perspective camera.
-    pub perspective: bool,
     /// Run on the tile lists (not with silhouette lines, which reach from
     /// covered pixels into background regions).
     pub lists: bool,
+    /// The specialization constants (src/gpu_blocks.rs).
+    pub spec: ShadeSpec,
 }
 
 impl ShadeMode {
-    fn constants(&self) -> [u32; 13] {
-        let use_shadow = !matches!(self.kind, LookupKind::None | LookupKind::Screen);
-        [
-            self.soft as u32,
-            self.ao as u32,
-            self.swap_rb as u32,
-            use_shadow as u32,
-            self.aovs as u32,
-            self.core_only as u32,
-            self.outline as u32,
-            self.wide as u32,
-            self.ao_half as u32,
-            self.ao_sphere as u32,
-            self.fog as u32,
-            self.perspective as u32,
-            self.quad as u32,
-        ]
+    fn constants(&self) -> Vec<u32> {
+        self.spec.constants()
     }
 }
 

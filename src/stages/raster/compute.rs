@@ -3,13 +3,13 @@
 
 use crate::error::Result;
 use crate::gpu::GpuSphere;
+use crate::gpu::blocks::RasterPush;
 use crate::gpu::consts::{R_ARGS, R_BANDS_REQ, R_BANDS_RUN};
 use crate::passes::bands::{BandArgs, BandCounters, BandJob, BandPipelines};
 use crate::passes::{LOCAL_SIZE, spirv};
 use crate::vk::guard::Destroy;
 use crate::vk::pipeline::{PipelineDesc, rw, texel, uniform};
 use crate::vk::{Buffer, Context, PassBuilder};
-use bytemuck::{Pod, Zeroable};
 use glam::DVec3;
 
 /// Footprints above this many pixels are split into 8-row bands run by whole
@@ -35,15 +35,6 @@ pub const RASTER_COUNTERS: BandCounters = BandCounters {
     run: R_BANDS_RUN,
     args: R_ARGS,
 };
-
-#[repr(C)]
-#[derive(Clone, Copy, Pod, Zeroable)]
-struct RasterPush {
-    view_index: u32,
-    big_area: u32,
-    job_capacity: u32,
-    sphere_count: u32,
-}
 
 /// Which view a raster pass draws.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -8,6 +8,7 @@ use super::ShadowInputs;
 use super::{Lookup, LookupKind, ShadowParams, ShadowSetup, ShadowTechnique};
 use crate::camera::Camera;
 use crate::error::Result;
+use crate::gpu::blocks::ResolvePush;
 use crate::passes::{LOCAL_SIZE, spirv};
 use crate::settings::{IssmParams, ShadowMode};
 use crate::stages::raster::compute as raster;
@@ -45,12 +46,6 @@ pub fn auto_t(max_radius: f32, soft_s: f32, texel: f64) -> u32 {
 /// (at least 1), so a sphere's light-space disk always holds a sample.
 pub fn auto_stride(min_radius: f32, texel: f64) -> u32 {
     ((min_radius as f64 / texel.max(1e-9)).floor() as u32).max(1)
-}
-
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable)]
-struct ResolvePush {
-    texels: u32,
 }
 
 /// The key light's sphere id map and its resolved copy (read by

@@ -31,13 +31,13 @@ use super::ShadowInputs;
 use super::{Lookup, LookupKind, ShadowParams, ShadowSetup, ShadowTechnique};
 use crate::camera::Camera;
 use crate::error::{Error, Result};
+use crate::gpu::blocks::{OsmRasterPush as RasterPush, PrefixPush};
 use crate::passes::bands::{BandArgs, BandCounters, BandJob, BandPipelines};
 use crate::passes::{LOCAL_SIZE, spirv};
 use crate::settings::ShadowMode;
 use crate::stages::raster::compute::RASTER_COUNTERS;
 use crate::vk::pipeline::{Binding, PipelineDesc, ro, rw, texel, uniform};
 use crate::vk::{Buffer, ComputePipeline, Context, Grid, Recorder};
-use bytemuck::{Pod, Zeroable};
 use std::any::Any;
 
 /// Fixed-point steps per unit of optical depth.
@@ -52,27 +52,6 @@ pub const JOB_CAPACITY: u32 = 1 << 18;
 /// not check atomics, so tests look at these instead).
 pub const GUARD_WORDS: u64 = 64;
 pub const GUARD_PATTERN: u32 = 0x05A0_F00D;
-
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable)]
-struct RasterPush {
-    sphere_count: u32,
-    big_area: u32,
-    job_capacity: u32,
-    tau_fixed: u32,
-    slices: u32,
-    z_min: f32,
-    inv_dz: f32,
-    pad: u32,
-}
-
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable)]
-struct PrefixPush {
-    texels: u32,
-    slices: u32,
-    inv_scale: f32,
-}
 
 /// Fixed-point optical depth of one sphere of opacity `alpha`.
 pub fn tau_fixed(alpha: f32) -> u32 {

@@ -5,24 +5,14 @@
 //! See glsl/blur.comp.
 
 use crate::error::Result;
+pub use crate::gpu::blocks::BlurPush;
+use crate::gpu::blocks::BlurSpec;
 use crate::passes::tiles::{TILE_BINDING, Tiles};
 use crate::passes::variants::{TiledDispatch, Variants};
 use crate::passes::{LOCAL_SIZE, spirv};
 use crate::vk::pipeline::{Binding, PipelineDesc, texel, uniform, wo};
 use crate::vk::{Buffer, Context, Recorder};
 use ash::vk::Format;
-use bytemuck::{Pod, Zeroable};
-
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable)]
-pub struct BlurPush {
-    /// Depth tolerance (world units).
-    pub sigma_z: f32,
-    /// Half resolution: 1 = the region test compares the records' level-b
-    /// regions, 0 = level a (per pixel, the keys hold the right one).
-    pub level_b: u32,
-    pub pad: [u32; 2],
-}
 
 /// The blur radii (taps on each side, in pixels or in blocks) the SSDO tap
 /// sets use; one pipeline pair per radius and resolution, made up front so
@@ -86,13 +76,14 @@ impl BlurPass {
         Self::default()
     }
 
-    fn constants(axis: Axis, semantic: bool, radius: i32, half: bool) -> [u32; 4] {
-        [
-            (axis == Axis::Vertical) as u32,
-            semantic as u32,
-            radius as u32,
-            half as u32,
-        ]
+    fn constants(axis: Axis, semantic: bool, radius: i32, half: bool) -> Vec<u32> {
+        BlurSpec {
+            vertical: (axis == Axis::Vertical) as u32,
+            semantic,
+            radius,
+            half,
+        }
+        .constants()
     }
 
     /// `lists`: the pipelines for the tile lists (else for every tile).

@@ -8,6 +8,8 @@
 //! blocks'. See glsl/ssdo.comp.
 
 use crate::error::{Error, Result};
+use crate::gpu::blocks::{ListPush, PrepSpec, SphereSpec, SsdoSpec};
+pub use crate::gpu::blocks::{PrepPush, SsdoPush};
 use crate::gpu::consts::{S_ARGS, S_GROUPS, S_RUN};
 use crate::passes::bands::{BandArgs, BandCounters, counters_buffer};
 use crate::passes::screen::{SURFACE_BINDINGS, ScreenInputs};
@@ -18,32 +20,8 @@ use crate::stages::shadows::{Lookup, LookupKind};
 use crate::vk::pipeline::{Binding, PipelineDesc, ro, rw, texel, uniform, wo};
 use crate::vk::{Buffer, ComputePipeline, Context, Grid, Recorder};
 use ash::vk::Format;
-use bytemuck::{Pod, Zeroable};
 
 use super::record::{TABLE_SIZE, sample_table};
-
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable)]
-pub struct PrepPush {
-    pub level_a: u32,
-    pub level_b: u32,
-    pub pad: [u32; 2],
-}
-
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable)]
-pub struct SsdoPush {
-    pub r_near: f32,
-    pub r_far: f32,
-    /// Weight of level b in the region test.
-    pub blend: f32,
-    pub bounce: f32,
-    pub level_a: u32,
-    pub level_b: u32,
-    /// The per-pixel blur compares regions at level b (else a): the keys'.
-    pub blur_level_b: u32,
-    pub pad: u32,
-}
 
 /// Who receives SSDO: every covered pixel, one representative pixel per
 /// 2x2 block, or every visible sphere (glsl/ssdo_sphere.comp, with
@@ -68,14 +46,15 @@ pub struct Taps {
 }
 
 impl Taps {
-    fn constants(&self, semantic: bool) -> [u32; 5] {
-        [
-            semantic as u32,
-            self.dirs,
-            self.steps,
-            self.perspective as u32,
-            self.per_block() as u32,
-        ]
+    fn constants(&self, semantic: bool) -> Vec<u32> {
+        SsdoSpec {
+            semantic,
+            dirs: self.dirs,
+            steps: self.steps,
+            perspective: self.perspective,
+            half: self.per_block(),
+        }
+        .constants()
     }
 
     pub fn per_block(&self) -> bool {
@@ -86,8 +65,13 @@ impl Taps {
         self.receivers == Receivers::Sphere
     }
 
-    fn sphere_constants(&self, semantic: bool) -> [u32; 3] {
-        [semantic as u32, self.steps, self.perspective as u32]
+    fn sphere_constants(&self, semantic: bool) -> Vec<u32> {
+        SphereSpec {
+            semantic,
+            steps: self.steps,
+            perspective: self.perspective,
+        }
+        .constants()
     }
 }
 
@@ -185,16 +169,6 @@ impl SphereBuffers {
 }
 
 crate::impl_destroy!(SphereBuffers);
-
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable)]
-struct ListPush {
-    /// Flag words, one bit per sphere.
-    words: u32,
-    /// log2 of ssdo_sphere.comp's workgroup size (groups counted by shifts).
-    group_shift: u32,
-    pad: [u32; 2],
-}
 
 /// Words of the per-sphere flags: one bit per sphere.
 fn flag_words(spheres: u64) -> u64 {
@@ -343,15 +317,16 @@ impl SsdoPass {
     /// channel): their key-light visibility skips the soft penumbra and
     /// reads only the ISSM's 2x2 texels around the point (1M capsid at
     /// 1080p: 21 pixels of the image change, by at most 17 levels).
-    fn prep_constants(lookup: &Lookup, taps: Taps) -> [u32; 5] {
+    fn prep_constants(lookup: &Lookup, taps: Taps) -> Vec<u32> {
         let quad = lookup.quad() || (lookup.kind == LookupKind::Issm && taps.per_sphere());
-        [
-            (lookup.soft && !taps.per_sphere()) as u32,
-            (lookup.core_only() || quad) as u32,
-            taps.per_sphere() as u32,
-            taps.perspective as u32,
-            quad as u32,
-        ]
+        PrepSpec {
+            soft: lookup.soft && !taps.per_sphere(),
+            core_only: lookup.core_only() || quad,
+            mark: taps.per_sphere(),
+            perspective: taps.perspective,
+            quad,
+        }
+        .constants()
     }
 
     /// `ssdo_prep`: the half-resolution records, and with per-sphere

@@ -1,0 +1,249 @@
+// The push-constant blocks and specialization constants Rust and GLSL
+// share, each written once. `src/gpu.rs` turns this file into Rust structs
+// (`gpu_push!`: #[repr(C)] Pod structs; `gpu_spec!`: a struct whose
+// `constants()` lists its fields as specialization constants 1, 2, ... in
+// declaration order); build.rs turns the same file into GLSL includes
+// (`#include "push/NAME.glsl"`, `#include "spec/NAME.glsl"`), so that the
+// order, types and size of a block cannot drift between the two sides. A
+// doc comment travels to both. Field types: `u32`, `i32`, `f32`, `bool`
+// (spec only) and `[u32; N]` (push padding). A spec include also defines
+// SPEC_NEXT_ID, the id after its last constant (a tiled shader's
+// TILE_LIST_ID).
+
+gpu_push! {
+    /// `shade` (glsl/shade.comp).
+    ShadePush "shade" {
+        /// Fraction of the key light's diffuse term kept in full shadow.
+        shadow_diffuse: f32,
+        /// Silhouette line width in pixels (with OUTLINE).
+        outline_px: f32,
+        /// Depth cue from view_z fog_near to fog_far (read with FOG, which
+        /// the host sets when far > near).
+        fog_near: f32,
+        fog_far: f32,
+        /// A neighbour nearer by more than this (world units) makes a line.
+        edge_dz: f32,
+        /// Hierarchy level whose region changes make lines.
+        level: u32,
+        /// Depth tolerance (world units) of the SSDO upsample.
+        ao_sigma_z: f32,
+        /// 1: the upsample compares regions at the records' level b, 0: level a.
+        ao_level_b: u32,
+    }
+
+    /// `ssdo` and per-sphere `ssdo` (glsl/ssdo.comp, glsl/ssdo_sphere.comp).
+    SsdoPush "ssdo" {
+        /// Near sample radius (world units).
+        r_near: f32,
+        /// Far search radius (world units).
+        r_far: f32,
+        /// Weight of level b in the region test.
+        blend: f32,
+        /// Bounce strength.
+        bounce: f32,
+        level_a: u32,
+        level_b: u32,
+        /// The per-pixel blur compares regions at level b (else a): the keys'.
+        blur_level_b: u32,
+        pad: u32,
+    }
+
+    /// `ssdo_prep` (glsl/ssdo_prep.comp).
+    PrepPush "ssdo_prep" {
+        level_a: u32,
+        level_b: u32,
+        pad: [u32; 2],
+    }
+
+    /// The per-sphere SSDO list (glsl/ssdo_list.comp).
+    ListPush "ssdo_list" {
+        /// Flag words, one bit per sphere: ceil(sphere_count / 32).
+        words: u32,
+        /// log2 of ssdo_sphere.comp's workgroup size (groups counted by shifts).
+        group_shift: u32,
+        pad: [u32; 2],
+    }
+
+    /// `blur_h`, `blur_v` (glsl/blur.comp).
+    BlurPush "blur" {
+        /// Depth tolerance (world units).
+        sigma_z: f32,
+        /// Half resolution: 1 = the region test compares the records' level-b
+        /// regions, 0 = level a (per pixel, the keys hold the right one).
+        level_b: u32,
+        pad: [u32; 2],
+    }
+
+    /// The compute rasterizer (glsl/raster.comp).
+    RasterPush "raster" {
+        /// 0 camera, 1 key light.
+        view_index: u32,
+        /// Footprints larger than this (pixels) go to band jobs.
+        big_area: u32,
+        /// Entries of the band job buffer.
+        job_capacity: u32,
+        sphere_count: u32,
+    }
+
+    /// A band sequence's counter words (glsl/band_args.comp): where they
+    /// live in the pass's counter buffer.
+    BandCounters "band_args" {
+        /// Most band jobs the job buffer holds.
+        job_capacity: u32,
+        /// Word the per-sphere pass counts requested bands in.
+        requested: u32,
+        /// Word that receives the number of bands that run.
+        run: u32,
+        /// First of the three indirect dispatch words.
+        args: u32,
+    }
+
+    /// `deep_count` and `deep_fill` (glsl/deep_splat.comp).
+    SplatPush "deep_splat" {
+        sphere_count: u32,
+        /// Footprints above this many texels go to band jobs.
+        big_area: u32,
+        /// Entries of the band job buffer.
+        job_capacity: u32,
+        /// Entries of the list arrays (pool chunks * 64).
+        entry_capacity: u32,
+        /// Alpha of every entry.
+        opacity: f32,
+        pad: [u32; 3],
+    }
+
+    /// `deep_alloc` (glsl/deep_alloc.comp).
+    AllocPush "deep_alloc" {
+        /// Chunks in the pool.
+        chunk_capacity: u32,
+    }
+
+    /// `deep_sort` (glsl/deep_sort.comp).
+    SortPush "deep_sort" {
+        /// Compression tolerance on V.
+        eps: f32,
+        /// Entries of the list arrays.
+        entry_capacity: u32,
+    }
+
+    /// `osm_raster` (glsl/osm_raster.comp).
+    OsmRasterPush "osm_raster" {
+        sphere_count: u32,
+        /// Footprints above this many texels go to band jobs.
+        big_area: u32,
+        job_capacity: u32,
+        /// Optical depth of one sphere, fixed point 2^16.
+        tau_fixed: u32,
+        slices: u32,
+        /// Light depth (relative to the light's centre plane) of slice 0's start.
+        z_min: f32,
+        /// Slices per world unit.
+        inv_dz: f32,
+        pad: u32,
+    }
+
+    /// `osm_prefix` (glsl/osm_prefix.comp).
+    PrefixPush "osm_prefix" {
+        /// N * N.
+        texels: u32,
+        slices: u32,
+        /// 2^-16: fixed point -> optical depth.
+        inv_scale: f32,
+    }
+
+    /// `issm_resolve` (glsl/issm_resolve.comp).
+    ResolvePush "issm_resolve" {
+        texels: u32,
+    }
+}
+
+gpu_spec! {
+    /// The switches compiled into a `shade` pipeline (glsl/shade.comp).
+    ShadeSpec "shade" {
+        /// ISSM soft shadows.
+        soft: bool = SOFT,
+        /// SSDO ran: read (and upsample) its result.
+        ao: bool = AO,
+        /// Write BGRA (swapchains that want it).
+        swap_rb: bool = SWAP_RB,
+        /// A light-space technique's lookup (not none, not the screen march).
+        use_shadow: bool = USE_SHADOW,
+        /// Write the shadow and ao AOVs (read_shadow, read_ambient, --aov
+        /// shadow|ao): 4 B/px less traffic and memory without.
+        aovs: bool = AOVS,
+        /// ISSM t <= 1: only the dense 3x3 core is read (lookup_issm.glsl).
+        core_only: bool = ISSM_CORE_ONLY,
+        /// --outline: silhouette lines.
+        outline: bool = OUTLINE,
+        /// RGBA16 colour (--png-depth 16): two words per pixel, R|G<<16, B|A<<16.
+        wide: bool = WIDE,
+        /// The SSDO result is per 2x2 block (spheres large on screen): upsample it.
+        ao_half: bool = AO_HALF,
+        /// The SSDO result is per sphere (spheres a few pixels wide): weight its
+        /// directions by the pixel's normal (ssdo_common.glsl sphere_ao_at).
+        ao_sphere: bool = AO_SPHERE,
+        /// Depth cue (--fog): a constant, because lavapipe runs the straight-line
+        /// code of an if no lane takes (the fog's background and pows every pixel).
+        fog: bool = FOG,
+        /// Perspective camera (surface.glsl, shared.glsl's view functions).
+        perspective: bool = PERSP,
+        /// ISSM t = 0: the 2x2 texels around P (lookup_issm.glsl).
+        quad: bool = ISSM_QUAD,
+    }
+
+    /// The switches of an `ssdo_prep` pipeline (glsl/ssdo_prep.comp).
+    PrepSpec "ssdo_prep" {
+        /// ISSM soft shadows.
+        soft: bool = SOFT,
+        /// ISSM: only the dense 3x3 core is read (lookup_issm.glsl).
+        core_only: bool = ISSM_CORE_ONLY,
+        /// Per-sphere SSDO (ssdo_sphere.comp): mark every sphere seen in the block.
+        mark: bool = MARK,
+        /// Perspective camera (surface.glsl, shared.glsl's view functions).
+        perspective: bool = PERSP,
+        /// ISSM t = 0: the 2x2 texels around P (lookup_issm.glsl).
+        quad: bool = ISSM_QUAD,
+    }
+
+    /// The switches of a per-pixel or per-block `ssdo` pipeline (glsl/ssdo.comp).
+    SsdoSpec "ssdo" {
+        /// Semantic region test (else plain SSDO).
+        semantic: bool = SEMANTIC,
+        /// Directions per receiver.
+        dirs: u32 = DIRS,
+        /// Far-search steps per direction.
+        steps: u32 = STEPS,
+        /// Perspective camera: the taps work in world space. Orthographic:
+        /// in view space, where a tap's projection and the occluder's
+        /// position are two multiply-adds each instead of dot products and
+        /// divides.
+        perspective: bool = PERSP,
+        /// Half resolution: one receiver per 2x2 block (spheres large on
+        /// screen, where the AO is smooth over a block); else one per pixel.
+        half: bool = HALF,
+    }
+
+    /// The switches of a per-sphere `ssdo` pipeline (glsl/ssdo_sphere.comp).
+    SphereSpec "ssdo_sphere" {
+        /// Semantic region test (else plain SSDO).
+        semantic: bool = SEMANTIC,
+        /// Taps per azimuth line.
+        steps: u32 = STEPS,
+        /// Perspective camera.
+        perspective: bool = PERSP,
+    }
+
+    /// The switches of a blur pipeline (glsl/blur.comp).
+    BlurSpec "blur" {
+        /// 0 horizontal, 1 vertical.
+        vertical: u32 = AXIS,
+        /// Semantic region test (else plain SSDO).
+        semantic: bool = SEMANTIC,
+        /// Taps on each side, in pixels or (HALF) blocks: a constant so the
+        /// loop unrolls and its spatial weights fold (lavapipe runs a loop to
+        /// its slowest lane).
+        radius: i32 = RADIUS,
+        /// Per 2x2 block (else per pixel).
+        half: bool = HALF,
+    }
+}
