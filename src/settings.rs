@@ -87,18 +87,49 @@ value_name!(SsdoMode);
 value_name!(RasterMode);
 value_name!(Aov);
 
-/// Implicit Sphere Shadow Map parameters.
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// Implicit Sphere Shadow Map parameters: the ISSM stage's knobs, flattened
+/// into the command line (and bench, Python) as `--issm-size`, `--issm-t`,
+/// `--soft-s`, `--soft-x`, `--soft-b`; defaults in `Default`, ranges in
+/// [`IssmParams::validate`].
+#[derive(Clone, Copy, Debug, PartialEq, clap::Args)]
 pub struct IssmParams {
+    /// ISSM (and deep-list) light map side in texels.
+    #[arg(long = "issm-size", value_name = "ISSM_SIZE", default_value_t = IssmParams::default().size)]
     pub size: u32,
-    /// Patch half-size t; None = automatic.
-    pub t: Option<u32>,
-    /// Soft-shadow radius enlargement s (world units).
+    /// ISSM patch half-size t (0..32), or `auto`: 1 is the paper's 3x3
+    /// patch; 0 reads only the 2x2 texels around the point (faster, slightly
+    /// less exact where a light texel is nearly a sphere radius).
+    #[arg(long = "issm-t", value_name = "ISSM_T", default_value_t = IssmParams::default().t)]
+    pub t: IssmT,
+    /// Soft shadows: radius enlargement s in world units.
+    #[arg(long, default_value_t = IssmParams::default().soft_s, allow_negative_numbers = true)]
     pub soft_s: f32,
-    /// Falloff exponent x of (1 - s'/s)^x.
+    /// Soft shadows: falloff exponent x of (1 - s'/s)^x.
+    #[arg(long, default_value_t = IssmParams::default().soft_x, allow_negative_numbers = true)]
     pub soft_x: f32,
-    /// Distance b over which the penumbra reaches full width.
+    /// Soft shadows: distance b over which the penumbra reaches full width.
+    #[arg(long, default_value_t = IssmParams::default().soft_b, allow_negative_numbers = true)]
     pub soft_b: f32,
+}
+
+impl IssmParams {
+    pub fn validate(&self) -> Result<()> {
+        if !(16..=8192).contains(&self.size) {
+            return Err(Error::Input(
+                "--issm-size must be between 16 and 8192".into(),
+            ));
+        }
+        for (x, name) in [
+            (self.soft_s, "--soft-s"),
+            (self.soft_x, "--soft-x"),
+            (self.soft_b, "--soft-b"),
+        ] {
+            if !(x > 0.0 && x.is_finite()) {
+                return Err(Error::Input(format!("{name} must be positive")));
+            }
+        }
+        Ok(())
+    }
 }
 
 impl Default for IssmParams {
@@ -109,7 +140,7 @@ impl Default for IssmParams {
             // the hard mask agrees with exact shadow rays on 98.84 % of pixels
             // with t = 1 and 98.96 % with the automatic t (4 there), at a
             // third of the lookup's cost.
-            t: Some(1),
+            t: IssmT(Some(1)),
             soft_s: 2.0,
             soft_x: 2.0,
             soft_b: 20.0,
@@ -118,28 +149,65 @@ impl Default for IssmParams {
 }
 
 /// Parameters of the two baseline techniques: the depth shadow map with PCF
-/// (`--shadows sm-pcf`, the Metal protein viewer paper) and opacity shadow maps (`--shadows osm`,
-/// the WebGL particle paper). Biases and PCF radii are in shadow-map texels, so they keep
-/// their meaning when the map size changes.
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// (`--shadows sm-pcf`, after the Metal protein viewer paper) and opacity
+/// shadow maps (`--shadows osm`, after the WebGL particle paper), flattened
+/// into the command line as `--sm-size` ... `--osm-slices`. Biases and PCF
+/// radii are in shadow-map texels, so they keep their meaning when the map
+/// size changes.
+#[derive(Clone, Copy, Debug, PartialEq, clap::Args)]
 pub struct ShadowMapParams {
-    /// Depth map side in texels (`--sm-size`).
+    /// Depth shadow map side in texels (`--shadows sm-pcf`).
+    #[arg(long, default_value_t = ShadowMapParams::default().sm_size)]
     pub sm_size: u32,
-    /// Constant depth bias in texels (`--sm-bias`).
+    /// Constant depth bias of the shadow map, in map texels.
+    #[arg(long, default_value_t = ShadowMapParams::default().sm_bias, allow_negative_numbers = true)]
     pub sm_bias: f32,
-    /// Slope factor (`--sm-slope-bias`): the bias grows by this times
-    /// tan(angle between N and the light) times the lookup's reach in texels
-    /// (half a texel diagonal plus the PCF radius), the depth change of a
-    /// plane receiver over that reach. 1 is exactly that first-order bound.
+    /// Slope-scaled bias factor: times tan(N, light) times the lookup reach
+    /// (half a texel diagonal + PCF radius), in texels: the depth change of
+    /// a plane receiver over that reach, so 1 is exactly that first-order
+    /// bound.
+    #[arg(long, default_value_t = ShadowMapParams::default().sm_slope_bias, allow_negative_numbers = true)]
     pub sm_slope_bias: f32,
-    /// PCF taps on a Vogel disk (`--pcf-samples`); 0 or 1 = one tap, no PCF.
+    /// PCF taps on a Vogel disk rotated per pixel (0 or 1 = single tap).
+    #[arg(long, default_value_t = ShadowMapParams::default().pcf_samples)]
     pub pcf_samples: u32,
-    /// PCF disk radius in texels (`--pcf-radius`).
+    /// PCF disk radius in shadow-map texels.
+    #[arg(long, default_value_t = ShadowMapParams::default().pcf_radius, allow_negative_numbers = true)]
     pub pcf_radius: f32,
-    /// Opacity map side in texels (`--osm-size`).
+    /// Opacity shadow map side in texels (`--shadows osm`).
+    #[arg(long, default_value_t = ShadowMapParams::default().osm_size)]
     pub osm_size: u32,
-    /// Depth slices of the opacity map (`--osm-slices`).
+    /// Depth slices of the opacity shadow map.
+    #[arg(long, default_value_t = ShadowMapParams::default().osm_slices)]
     pub osm_slices: u32,
+}
+
+impl ShadowMapParams {
+    pub fn validate(&self) -> Result<()> {
+        let input = |m: String| Err(Error::Input(m));
+        if !(16..=8192).contains(&self.sm_size) {
+            return input("--sm-size must be between 16 and 8192".into());
+        }
+        for (x, name) in [
+            (self.sm_bias, "--sm-bias"),
+            (self.sm_slope_bias, "--sm-slope-bias"),
+            (self.pcf_radius, "--pcf-radius"),
+        ] {
+            if !(0.0..=1e4).contains(&x) {
+                return input(format!("{name} must be between 0 and 10000 (texels)"));
+            }
+        }
+        if self.pcf_samples > 256 {
+            return input("--pcf-samples must be between 0 and 256".into());
+        }
+        if !(16..=4096).contains(&self.osm_size) {
+            return input("--osm-size must be between 16 and 4096".into());
+        }
+        if !(1..=1024).contains(&self.osm_slices) {
+            return input("--osm-slices must be between 1 and 1024".into());
+        }
+        Ok(())
+    }
 }
 
 impl Default for ShadowMapParams {
@@ -382,14 +450,32 @@ impl FromStr for Fog {
 
 /// How the image looks beyond the lighting: background, lines, depth cue
 /// and colour precision (DESIGN.md "Images for publication").
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, clap::Args)]
 pub struct Look {
+    /// Background: gradient, R,G,B (0..255), #RRGGBB, white, black, or
+    /// transparent (RGBA with alpha 0 there).
+    #[arg(long, default_value_t = Look::default().background)]
     pub background: Background,
-    /// Silhouette line width in output pixels (0 = none).
+    /// Silhouette lines this many pixels wide where depth or region changes.
+    #[arg(long, default_value_t = Look::default().outline, allow_negative_numbers = true)]
     pub outline: f32,
+    /// Depth cue toward the background between view distances NEAR,FAR.
+    #[arg(long, allow_hyphen_values = true)]
     pub fog: Option<Fog>,
-    /// Colour written as RGBA16 (`--png-depth 16`).
+    /// Colour written as RGBA16 (`--png-depth 16`, an output option).
+    #[arg(skip)]
     pub color16: bool,
+}
+
+impl Look {
+    pub fn validate(&self) -> Result<()> {
+        if !(self.outline >= 0.0 && self.outline <= 64.0) {
+            return Err(Error::Input(
+                "--outline must be between 0 and 64 pixels".into(),
+            ));
+        }
+        Ok(())
+    }
 }
 
 impl Default for Look {
@@ -487,45 +573,10 @@ pub struct Options {
     /// Perspective vertical field of view in degrees (default: orthographic).
     #[arg(long, allow_negative_numbers = true)]
     pub fov: Option<f64>,
-    /// ISSM (and deep-list) light map side in texels.
-    #[arg(long, default_value_t = Options::default().issm_size)]
-    pub issm_size: u32,
-    /// ISSM patch half-size t (0..32), or `auto`: 1 is the paper's 3x3
-    /// patch; 0 reads only the 2x2 texels around the point (faster, slightly
-    /// less exact where a light texel is nearly a sphere radius).
-    #[arg(long, default_value_t = Options::default().issm_t)]
-    pub issm_t: IssmT,
-    /// Soft shadows: radius enlargement s in world units.
-    #[arg(long, default_value_t = Options::default().soft_s, allow_negative_numbers = true)]
-    pub soft_s: f32,
-    /// Soft shadows: falloff exponent x of (1 - s'/s)^x.
-    #[arg(long, default_value_t = Options::default().soft_x, allow_negative_numbers = true)]
-    pub soft_x: f32,
-    /// Soft shadows: distance b over which the penumbra reaches full width.
-    #[arg(long, default_value_t = Options::default().soft_b, allow_negative_numbers = true)]
-    pub soft_b: f32,
-    /// Depth shadow map side in texels (`--shadows sm-pcf`).
-    #[arg(long, default_value_t = Options::default().sm_size)]
-    pub sm_size: u32,
-    /// Constant depth bias of the shadow map, in map texels.
-    #[arg(long, default_value_t = Options::default().sm_bias, allow_negative_numbers = true)]
-    pub sm_bias: f32,
-    /// Slope-scaled bias factor: times tan(N, light) times the lookup reach
-    /// (half a texel diagonal + PCF radius), in texels.
-    #[arg(long, default_value_t = Options::default().sm_slope_bias, allow_negative_numbers = true)]
-    pub sm_slope_bias: f32,
-    /// PCF taps on a Vogel disk rotated per pixel (0 or 1 = single tap).
-    #[arg(long, default_value_t = Options::default().pcf_samples)]
-    pub pcf_samples: u32,
-    /// PCF disk radius in shadow-map texels.
-    #[arg(long, default_value_t = Options::default().pcf_radius, allow_negative_numbers = true)]
-    pub pcf_radius: f32,
-    /// Opacity shadow map side in texels (`--shadows osm`).
-    #[arg(long, default_value_t = Options::default().osm_size)]
-    pub osm_size: u32,
-    /// Depth slices of the opacity shadow map.
-    #[arg(long, default_value_t = Options::default().osm_slices)]
-    pub osm_slices: u32,
+    #[command(flatten)]
+    pub issm: IssmParams,
+    #[command(flatten)]
+    pub shadow_maps: ShadowMapParams,
     /// Bilateral blur of ambient occlusion.
     #[arg(long, value_enum, default_value_t = Options::default().blur)]
     pub blur: OnOff,
@@ -546,16 +597,8 @@ pub struct Options {
     /// colour (the colour AOV only).
     #[arg(long, default_value_t = Options::default().ssaa)]
     pub ssaa: u32,
-    /// Background: gradient, R,G,B (0..255), #RRGGBB, white, black, or
-    /// transparent (RGBA with alpha 0 there).
-    #[arg(long, default_value_t = Options::default().background)]
-    pub background: Background,
-    /// Silhouette lines this many pixels wide where depth or region changes.
-    #[arg(long, default_value_t = Options::default().outline, allow_negative_numbers = true)]
-    pub outline: f32,
-    /// Depth cue toward the background between view distances NEAR,FAR.
-    #[arg(long, allow_hyphen_values = true)]
-    pub fog: Option<Fog>,
+    #[command(flatten)]
+    pub look: Look,
     /// Render in tiles of this many pixels per side (multiple of 8), as an
     /// image too large for one device allocation is (tests, memory limits).
     #[arg(long)]
@@ -564,8 +607,6 @@ pub struct Options {
 
 impl Default for Options {
     fn default() -> Self {
-        let issm = IssmParams::default();
-        let sm = ShadowMapParams::default();
         Options {
             light: V3(DVec3::new(-1.0, -1.0, -1.0)),
             view_dir: V3(DVec3::new(0.0, 0.0, -1.0)),
@@ -573,27 +614,15 @@ impl Default for Options {
             view_center: None,
             view_height: None,
             fov: None,
-            issm_size: issm.size,
-            issm_t: IssmT(issm.t),
-            soft_s: issm.soft_s,
-            soft_x: issm.soft_x,
-            soft_b: issm.soft_b,
-            sm_size: sm.sm_size,
-            sm_bias: sm.sm_bias,
-            sm_slope_bias: sm.sm_slope_bias,
-            pcf_samples: sm.pcf_samples,
-            pcf_radius: sm.pcf_radius,
-            osm_size: sm.osm_size,
-            osm_slices: sm.osm_slices,
+            issm: IssmParams::default(),
+            shadow_maps: ShadowMapParams::default(),
             blur: OnOff::On,
             deep_pool_chunks: None,
             semantic_levels: None,
             validate: false,
             device: None,
             ssaa: 1,
-            background: Background::Gradient,
-            outline: 0.0,
-            fog: None,
+            look: Look::default(),
             tile_size: None,
         }
     }
@@ -622,45 +651,12 @@ impl Options {
         if crate::camera::unit(self.light.0).is_none() {
             return input("--light must be a finite non-zero direction".into());
         }
-        if !(16..=8192).contains(&self.issm_size) {
-            return input("--issm-size must be between 16 and 8192".into());
-        }
-        for (x, name) in [
-            (self.soft_s, "--soft-s"),
-            (self.soft_x, "--soft-x"),
-            (self.soft_b, "--soft-b"),
-        ] {
-            if !(x > 0.0 && x.is_finite()) {
-                return input(format!("{name} must be positive"));
-            }
-        }
-        if !(16..=8192).contains(&self.sm_size) {
-            return input("--sm-size must be between 16 and 8192".into());
-        }
-        for (x, name) in [
-            (self.sm_bias, "--sm-bias"),
-            (self.sm_slope_bias, "--sm-slope-bias"),
-            (self.pcf_radius, "--pcf-radius"),
-        ] {
-            if !(0.0..=1e4).contains(&x) {
-                return input(format!("{name} must be between 0 and 10000 (texels)"));
-            }
-        }
-        if self.pcf_samples > 256 {
-            return input("--pcf-samples must be between 0 and 256".into());
-        }
-        if !(16..=4096).contains(&self.osm_size) {
-            return input("--osm-size must be between 16 and 4096".into());
-        }
-        if !(1..=1024).contains(&self.osm_slices) {
-            return input("--osm-slices must be between 1 and 1024".into());
-        }
+        self.issm.validate()?;
+        self.shadow_maps.validate()?;
         if !(1..=4).contains(&self.ssaa) {
             return input("--ssaa must be between 1 and 4".into());
         }
-        if !(self.outline >= 0.0 && self.outline <= 64.0) {
-            return input("--outline must be between 0 and 64 pixels".into());
-        }
+        self.look.validate()?;
         if let Some(t) = self.tile_size
             && !(8..=16384).contains(&t)
         {
@@ -670,22 +666,8 @@ impl Options {
             camera,
             light: self.light.0,
             shadows: axes.shadows,
-            issm: IssmParams {
-                size: self.issm_size,
-                t: self.issm_t.0,
-                soft_s: self.soft_s,
-                soft_x: self.soft_x,
-                soft_b: self.soft_b,
-            },
-            shadow_maps: ShadowMapParams {
-                sm_size: self.sm_size,
-                sm_bias: self.sm_bias,
-                sm_slope_bias: self.sm_slope_bias,
-                pcf_samples: self.pcf_samples,
-                pcf_radius: self.pcf_radius,
-                osm_size: self.osm_size,
-                osm_slices: self.osm_slices,
-            },
+            issm: self.issm,
+            shadow_maps: self.shadow_maps,
             opacity: axes.opacity,
             ssdo: axes.ssdo,
             blur: self.blur.on(),
@@ -696,12 +678,7 @@ impl Options {
             ssaa: self.ssaa,
             tile_size: self.tile_size,
             tile_lists: true,
-            look: Look {
-                background: self.background,
-                outline: self.outline,
-                fog: self.fog,
-                color16: false,
-            },
+            look: self.look,
             semantic_levels: self.semantic_levels.as_ref().map(|l| l.0.clone()),
         })
     }

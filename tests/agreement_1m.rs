@@ -30,7 +30,7 @@ fn agreement_of_every_technique_at_one_million_spheres() {
         (ShadowMode::Osm, None),
     ] {
         let mut st = settings(cam, mode);
-        st.issm.t = t;
+        st.issm.t = sphereshade::settings::IssmT(t);
         let mut r = Renderer::new(&ctx, &s, st).expect("renderer");
         r.render_frame().expect("frame");
         let ids = ids_from_vis(&r.inspect().read_vis().expect("vis"));

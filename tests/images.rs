@@ -96,8 +96,8 @@ fn tiled_renders_equal_untiled_bytes() {
             ShadowMode::IssmSoft,
             SsdoMode::Semantic,
             |o| {
-                o.outline = 2.0;
-                o.fog = Some(Fog([-10.0, 25.0]));
+                o.look.outline = 2.0;
+                o.look.fog = Some(Fog([-10.0, 25.0]));
             },
         ),
         (
@@ -108,7 +108,7 @@ fn tiled_renders_equal_untiled_bytes() {
             |o| {
                 o.view_height = Some(18.0);
                 o.ssaa = 2;
-                o.background = Background::Transparent;
+                o.look.background = Background::Transparent;
             },
         ),
         (
@@ -206,7 +206,7 @@ fn supersampled_alpha_follows_exact_coverage() {
     let errors = |ssaa: u32| -> (f64, f64, usize) {
         let s = resolve(&scene, w, h, ShadowMode::None, SsdoMode::Off, |o| {
             o.ssaa = ssaa;
-            o.background = Background::Transparent;
+            o.look.background = Background::Transparent;
         });
         let reference_cam = {
             let mut c = s.camera;
@@ -262,7 +262,7 @@ fn supersampled_alpha_follows_exact_coverage() {
 fn transparent_background_alpha_is_exact() {
     let scene = load_data("1tii.pdb");
     let s = defaults_with(&scene, 200, 150, |o| {
-        o.background = Background::Transparent;
+        o.look.background = Background::Transparent;
     });
     let img = render(&scene, s.clone(), Aov::Color);
     let ids = render(&scene, s, Aov::Id);
@@ -287,7 +287,7 @@ fn transparent_background_alpha_is_exact() {
 fn background_colour_and_fog() {
     let scene = load_data("1tii.pdb");
     let s = defaults_with(&scene, 160, 120, |o| {
-        o.background = Background::Color([10, 200, 30]);
+        o.look.background = Background::Color([10, 200, 30]);
     });
     let plain = render(&scene, s.clone(), Aov::Color);
     let ids = render(&scene, s, Aov::Id);
@@ -300,8 +300,8 @@ fn background_colour_and_fog() {
     }
     assert!(bg > 1000);
     let fogged = defaults_with(&scene, 160, 120, |o| {
-        o.background = Background::Color([10, 200, 30]);
-        o.fog = Some(Fog([-1e6, -1e5]));
+        o.look.background = Background::Color([10, 200, 30]);
+        o.look.fog = Some(Fog([-1e6, -1e5]));
     });
     let fogged = render(&scene, fogged, Aov::Color);
     for p in rgba(&fogged).pixels() {
@@ -316,8 +316,8 @@ fn background_colour_and_fog() {
     // and fog between the front and the back darkens nothing toward black:
     // the far half of the molecule moves toward the background
     let half = defaults_with(&scene, 160, 120, |o| {
-        o.background = Background::Color([255, 255, 255]);
-        o.fog = Some(Fog([-5.0, 30.0]));
+        o.look.background = Background::Color([255, 255, 255]);
+        o.look.fog = Some(Fog([-5.0, 30.0]));
     });
     let half = render(&scene, half, Aov::Color);
     let plain_l: f64 = rgba(&plain).pixels().map(|p| p.0[1] as f64).sum();
@@ -346,9 +346,9 @@ fn outlines_follow_silhouettes() {
             ShadowMode::None,
             SsdoMode::Off,
             move |o| {
-                o.outline = w;
+                o.look.outline = w;
                 o.view_height = Some(12.0);
-                o.background = Background::Color([255, 255, 255]);
+                o.look.background = Background::Color([255, 255, 255]);
             },
         )
     };
@@ -635,7 +635,7 @@ fn eight_k_in_tiles_and_4k_with_ssaa_4() {
     );
     let s = resolve(&scene, 3840, 2160, ShadowMode::None, SsdoMode::Off, |o| {
         o.ssaa = 4;
-        o.background = Background::Transparent;
+        o.look.background = Background::Transparent;
     });
     let out = run::render_run(&ctx, &scene, s, &request(Aov::Color)).unwrap();
     assert_no_validation_messages(&ctx);

@@ -136,7 +136,7 @@ fn issm_settings(
     let mut s = settings(camera(scene, w, h, None), mode);
     s.issm = IssmParams {
         size: 512,
-        t,
+        t: sphereshade::settings::IssmT(t),
         ..Default::default()
     };
     s
@@ -268,7 +268,7 @@ fn shadow_of(ctx: &Context, scene: &Scene, cam: Camera, mode: ShadowMode, soft_s
     s.light = DVec3::new(1.0, -1.0, 0.0);
     s.issm = IssmParams {
         size: 512,
-        t: None,
+        t: sphereshade::settings::IssmT(None),
         soft_s,
         soft_x: 2.0,
         soft_b: 10.0,

@@ -116,7 +116,7 @@ impl Issm {
     fn fit_push(&mut self, setup: &ShadowSetup, light: Camera) {
         let p = &setup.settings.issm;
         let texel = light.view_height / p.size as f64;
-        let (t, stride) = match p.t {
+        let (t, stride) = match p.t.0 {
             Some(t) => (t, 1),
             None => {
                 let (min_r, max_r) = setup
