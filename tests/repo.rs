@@ -151,6 +151,12 @@ fn no_import_cycles_inside_any_folder() {
                 Some(i) => text[..i].to_string(),
                 None => text,
             };
+            // Code only: a doc link is not an import.
+            let text: String = text
+                .lines()
+                .map(|l| l.split("//").next().unwrap_or(""))
+                .collect::<Vec<_>>()
+                .join("\n");
             files.push((m, text));
         }
     }

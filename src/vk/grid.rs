@@ -1,7 +1,6 @@
-//! How many workgroups a dispatch runs: what a pass asks for
-//! ([`crate::vk::PassBuilder::dispatch`]) and what a pipeline turns into
-//! group counts ([`crate::vk::ComputePipeline`]); a leaf, so the recorder
-//! and the pipeline need not import each other.
+//! How many workgroups a dispatch runs: what a pass asks the recorder for
+//! and what a compute pipeline turns into group counts; a leaf, so the
+//! recorder and the pipeline need not import each other.
 
 use super::Buffer;
 

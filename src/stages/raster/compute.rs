@@ -325,24 +325,9 @@ impl RasterPass {
         &'b self,
         rec: &mut crate::vk::Recorder,
         name: &'static str,
-        f: &crate::stages::shadows::ShadowInputs<'b>,
-        map: &'b Buffer,
-        texels: u64,
+        io: &RasterIo<'b>,
     ) -> Result<()> {
-        rec.pass(name, |p| {
-            self.steps(
-                p,
-                &RasterIo {
-                    globals: f.globals,
-                    spheres: f.spheres,
-                    sphere_count: f.sphere_count,
-                    target: map,
-                    texels,
-                },
-                ViewIndex::Light,
-                false,
-            )
-        })
+        rec.pass(name, |p| self.steps(p, io, ViewIndex::Light, false))
     }
 
     pub fn destroy(&mut self, ctx: &Context) {

@@ -171,8 +171,17 @@ impl ShadowTechnique for Issm {
 
     /// `issm_raster`, then `issm_resolve`.
     fn record_light<'b>(&'b self, rec: &mut Recorder, f: &ShadowInputs<'b>) -> Result<()> {
-        f.raster
-            .record_light_map(rec, Self::RASTER_NAME, f, &self.map, self.texels())?;
+        f.raster.record_light_map(
+            rec,
+            Self::RASTER_NAME,
+            &raster::RasterIo {
+                globals: f.globals,
+                spheres: f.spheres,
+                sphere_count: f.sphere_count,
+                target: &self.map,
+                texels: self.texels(),
+            },
+        )?;
         rec.pass(Self::RESOLVE_NAME, |p| {
             p.dispatch(
                 &self.resolve,

@@ -148,8 +148,17 @@ impl ShadowTechnique for ShadowMap {
 
     /// `sm_raster`: the light view's depth|id map.
     fn record_light<'b>(&'b self, rec: &mut Recorder, f: &ShadowInputs<'b>) -> Result<()> {
-        f.raster
-            .record_light_map(rec, Self::RASTER_NAME, f, &self.map, self.texels())
+        f.raster.record_light_map(
+            rec,
+            Self::RASTER_NAME,
+            &raster::RasterIo {
+                globals: f.globals,
+                spheres: f.spheres,
+                sphere_count: f.sphere_count,
+                target: &self.map,
+                texels: self.texels(),
+            },
+        )
     }
 
     fn lookup(&self, _opacity: f32) -> Lookup<'_> {
