@@ -82,6 +82,26 @@ macro_rules! value_name {
         }
     };
 }
+/// `Default` from the clap attributes, so that a knob's default is written
+/// once, beside its flag, doc comment and range.
+macro_rules! default_from_args {
+    ($t:ty) => {
+        impl Default for $t {
+            fn default() -> Self {
+                #[derive(clap::Parser)]
+                struct Only {
+                    #[command(flatten)]
+                    v: $t,
+                }
+                match <Only as clap::Parser>::try_parse_from(["sphereshade"]) {
+                    Ok(o) => o.v,
+                    // (the attributes' own defaults: a test parses them)
+                    Err(e) => panic!("{}: bad default: {e}", stringify!($t)),
+                }
+            }
+        }
+    };
+}
 value_name!(ShadowMode);
 value_name!(SsdoMode);
 value_name!(RasterMode);
@@ -94,21 +114,25 @@ value_name!(Aov);
 #[derive(Clone, Copy, Debug, PartialEq, clap::Args)]
 pub struct IssmParams {
     /// ISSM (and deep-list) light map side in texels.
-    #[arg(long = "issm-size", value_name = "ISSM_SIZE", default_value_t = IssmParams::default().size)]
+    #[arg(long = "issm-size", value_name = "ISSM_SIZE", default_value_t = 512)]
     pub size: u32,
     /// ISSM patch half-size t (0..32), or `auto`: 1 is the paper's 3x3
     /// patch; 0 reads only the 2x2 texels around the point (faster, slightly
     /// less exact where a light texel is nearly a sphere radius).
-    #[arg(long = "issm-t", value_name = "ISSM_T", default_value_t = IssmParams::default().t)]
+    // (The default, 1: on the 1M capsid (tests/agreement_1m.rs) the hard
+    // mask agrees with exact shadow rays on 98.84 % of pixels with t = 1
+    // and 98.96 % with the automatic t (4 there), at a third of the
+    // lookup's cost.)
+    #[arg(long = "issm-t", value_name = "ISSM_T", default_value_t = IssmT(Some(1)))]
     pub t: IssmT,
     /// Soft shadows: radius enlargement s in world units.
-    #[arg(long, default_value_t = IssmParams::default().soft_s, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 2.0, allow_negative_numbers = true)]
     pub soft_s: f32,
     /// Soft shadows: falloff exponent x of (1 - s'/s)^x.
-    #[arg(long, default_value_t = IssmParams::default().soft_x, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 2.0, allow_negative_numbers = true)]
     pub soft_x: f32,
     /// Soft shadows: distance b over which the penumbra reaches full width.
-    #[arg(long, default_value_t = IssmParams::default().soft_b, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 20.0, allow_negative_numbers = true)]
     pub soft_b: f32,
 }
 
@@ -132,21 +156,7 @@ impl IssmParams {
     }
 }
 
-impl Default for IssmParams {
-    fn default() -> Self {
-        IssmParams {
-            size: 512,
-            // The paper's 3x3 patch: on the 1M capsid (tests/agreement_1m.rs)
-            // the hard mask agrees with exact shadow rays on 98.84 % of pixels
-            // with t = 1 and 98.96 % with the automatic t (4 there), at a
-            // third of the lookup's cost.
-            t: IssmT(Some(1)),
-            soft_s: 2.0,
-            soft_x: 2.0,
-            soft_b: 20.0,
-        }
-    }
-}
+default_from_args!(IssmParams);
 
 /// Parameters of the two baseline techniques: the depth shadow map with PCF
 /// (`--shadows sm-pcf`, after the Metal protein viewer paper) and opacity
@@ -157,28 +167,28 @@ impl Default for IssmParams {
 #[derive(Clone, Copy, Debug, PartialEq, clap::Args)]
 pub struct ShadowMapParams {
     /// Depth shadow map side in texels (`--shadows sm-pcf`).
-    #[arg(long, default_value_t = ShadowMapParams::default().sm_size)]
+    #[arg(long, default_value_t = 2048)]
     pub sm_size: u32,
     /// Constant depth bias of the shadow map, in map texels.
-    #[arg(long, default_value_t = ShadowMapParams::default().sm_bias, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 0.5, allow_negative_numbers = true)]
     pub sm_bias: f32,
     /// Slope-scaled bias factor: times tan(N, light) times the lookup reach
     /// (half a texel diagonal + PCF radius), in texels: the depth change of
     /// a plane receiver over that reach, so 1 is exactly that first-order
     /// bound.
-    #[arg(long, default_value_t = ShadowMapParams::default().sm_slope_bias, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
     pub sm_slope_bias: f32,
     /// PCF taps on a Vogel disk rotated per pixel (0 or 1 = single tap).
-    #[arg(long, default_value_t = ShadowMapParams::default().pcf_samples)]
+    #[arg(long, default_value_t = 16)]
     pub pcf_samples: u32,
     /// PCF disk radius in shadow-map texels.
-    #[arg(long, default_value_t = ShadowMapParams::default().pcf_radius, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 1.5, allow_negative_numbers = true)]
     pub pcf_radius: f32,
     /// Opacity shadow map side in texels (`--shadows osm`).
-    #[arg(long, default_value_t = ShadowMapParams::default().osm_size)]
+    #[arg(long, default_value_t = 512)]
     pub osm_size: u32,
     /// Depth slices of the opacity shadow map.
-    #[arg(long, default_value_t = ShadowMapParams::default().osm_slices)]
+    #[arg(long, default_value_t = 64)]
     pub osm_slices: u32,
 }
 
@@ -210,19 +220,7 @@ impl ShadowMapParams {
     }
 }
 
-impl Default for ShadowMapParams {
-    fn default() -> Self {
-        ShadowMapParams {
-            sm_size: 2048,
-            sm_bias: 0.5,
-            sm_slope_bias: 1.0,
-            pcf_samples: 16,
-            pcf_radius: 1.5,
-            osm_size: 512,
-            osm_slices: 64,
-        }
-    }
-}
+default_from_args!(ShadowMapParams);
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct RenderSettings {
@@ -454,10 +452,10 @@ impl FromStr for Fog {
 pub struct Look {
     /// Background: gradient, R,G,B (0..255), #RRGGBB, white, black, or
     /// transparent (RGBA with alpha 0 there).
-    #[arg(long, default_value_t = Look::default().background)]
+    #[arg(long, default_value_t = Background::Gradient)]
     pub background: Background,
     /// Silhouette lines this many pixels wide where depth or region changes.
-    #[arg(long, default_value_t = Look::default().outline, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub outline: f32,
     /// Depth cue toward the background between view distances NEAR,FAR.
     #[arg(long, allow_hyphen_values = true)]
@@ -478,16 +476,7 @@ impl Look {
     }
 }
 
-impl Default for Look {
-    fn default() -> Self {
-        Look {
-            background: Background::Gradient,
-            outline: 0.0,
-            fog: None,
-            color16: false,
-        }
-    }
-}
+default_from_args!(Look);
 
 /// `--semantic-levels T0,T1,...`: positive, descending.
 #[derive(Clone, Debug, PartialEq)]
@@ -681,5 +670,45 @@ impl Options {
             look: self.look,
             semantic_levels: self.semantic_levels.as_ref().map(|l| l.0.clone()),
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The knob structs' defaults come from their clap attributes: they
+    /// parse, and they are DESIGN.md's.
+    #[test]
+    fn knob_defaults_are_the_documented_ones() {
+        let l = Look::default();
+        assert_eq!(
+            (l.background, l.outline, l.fog, l.color16),
+            (Background::Gradient, 0.0, None, false)
+        );
+        let i = IssmParams::default();
+        assert_eq!(
+            (i.size, i.t, i.soft_s, i.soft_x, i.soft_b),
+            (512, IssmT(Some(1)), 2.0, 2.0, 20.0)
+        );
+        let m = ShadowMapParams::default();
+        assert_eq!(
+            (m.sm_size, m.sm_bias, m.sm_slope_bias, m.pcf_samples),
+            (2048, 0.5, 1.0, 16)
+        );
+        assert_eq!((m.pcf_radius, m.osm_size, m.osm_slices), (1.5, 512, 64));
+        for v in [i.validate(), m.validate(), l.validate()] {
+            v.expect("defaults are valid");
+        }
+        // and a flag still overrides one of them
+        #[derive(clap::Parser)]
+        struct P {
+            #[command(flatten)]
+            o: Options,
+        }
+        let p = <P as clap::Parser>::try_parse_from(["x", "--issm-t", "auto", "--outline", "2"])
+            .expect("parse");
+        assert_eq!((p.o.issm.t, p.o.look.outline), (IssmT(None), 2.0));
+        assert_eq!(p.o.shadow_maps, ShadowMapParams::default());
     }
 }
