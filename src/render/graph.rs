@@ -7,12 +7,12 @@
 use super::Resources;
 use crate::error::Result;
 use crate::passes::screen::ScreenInputs;
-use crate::settings::RenderSettings;
-use crate::stages::raster::RasterInputs;
-use crate::stages::shading::{ShadeFrame, ShadeInputs};
-use crate::stages::shadows::ShadowInputs;
-use crate::stages::ssdo::{SsdoInputs, SsdoOutputs};
-use crate::vk::{Buffer, Recorder};
+use crate::settings::{RasterMode, RenderSettings};
+use crate::stages::raster::{RasterInputs, RasterStage};
+use crate::stages::shading::{ShadeFrame, ShadeInputs, ShadePass};
+use crate::stages::shadows::{ShadowInputs, ShadowStage};
+use crate::stages::ssdo::{SsdoInputs, SsdoOutputs, SsdoStage};
+use crate::vk::{Buffer, Context, Recorder};
 
 /// Every pass a frame may record: its name (= debug label = timestamp
 /// scope = JSON name) and what it does.
@@ -101,6 +101,42 @@ pub fn markdown_table() -> String {
     s
 }
 
+/// The stages a frame runs, made with the renderer and destroyed with it.
+/// A new stage is its field here, its line in `new` and `destroy`, and its
+/// call in [`Resources::record_frame`] below.
+pub(crate) struct Stages {
+    pub raster: RasterStage,
+    pub shadows: ShadowStage,
+    pub ssdo: SsdoStage,
+    pub shade: ShadePass,
+}
+
+impl Stages {
+    /// `levels` and `thresholds`: the semantic SSDO levels of the scene.
+    pub fn new(
+        ctx: &Context,
+        settings: &RenderSettings,
+        levels: Vec<u32>,
+        thresholds: Vec<f64>,
+    ) -> Result<Self> {
+        Ok(Stages {
+            raster: RasterStage::new(ctx, settings.raster == RasterMode::Graphics)?,
+            shadows: ShadowStage::new(),
+            ssdo: SsdoStage::new(levels, thresholds),
+            shade: ShadePass::new(),
+        })
+    }
+
+    pub fn destroy(&mut self, ctx: &Context) {
+        self.raster.destroy(ctx);
+        self.shade.destroy(ctx);
+        self.shadows.destroy(ctx);
+        self.ssdo.destroy(ctx);
+    }
+}
+
+crate::impl_destroy!(Stages);
+
 impl Resources {
     /// Records one frame: the stages in order, each one's outputs wired to
     /// the next ones' inputs.
@@ -114,7 +150,7 @@ impl Resources {
         let cam = &settings.camera;
         let size = (t.width, t.height);
 
-        self.raster.record(
+        self.stages.raster.record(
             rec,
             &RasterInputs {
                 globals,
@@ -127,7 +163,7 @@ impl Resources {
             &t.raster,
         )?;
 
-        self.shadows.record(
+        self.stages.shadows.record(
             rec,
             &ShadowInputs {
                 globals,
@@ -136,13 +172,14 @@ impl Resources {
                 opacity: settings.opacity,
                 pixels: t.pixels,
                 sphere_count: self.sphere_count,
-                raster: &self.raster.compute,
+                raster: &self.stages.raster.compute,
             },
         )?;
 
-        let tiles = self
-            .raster
-            .record_tiles(rec, globals, &t.raster, size, settings.tile_lists)?;
+        let tiles =
+            self.stages
+                .raster
+                .record_tiles(rec, globals, &t.raster, size, settings.tile_lists)?;
 
         let ssdo_params = self.ssdo_params(settings);
         let lookup = self.lookup(settings, &ssdo_params);
@@ -154,7 +191,7 @@ impl Resources {
             colors: &self.colors,
         };
         let ssdo = if settings.ssdo_on() {
-            self.ssdo.record(
+            self.stages.ssdo.record(
                 rec,
                 &SsdoInputs {
                     screen: &screen,
@@ -177,7 +214,7 @@ impl Resources {
             }
         };
 
-        self.shade.record(
+        self.stages.shade.record(
             rec,
             &ShadeInputs {
                 screen: &screen,

@@ -26,7 +26,12 @@ impl<'r> Inspect<'r, '_> {
     /// Whether the key light's view has its sphere order for the current
     /// spheres (sorted by the first frame that draws that view).
     pub fn light_order_ready(&self) -> bool {
-        self.r.res.raster.compute.order_ready(ViewIndex::Light)
+        self.r
+            .res
+            .stages
+            .raster
+            .compute
+            .order_ready(ViewIndex::Light)
     }
 
     pub fn is_bgra(&self) -> bool {
@@ -35,12 +40,12 @@ impl<'r> Inspect<'r, '_> {
 
     /// Whether the light cache is on.
     pub fn light_cache(&self) -> bool {
-        self.r.res.shadows.cache()
+        self.r.res.stages.shadows.cache()
     }
 
     /// Whether the next frame reuses the light-space structure.
     pub fn light_cached(&self) -> bool {
-        self.r.res.shadows.cached()
+        self.r.res.stages.shadows.cached()
     }
 
     pub fn pixels(&self) -> u64 {
@@ -57,7 +62,7 @@ impl<'r> Inspect<'r, '_> {
                 *m.entry(class.to_string()).or_insert(0) += bytes;
             }
         };
-        let (order, bands) = self.r.res.raster.memory();
+        let (order, bands) = self.r.res.stages.raster.memory();
         add(
             "scene",
             self.r.res.spheres.size + self.r.res.attrs.size + self.r.res.colors.size + order,
@@ -70,10 +75,10 @@ impl<'r> Inspect<'r, '_> {
         add("visibility", vis + bands);
         add("gbuffer", gbuffer);
         add("ssdo", ssdo);
-        if let Some(b) = self.r.res.ssdo.sphere_buffers() {
+        if let Some(b) = self.r.res.stages.ssdo.sphere_buffers() {
             add("ssdo_spheres", b.bytes());
         }
-        for (class, bytes) in self.r.res.shadows.memory() {
+        for (class, bytes) in self.r.res.stages.shadows.memory() {
             add(class, bytes);
         }
         m
@@ -185,7 +190,7 @@ impl<'r> Inspect<'r, '_> {
     /// flagged, in list order) and the workgroups counted for it; `None`
     /// without per-sphere buffers (tests).
     pub fn read_sphere_list(&self) -> Result<Option<(Vec<u32>, u32)>> {
-        let Some(sb) = self.r.res.ssdo.sphere_buffers() else {
+        let Some(sb) = self.r.res.stages.ssdo.sphere_buffers() else {
             return Ok(None);
         };
         let counters: Vec<u32> = sb.counters.download_pod(self.r.ctx, 0, 4)?;
@@ -223,6 +228,7 @@ impl<'r> Inspect<'r, '_> {
     pub fn issm_info(&self) -> Option<(Camera, u32)> {
         self.r
             .res
+            .stages
             .shadows
             .technique::<Issm>()
             .map(|s| (s.light, s.push.t as u32))
@@ -231,6 +237,7 @@ impl<'r> Inspect<'r, '_> {
     pub fn read_issm(&self) -> Result<Option<Vec<u64>>> {
         self.r
             .res
+            .stages
             .shadows
             .technique::<Issm>()
             .map(|s| s.read_map(self.r.ctx))
@@ -239,17 +246,17 @@ impl<'r> Inspect<'r, '_> {
 
     /// The baseline depth shadow map, when `--shadows sm-pcf` is active.
     pub fn shadow_map(&self) -> Option<&'r ShadowMap> {
-        self.r.res.shadows.technique::<ShadowMap>()
+        self.r.res.stages.shadows.technique::<ShadowMap>()
     }
 
     /// The baseline opacity shadow maps, when `--shadows osm` is active.
     pub fn opacity_shadows(&self) -> Option<&'r OpacityShadows> {
-        self.r.res.shadows.technique::<OpacityShadows>()
+        self.r.res.stages.shadows.technique::<OpacityShadows>()
     }
 
     /// The deep shadow lists, when `--shadows deep` is active.
     pub fn deep(&self) -> Option<&'r DeepShadows> {
-        self.r.res.shadows.technique::<DeepShadows>()
+        self.r.res.stages.shadows.technique::<DeepShadows>()
     }
 
     /// Stats of the last frame's deep lists (after any pool growth).

@@ -18,10 +18,8 @@ use crate::gpu::{Globals, GpuSphere, SphereAttr};
 use crate::scene::Scene;
 use crate::semantic;
 use crate::settings::{RasterMode, RenderSettings, SsdoMode};
-use crate::stages::raster::RasterStage;
-use crate::stages::shading::ShadePass;
-use crate::stages::shadows::{Lookup, ShadowSetup, ShadowStage};
-use crate::stages::ssdo::{SceneScale, SsdoModes, SsdoParams, SsdoStage};
+use crate::stages::shadows::{Lookup, ShadowSetup};
+use crate::stages::ssdo::{SceneScale, SsdoModes, SsdoParams};
 use crate::vk::guard::Destroy;
 use crate::vk::{Buffer, Context};
 use frame::FrameSlot;
@@ -61,10 +59,7 @@ pub(crate) struct Resources {
     /// One RGBA8 word per sphere (the colour of `attrs`, compact).
     colors: Buffer,
     targets: Targets,
-    raster: RasterStage,
-    shadows: ShadowStage,
-    ssdo: SsdoStage,
-    shade: ShadePass,
+    stages: graph::Stages,
     /// Kept host-visible buffer for `set_positions`.
     staging: Option<Buffer>,
 }
@@ -115,7 +110,7 @@ impl Resources {
 
     /// Puts the active technique's light view (or the camera) in the globals.
     fn update_light_view(&mut self, settings: &RenderSettings) {
-        self.globals.light = match self.shadows.light() {
+        self.globals.light = match self.stages.shadows.light() {
             Some(l) => l.to_gpu(self.depth_offset(&l)),
             None => settings.camera.to_gpu(self.depth_offset(&settings.camera)),
         };
@@ -132,13 +127,13 @@ impl Resources {
     /// The SSDO stage's parameters for this camera (computed whether SSDO
     /// runs or not: shade's upsample and outlines read some).
     pub(crate) fn ssdo_params(&self, settings: &RenderSettings) -> SsdoParams {
-        self.ssdo.params(&settings.camera, self.scale())
+        self.stages.ssdo.params(&settings.camera, self.scale())
     }
 
     /// How shade reads key-light visibility this frame.
     pub(crate) fn lookup(&self, settings: &RenderSettings, ssdo: &SsdoParams) -> Lookup<'_> {
         let screen = settings.ssdo_on().then_some(ssdo.screen);
-        self.shadows.lookup(settings.opacity, screen)
+        self.stages.shadows.lookup(settings.opacity, screen)
     }
 
     /// Makes the pipelines this frame's modes need (the first time), and
@@ -170,9 +165,10 @@ impl Resources {
         self.globals.shadow_f0 = plain.params.f0;
         self.globals.shadow_f1 = plain.params.f1;
         self.globals.shadow_u = plain.params.u;
-        self.shade.prepare(ctx, mode, &plain)?;
+        self.stages.shade.prepare(ctx, mode, &plain)?;
         if settings.ssdo_on() {
-            self.ssdo
+            self.stages
+                .ssdo
                 .prepare(ctx, &p, ssdo_modes(settings), &plain, self.sphere_count)?;
         }
         Ok(())
@@ -248,7 +244,6 @@ impl<'c> Renderer<'c> {
         for i in 0..crate::vk::FRAME_SLOTS {
             slots.push(FrameSlot::new(ctx, i)?);
         }
-        let raster = RasterStage::new(ctx, settings.raster == RasterMode::Graphics)?;
 
         let (bs_center, bs_radius) = scene.bounding_sphere();
         let levels = semantic::useful_levels(scene);
@@ -258,6 +253,7 @@ impl<'c> Renderer<'c> {
         // Without a hierarchy every sphere is its own region (semantic SSDO
         // then equals plain SSDO).
         let no_levels = levels.is_empty() as u32;
+        let stages = ctx.guard(graph::Stages::new(ctx, &settings, levels, thresholds)?);
         let mut res = Resources {
             sphere_count: geom.len() as u32,
             geom,
@@ -272,10 +268,7 @@ impl<'c> Renderer<'c> {
             attrs: attr_buf.keep(),
             colors: color_buf.keep(),
             targets: targets.keep(),
-            raster,
-            shadows: ShadowStage::new(),
-            ssdo: SsdoStage::new(levels, thresholds),
-            shade: ShadePass::new(),
+            stages: stages.keep(),
             staging: None,
         };
         res.globals.counts = [res.sphere_count, 0, 0, no_levels];
@@ -294,8 +287,8 @@ impl<'c> Renderer<'c> {
         if r.settings.ssdo != SsdoMode::Off {
             log::info!(
                 "semantic levels {:?}, choice {:?}",
-                r.res.ssdo.levels(),
-                r.res.ssdo.level_choice(&cam, r.res.scale())
+                r.res.stages.ssdo.levels(),
+                r.res.stages.ssdo.level_choice(&cam, r.res.scale())
             );
         }
         RENDERERS_CREATED.fetch_add(1, Ordering::Relaxed);
@@ -357,7 +350,7 @@ impl<'c> Renderer<'c> {
         let next = &self.settings;
         if next.opacity != cur.opacity {
             // deep lists and opacity maps hold the opacity
-            self.res.shadows.uncache();
+            self.res.stages.shadows.uncache();
         }
         if next.look.background != cur.look.background {
             self.res.globals.background = background_word(next.look.background);
@@ -389,8 +382,8 @@ impl<'c> Renderer<'c> {
 impl Resources {
     /// The light or the spheres changed: every technique refits.
     fn light_changed(&mut self, ctx: &Context, settings: &RenderSettings) -> Result<()> {
-        let Resources { geom, shadows, .. } = self;
-        shadows.light_changed(&ShadowSetup {
+        let Resources { geom, stages, .. } = self;
+        stages.shadows.light_changed(&ShadowSetup {
             ctx,
             spheres: geom,
             light_dir: settings.light,
@@ -404,8 +397,8 @@ impl Resources {
 impl<'c> Renderer<'c> {
     /// Chooses the shadow technique; it is created the first time and kept.
     fn set_shadows(&mut self, mode: crate::settings::ShadowMode) -> Result<()> {
-        let Resources { geom, shadows, .. } = &mut self.res;
-        shadows.choose(
+        let Resources { geom, stages, .. } = &mut self.res;
+        stages.shadows.choose(
             mode,
             &ShadowSetup {
                 ctx: self.ctx,
@@ -422,7 +415,7 @@ impl<'c> Renderer<'c> {
     /// Chooses the SSDO mode; its pipelines are created the first time.
     fn set_ssdo(&mut self, mode: SsdoMode) -> Result<()> {
         if mode != SsdoMode::Off {
-            self.res.ssdo.enable(self.ctx)?;
+            self.res.stages.ssdo.enable(self.ctx)?;
         }
         self.settings.ssdo = mode;
         Ok(())
@@ -510,7 +503,7 @@ impl<'c> Renderer<'c> {
         } = &mut self.res;
         spheres.upload_with(self.ctx, bytemuck::cast_slice(geom.as_slice()), staging)?;
         self.res.bounds = bounding_sphere(&self.res.geom);
-        self.res.raster.compute.spheres_moved();
+        self.res.stages.raster.compute.spheres_moved();
         self.res.light_changed(self.ctx, &self.settings)?;
         let cam = self.settings.camera;
         self.res.globals.cam = cam.to_gpu_window(self.res.depth_offset(&cam), self.settings.window);
@@ -523,7 +516,7 @@ impl<'c> Renderer<'c> {
     /// they are: only the camera then costs (the viewer's orbit, the
     /// bench's cached runs). Off by default.
     pub fn set_light_cache(&mut self, on: bool) {
-        self.res.shadows.set_cache(on);
+        self.res.stages.shadows.set_cache(on);
     }
 
     /// Writes the colour buffer as BGRA from the next frame on.
@@ -604,10 +597,7 @@ impl Drop for Renderer<'_> {
         ctx.wait_idle();
         self.slots.destroy_with(ctx);
         let r = &mut self.res;
-        r.raster.destroy(ctx);
-        r.shade.destroy(ctx);
-        r.shadows.destroy(ctx);
-        r.ssdo.destroy(ctx);
+        r.stages.destroy(ctx);
         r.targets.destroy(ctx);
         r.spheres.destroy(ctx);
         r.attrs.destroy(ctx);

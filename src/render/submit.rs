@@ -32,11 +32,12 @@ impl Renderer<'_> {
             ),
         ];
         for (view, dir, drawn) in views {
-            if drawn && self.res.raster.compute.order_stale(view, dir) {
+            if drawn && self.res.stages.raster.compute.order_stale(view, dir) {
                 // Frames in flight read the order.
                 self.wait_idle()?;
                 let t = std::time::Instant::now();
                 self.res
+                    .stages
                     .raster
                     .compute
                     .set_order(self.ctx, view, &self.res.geom, dir)?;
@@ -67,7 +68,7 @@ impl Renderer<'_> {
     }
 
     fn after_frame(&mut self) -> Result<FrameCheck> {
-        self.res.shadows.after_frame(self.ctx)
+        self.res.stages.shadows.after_frame(self.ctx)
     }
 
     /// Records and submits the next frame without waiting for it; returns
@@ -76,7 +77,7 @@ impl Renderer<'_> {
     /// A technique that checks each frame (deep lists) makes this wait like
     /// `render_frame`.
     pub fn render_frame_pipelined(&mut self) -> Result<Option<PassTimes>> {
-        if self.res.shadows.checks_frames() {
+        if self.res.stages.shadows.checks_frames() {
             return self.render_frame().map(Some);
         }
         let slot = self.next_slot;
@@ -159,7 +160,7 @@ impl Renderer<'_> {
         recorded?;
         // The light-space structure this frame builds serves the next ones
         // until something it depends on changes.
-        res.shadows.recorded();
+        res.stages.shadows.recorded();
         let cmds = [cmd];
         let submit = [vk::SubmitInfo::default().command_buffers(&cmds)];
         // SAFETY: the fence is unsignalled only by this submission.

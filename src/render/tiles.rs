@@ -167,7 +167,7 @@ impl<'a> Renderer<'a> {
         let cam = &s.camera;
         let p = self.res.ssdo_params(s);
         let mut reach = p.ssdo.r_far.max(p.ssdo.r_near) as f64;
-        if self.res.shadows.active().is_none() {
+        if self.res.stages.shadows.active().is_none() {
             reach = reach.max(p.screen.f0[0] as f64);
         }
         if p.taps.per_sphere() {
@@ -266,7 +266,7 @@ impl<'a> Renderer<'a> {
             tiles: tiles.len(),
         };
         let mut sum = PassTimes::default();
-        let cache = self.res.shadows.cache();
+        let cache = self.res.stages.shadows.cache();
         // the light structure is built by the first tile, reused by the rest
         self.set_light_cache(true);
         let result = (|| {
