@@ -114,7 +114,12 @@ value_name!(Aov);
 #[derive(Clone, Copy, Debug, PartialEq, clap::Args)]
 pub struct IssmParams {
     /// ISSM (and deep-list) light map side in texels.
-    #[arg(long = "issm-size", value_name = "ISSM_SIZE", default_value_t = 512)]
+    #[arg(
+        id = "issm_size",
+        long = "issm-size",
+        value_name = "ISSM_SIZE",
+        default_value_t = 512
+    )]
     pub size: u32,
     /// ISSM patch half-size t (0..32), or `auto`: 1 is the paper's 3x3
     /// patch; 0 reads only the 2x2 texels around the point (faster, slightly
@@ -123,7 +128,7 @@ pub struct IssmParams {
     // mask agrees with exact shadow rays on 98.84 % of pixels with t = 1
     // and 98.96 % with the automatic t (4 there), at a third of the
     // lookup's cost.)
-    #[arg(long = "issm-t", value_name = "ISSM_T", default_value_t = IssmT(Some(1)))]
+    #[arg(id = "issm_t", long = "issm-t", value_name = "ISSM_T", default_value_t = IssmT(Some(1)))]
     pub t: IssmT,
     /// Soft shadows: radius enlargement s in world units.
     #[arg(long, default_value_t = 2.0, allow_negative_numbers = true)]
