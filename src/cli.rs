@@ -305,3 +305,38 @@ fn render_trajectory(args: RenderArgs) -> Result<Exit> {
         Exit::Ok
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use clap::Parser;
+
+    /// Every subcommand parses the flattened knobs beside its own flags
+    /// (a clap id used twice, as `size` by bench's `--size` and a knob's
+    /// field, fails only at parse time in release builds).
+    #[test]
+    fn every_subcommand_parses_the_shared_knobs() {
+        let knobs = [
+            "--issm-size",
+            "256",
+            "--issm-t",
+            "auto",
+            "--sm-size",
+            "64",
+            "--outline",
+            "1",
+        ];
+        for sub in [
+            vec!["render", "--scene", "random"],
+            vec!["bench", "--size", "64x48", "--json", "x.json"],
+            vec!["view", "--scene", "random"],
+        ] {
+            let mut args = vec!["sphereshade"];
+            args.extend(sub.iter().copied());
+            args.extend(knobs);
+            let cli =
+                super::Cli::try_parse_from(&args).unwrap_or_else(|e| panic!("{}: {e}", sub[0]));
+            let text = format!("{cli:?}");
+            assert!(text.contains("size: 256"), "{}: {text}", sub[0]);
+        }
+    }
+}
