@@ -627,6 +627,7 @@ fn bench_one(
     }
 }
 
+/// The `bench` subcommand: run, print, write, compare.
 pub fn main(a: &BenchArgs) -> Result<u32> {
     let mut outs = Vec::new();
     if !a.summarize {

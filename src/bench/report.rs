@@ -383,8 +383,6 @@ pub(super) fn write_chart(report: &BenchReport, path: &std::path::Path) -> Resul
     .save_png(path)
 }
 
-/// The `bench` subcommand: run, print, write, compare.
-
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -174,13 +174,7 @@ impl ShadowTechnique for Issm {
         f.raster.record_light_map(
             rec,
             Self::RASTER_NAME,
-            &raster::RasterIo {
-                globals: f.globals,
-                spheres: f.spheres,
-                sphere_count: f.sphere_count,
-                target: &self.map,
-                texels: self.texels(),
-            },
+            &f.light_map(&self.map, self.texels()),
         )?;
         rec.pass(Self::RESOLVE_NAME, |p| {
             p.dispatch(

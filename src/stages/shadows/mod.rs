@@ -40,6 +40,23 @@ pub struct ShadowInputs<'a> {
     pub raster: &'a crate::stages::raster::compute::RasterPass,
 }
 
+impl<'a> ShadowInputs<'a> {
+    /// The spheres rasterized from the light into `map` (`texels` of it).
+    pub fn light_map(
+        &self,
+        map: &'a Buffer,
+        texels: u64,
+    ) -> crate::stages::raster::compute::RasterIo<'a> {
+        crate::stages::raster::compute::RasterIo {
+            globals: self.globals,
+            spheres: self.spheres,
+            sphere_count: self.sphere_count,
+            target: map,
+            texels,
+        }
+    }
+}
+
 /// What a technique needs to (re)fit itself: the spheres (CPU copy), the
 /// key-light direction and the settings.
 pub struct ShadowSetup<'a> {
