@@ -306,9 +306,63 @@ fn render_trajectory(args: RenderArgs) -> Result<Exit> {
     })
 }
 
+/// `--opt -5` becomes `--opt=-5`: clap takes a separate word starting with
+/// `-` for a flag, so a negative value read "unexpected argument '-5'"
+/// without naming its option; joined, the option's own check names it
+/// ("invalid value '-5' for '--width <WIDTH>'"). A negative number (or a
+/// list starting with one, `-1,0,0`, `-1x1x1`) after a `--long` option
+/// without `=` is that option's value: no input or flag looks like one.
+pub fn negative_values(
+    args: impl IntoIterator<Item = std::ffi::OsString>,
+) -> Vec<std::ffi::OsString> {
+    let mut out: Vec<std::ffi::OsString> = Vec::new();
+    for a in args {
+        let negative = a
+            .to_str()
+            .and_then(|s| s.strip_prefix('-'))
+            .is_some_and(|r| r.starts_with(|c: char| c.is_ascii_digit() || c == '.'));
+        let joins = out
+            .last()
+            .and_then(|p| p.to_str())
+            .is_some_and(|p| p.starts_with("--") && p.len() > 2 && !p.contains('='));
+        if negative && joins {
+            let mut joined = out.pop().unwrap_or_default();
+            joined.push("=");
+            joined.push(&a);
+            out.push(joined);
+        } else {
+            out.push(a);
+        }
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use clap::Parser;
+
+    #[test]
+    fn a_negative_value_joins_its_option() {
+        let words = |v: &[&str]| v.iter().map(std::ffi::OsString::from).collect::<Vec<_>>();
+        assert_eq!(
+            super::negative_values(words(&[
+                "x", "--width", "-5", "--light", "-1,-1,-1", "-o", "-2"
+            ])),
+            words(&["x", "--width=-5", "--light=-1,-1,-1", "-o", "-2"])
+        );
+        // a value already joined, a flag, an input: left as they are
+        assert_eq!(
+            super::negative_values(words(&[
+                "x",
+                "--fov=-3",
+                "--validate",
+                "a.pdb",
+                "--out",
+                "-"
+            ])),
+            words(&["x", "--fov=-3", "--validate", "a.pdb", "--out", "-"])
+        );
+    }
 
     /// Every subcommand parses the flattened knobs beside its own flags
     /// (a clap id used twice, as `size` by bench's `--size` and a knob's

@@ -602,3 +602,57 @@ fn bench_reproduces_a_render_with_the_same_options() {
         serde_json::from_str(&std::fs::read_to_string(&bjson).unwrap()).unwrap();
     assert_ne!(r2["runs"][0]["image_sha256"], v["image_sha256"]);
 }
+
+/// A negative value is refused in one line that names its option (clap
+/// read `-5` as an unknown flag before).
+#[test]
+fn negative_values_name_their_option() {
+    let out = tmp("negative.png");
+    let out = out.to_str().unwrap();
+    let json = tmp("negative.json").to_str().unwrap().to_string();
+    for (args, option) in [
+        (
+            &["render", "--scene", "random", "--width", "-5"][..],
+            "--width",
+        ),
+        (
+            &["render", "--scene", "random", "--height", "-5"],
+            "--height",
+        ),
+        (&["render", "--scene", "random", "--atoms", "-1"], "--atoms"),
+        (
+            &["render", "--scene", "random", "--replicate", "-1x1x1"],
+            "--replicate",
+        ),
+        (
+            &["render", "--scene", "random", "--semantic-levels", "-1"],
+            "--semantic-levels",
+        ),
+        (&["render", "--scene", "random", "--ssaa", "-1"], "--ssaa"),
+        (
+            &["render", "--scene", "random", "--background", "-1,0,0"],
+            "--background",
+        ),
+        (
+            &["render", "--scene", "random", "--issm-size", "-1"],
+            "--issm-size",
+        ),
+        (
+            &[
+                "bench", "--scene", "random", "--atoms", "-1", "--json", &json,
+            ],
+            "--atoms",
+        ),
+    ] {
+        let mut a = args.to_vec();
+        a.extend(["--out", out]);
+        if args[0] == "bench" {
+            a.truncate(a.len() - 2);
+        }
+        let o = run(&a);
+        let e = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {e}");
+        assert_eq!(e.trim_end().lines().count(), 1, "{args:?}: {e}");
+        assert!(e.contains(option), "{args:?} should name {option}: {e}");
+    }
+}
