@@ -16,6 +16,7 @@ use crate::traj::{self, Frame, FrameRange, Pbc};
 use crate::vk::Context;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 /// What to make of a trajectory.
@@ -245,6 +246,9 @@ pub fn render_trajectory(
         Ok(busy)
     });
 
+    if args.movie.is_some() {
+        watch_signals();
+    }
     let mut movie = match args.movie {
         Some(m) => Some(Ffmpeg::start(
             m,
@@ -269,6 +273,9 @@ pub fn render_trajectory(
         };
         for msg in rx.iter() {
             lap(&mut t_wait);
+            if INTERRUPTED.load(Ordering::Relaxed) {
+                return Err(Error::Input("interrupted by a signal".into()));
+            }
             let (k, frame) = msg?;
             let fitted = if args.camera_each {
                 for (s, p) in scene.spheres.iter_mut().zip(&frame.positions) {
@@ -339,8 +346,33 @@ pub fn render_trajectory(
         );
     }
     drop(renderer);
-    result?;
-    wrote?;
+    // A movie is written whole or not at all: on any error (or a damaged
+    // file's missing frames) the temporary file goes with `movie`.
+    let no_movie = |e: Error| match &movie {
+        Some(_) => {
+            // (a terminal's Ctrl-C also stops ffmpeg: name the cause)
+            let why = if INTERRUPTED.load(Ordering::Relaxed) {
+                "interrupted by a signal".to_string()
+            } else {
+                e.to_string()
+            };
+            Error::Input(format!(
+                "{} ({done} frame(s) had been rendered; no movie written)",
+                why.trim_end_matches('.')
+            ))
+        }
+        None => e,
+    };
+    if INTERRUPTED.load(Ordering::Relaxed) && result.is_ok() {
+        return Err(no_movie(Error::Input("interrupted by a signal".into())));
+    }
+    result.map_err(no_movie)?;
+    wrote.map_err(no_movie)?;
+    if let Some(d) = damage.as_ref()
+        && movie.is_some()
+    {
+        return Err(no_movie(Error::Input(d.to_string())));
+    }
     if let Some(m) = movie.take() {
         m.finish()?;
     }
@@ -354,7 +386,7 @@ pub fn render_trajectory(
     }
     if let Some(d) = damage {
         return Err(Error::Input(format!(
-            "{d} (the {done} frames before it were rendered)"
+            "{d} (the {done} frames before it were rendered and written)"
         )));
     }
     Ok(done)
@@ -367,6 +399,16 @@ fn topology_size(
 ) -> Result<(u32, u32)> {
     let c = resolve(s)?.camera;
     Ok((c.width, c.height))
+}
+
+/// Set by SIGINT/SIGTERM during a `--movie` run: the loop stops after the
+/// frame it is on, and the temporary movie is removed on the way out.
+static INTERRUPTED: AtomicBool = AtomicBool::new(false);
+
+/// Turns SIGINT/SIGTERM into [`INTERRUPTED`] (once per process).
+fn watch_signals() {
+    // (a second call, or a host that already handles them: keep theirs)
+    let _ = ctrlc::set_handler(|| INTERRUPTED.store(true, Ordering::Relaxed));
 }
 
 /// Frames piped to ffmpeg (H.264, yuv420p), written to a temporary name
@@ -382,6 +424,13 @@ impl Ffmpeg {
         let file = path.file_name().unwrap_or_default().to_string_lossy();
         let ext = path.extension().unwrap_or_default().to_string_lossy();
         let tmp = path.with_file_name(format!(".{file}.{}.tmp.{ext}", std::process::id()));
+        if w % 2 == 1 || h % 2 == 1 {
+            eprintln!(
+                "sphereshade: --movie: {w}x{h} padded to {}x{} (H.264 needs even sizes)",
+                w + w % 2,
+                h + h % 2
+            );
+        }
         let child = std::process::Command::new("ffmpeg")
             .args([
                 "-hide_banner",

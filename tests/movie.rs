@@ -310,3 +310,64 @@ fn a_movie_through_ffmpeg() {
     assert_eq!(files(&d), vec!["adk.mp4"]);
     let _ = std::fs::remove_dir_all(&d);
 }
+
+/// A movie is written whole or not at all: a trajectory cut in the middle
+/// leaves no MP4 (and no temporary file), and SIGINT during the run
+/// removes the temporary file; each says in one line how many frames had
+/// been rendered.
+#[test]
+fn a_movie_is_whole_or_absent() {
+    if Command::new("ffmpeg").arg("-version").output().is_err() {
+        panic!("ffmpeg is missing: run tools/setup.sh");
+    }
+    let d = dir("whole");
+    let bytes = std::fs::read(data("adk_oplsaa.xtc")).unwrap();
+    let cut = d.join("cut.xtc");
+    std::fs::write(&cut, &bytes[..bytes.len() * 65 / 100]).unwrap();
+    let movie = d.join("m.mp4");
+    let e = err(&run(
+        &traj_args(
+            &data("adk_oplsaa.gro"),
+            cut.to_str().unwrap(),
+            &["--movie", movie.to_str().unwrap()],
+        ),
+        None,
+    ));
+    assert!(
+        e.contains("cut.xtc: frame 6 at byte")
+            && e.contains("6 frame(s) had been rendered; no movie written"),
+        "{e}"
+    );
+    assert_eq!(files(&d), vec!["cut.xtc"]);
+
+    // SIGINT once the temporary movie exists
+    let (top, traj) = (data("adk_oplsaa.gro"), data("adk_oplsaa.xtc"));
+    let args = traj_args(&top, &traj, &["--movie", movie.to_str().unwrap()]);
+    let child = Command::new(env!("CARGO_BIN_EXE_sphereshade"))
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+        .args(&args)
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("spawn");
+    let started = std::time::Instant::now();
+    while !files(&d).iter().any(|f| f.contains(".tmp.")) {
+        assert!(
+            started.elapsed().as_secs() < 60,
+            "no temporary movie appeared"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    let killed = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .expect("kill");
+    assert!(killed.success());
+    let o = child.wait_with_output().expect("wait");
+    let e = err(&o);
+    assert!(
+        e.contains("interrupted by a signal") && e.contains("no movie written"),
+        "{e}"
+    );
+    assert_eq!(files(&d), vec!["cut.xtc"]);
+    let _ = std::fs::remove_dir_all(&d);
+}
