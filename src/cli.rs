@@ -176,6 +176,11 @@ fn render(args: RenderArgs) -> Result<Exit> {
             args.png_depth
         )));
     }
+    if exr && args.png_depth != 8 {
+        return Err(Error::Input(
+            "--png-depth applies to PNG: --out FILE.exr is 32-bit float".into(),
+        ));
+    }
     if args.png_depth == 16 && args.aov != Aov::Color {
         return Err(Error::Input(
             "--png-depth 16 applies to the colour image".into(),

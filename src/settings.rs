@@ -639,6 +639,7 @@ impl Options {
                 fov: self.fov,
             },
         )?;
+        resolvable(&camera, scene)?;
         if !(0.0..=1.0).contains(&axes.opacity) {
             return input("--opacity must be between 0 and 1".into());
         }
@@ -676,6 +677,32 @@ impl Options {
             semantic_levels: self.semantic_levels.as_ref().map(|l| l.0.clone()),
         })
     }
+}
+
+/// Refuses a camera whose pixels (or, in perspective, whose eye distance)
+/// the GPU's f32 rays cannot resolve against the scene's coordinates: it
+/// would render a uniform image and exit 0.
+fn resolvable(cam: &crate::camera::Camera, scene: &Scene) -> Result<()> {
+    let (c, r) = scene.bounding_sphere();
+    let scale = (c.as_dvec3().abs().max_element() + r as f64).max(f64::MIN_POSITIVE);
+    let px = cam.view_height / cam.height as f64;
+    if !(px >= f32::EPSILON as f64 * scale) {
+        return Err(Error::Input(format!(
+            "--view-height {:e}: a pixel ({px:.2e} world units) is below the f32 precision of the \
+             scene's coordinates (up to {scale:.2e}): nothing could be resolved",
+            cam.view_height
+        )));
+    }
+    if let Some(fov) = cam.fov_deg {
+        let eye = cam.eye_distance();
+        if !(eye <= 1e6 * scale) {
+            return Err(Error::Input(format!(
+                "--fov {fov:e}: the eye would be {eye:.2e} world units away, beyond the f32 \
+                 precision of the scene's coordinates (up to {scale:.2e})"
+            )));
+        }
+    }
+    Ok(())
 }
 
 #[cfg(test)]

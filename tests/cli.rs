@@ -656,3 +656,52 @@ fn negative_values_name_their_option() {
         assert!(e.contains(option), "{args:?} should name {option}: {e}");
     }
 }
+
+/// Degenerate cameras are refused before rendering (they rendered a
+/// uniform image and exited 0), and an option a format ignores is refused.
+#[test]
+fn degenerate_cameras_and_ignored_options_are_refused() {
+    let png = tmp("degenerate.png");
+    let exr = tmp("degenerate.exr");
+    let (png, exr) = (png.to_str().unwrap(), exr.to_str().unwrap());
+    let data = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/1tii.pdb");
+    for (extra, out, frag) in [
+        (
+            &["--view-height", "1e-300"][..],
+            png,
+            "--view-height 1e-300: a pixel",
+        ),
+        (&["--fov", "1e-9"], png, "--fov 1e-9: the eye would be"),
+        (
+            &["--view-dir", "nan,0,1"],
+            png,
+            "for '--view-dir <VIEW_DIR>': 'nan,0,1': components must be finite",
+        ),
+        (&["--png-depth", "16"], exr, "--png-depth applies to PNG"),
+    ] {
+        let mut a = vec![
+            "render", data, "--width", "64", "--height", "48", "--out", out,
+        ];
+        a.extend(extra);
+        let o = run(&a);
+        let e = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{extra:?}: {e}");
+        assert_eq!(e.trim_end().lines().count(), 1, "{extra:?}: {e}");
+        assert!(e.contains(frag), "{extra:?}: {e}");
+        assert!(!std::path::Path::new(out).exists(), "{extra:?} wrote {out}");
+    }
+    // the closest view f32 still resolves renders
+    let o = run(&[
+        "render",
+        data,
+        "--width",
+        "64",
+        "--height",
+        "48",
+        "--view-height",
+        "1e-3",
+        "--out",
+        png,
+    ]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+}
