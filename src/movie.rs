@@ -286,7 +286,8 @@ pub fn render_trajectory(
                 None
             };
             let r = &mut renderer;
-            r.set_positions(&frame.positions)?;
+            r.set_positions(&frame.positions)
+                .map_err(|e| Error::Input(format!("{tname}: frame {k}: {e}")))?;
             // (the orbit angle follows the frame index, not the position in
             // the range, for the same reason as the camera)
             let cam = camera_for(&base, fitted, k, args.orbit_deg)?;

@@ -371,3 +371,68 @@ fn a_movie_is_whole_or_absent() {
     assert_eq!(files(&d), vec!["cut.xtc"]);
     let _ = std::fs::remove_dir_all(&d);
 }
+
+/// A LAMMPS dump whose second `ITEM: TIMESTEP` line is damaged renders
+/// frame 0, then stops with one line naming frame 1 and its byte offset
+/// (it lost frame 1 and renumbered the rest before); a dump whose last
+/// line has no newline renders every frame, as a trajectory and as a
+/// structure.
+#[test]
+fn lammps_frames_are_read_whole_or_named() {
+    let d = dir("lammps");
+    let src = std::fs::read(data("image_vf.lammpstrj")).unwrap();
+    let starts: Vec<usize> = (0..src.len())
+        .filter(|&k| src[k..].starts_with(b"ITEM: TIMESTEP"))
+        .collect();
+    assert_eq!(starts.len(), 3);
+    let mut bad = src.clone();
+    bad[starts[1] + 13] = b'X'; // ITEM: TIMESTEX
+    let bad_path = d.join("bad.lammpstrj");
+    std::fs::write(&bad_path, &bad).unwrap();
+    let out = d.join("f_%d.png").display().to_string();
+    let top = data("image_vf.lammpstrj");
+    let e = err(&run(
+        &traj_args(&top, bad_path.to_str().unwrap(), &["--out", &out]),
+        None,
+    ));
+    assert!(
+        e.contains(&format!("bad.lammpstrj: frame 1 at byte {}", starts[1]))
+            && e.contains("'ITEM: TIMESTEX'")
+            && e.matches("bad.lammpstrj").count() == 1,
+        "{e}"
+    );
+    let pngs: Vec<String> = files(&d)
+        .into_iter()
+        .filter(|f| f.ends_with(".png"))
+        .collect();
+    assert_eq!(pngs, vec!["f_0.png"]);
+
+    let nonl = d.join("nonl.lammpstrj");
+    std::fs::write(&nonl, src.strip_suffix(b"\n").unwrap()).unwrap();
+    let out2 = d.join("n_%d.png").display().to_string();
+    ok(&run(
+        &traj_args(&top, nonl.to_str().unwrap(), &["--out", &out2]),
+        None,
+    ));
+    let n: Vec<String> = files(&d)
+        .into_iter()
+        .filter(|f| f.starts_with("n_"))
+        .collect();
+    assert_eq!(n, vec!["n_0.png", "n_1.png", "n_2.png"]);
+    let s = d.join("s.png");
+    ok(&run(
+        &[
+            "render",
+            nonl.to_str().unwrap(),
+            "--width",
+            "64",
+            "--height",
+            "48",
+            "--validate",
+            "--out",
+            s.to_str().unwrap(),
+        ],
+        None,
+    ));
+    let _ = std::fs::remove_dir_all(&d);
+}

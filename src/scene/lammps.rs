@@ -9,7 +9,7 @@
 use super::elements::Element;
 use super::molecule::palette_color;
 use super::text::{LineSource, parse_f32, show, split_ws};
-use super::{MAX_SPHERES, Scene, SceneError, Sphere, check_coordinate, parse_error, truncated};
+use super::{MAX_SPHERES, Scene, SceneError, Sphere, check_coordinate, parse_error};
 
 /// One dump frame, rows in id order.
 #[derive(Clone, Debug, Default)]
@@ -156,7 +156,7 @@ pub(crate) fn read_frame(
         Vec::with_capacity(count.min(1 << 20));
     for i in 0..count {
         let mut toks = Vec::with_capacity(names.len());
-        let (n, l, cut) = match src.next()? {
+        let (n, l, _) = match src.next()? {
             Some(x) => x,
             None => {
                 return Err(parse_error(
@@ -214,9 +214,8 @@ pub(crate) fn read_frame(
         let id = int_col(id_col, "id", i as i64 + 1)?;
         let ty = int_col(type_col, "type", 1)?;
         let el = el_col.and_then(|c| Element::from_symbol(toks[c]));
-        if cut {
-            return Err(truncated(name, n));
-        }
+        // (a last atom line without a newline is a normal line: it parsed
+        // whole, every column present)
         rows.push((id, ty, el, center));
     }
     rows.sort_by_key(|r| r.0);

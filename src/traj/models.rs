@@ -113,9 +113,31 @@ impl Models {
             Kind::Lammps => {
                 let mut cb = |_, _| {};
                 let mut src = scene::text::LineSource::from_bytes(&text, &self.name, &mut cb);
+                // (the parser's "PATH:LINE: what": the path is named once)
+                let inner = |e: scene::SceneError| {
+                    let text = e.to_string();
+                    match text
+                        .strip_prefix(&format!("{}:", self.name))
+                        .and_then(|rest| rest.split_once(':'))
+                    {
+                        Some((line, what)) => err(format!("line {line} of the frame:{what}")),
+                        None => err(text),
+                    }
+                };
                 let d = scene::lammps::read_frame(&mut src, &self.name)
-                    .map_err(|e| err(e.to_string()))?
+                    .map_err(inner)?
                     .ok_or_else(|| err("empty frame".into()))?;
+                // Text after the frame's atoms that starts no frame: a
+                // damaged `ITEM: TIMESTEP` line (the frame after it would
+                // otherwise be lost and the rest renumbered).
+                while let Some((n, l, _)) = src.next().map_err(|e| err(e.to_string()))? {
+                    if !l.iter().all(u8::is_ascii_whitespace) {
+                        return Err(err(format!(
+                            "line {n} of the frame, '{}', follows its atoms: expected 'ITEM: TIMESTEP' (a damaged frame header?)",
+                            scene::text::show(l)
+                        )));
+                    }
+                }
                 out.positions = d.positions;
                 out.time_ps = None;
                 out.cell = Some(d.cell);
@@ -157,7 +179,18 @@ fn scan(mut r: impl BufRead, kind: Kind, len: u64) -> std::io::Result<Vec<(u64, 
         let text = line.strip_suffix(b"\n").unwrap_or(&line);
         match kind {
             Kind::Lammps => {
-                if text.starts_with(b"ITEM: TIMESTEP") {
+                // A header no dump writes (`ITEM: TIMESTEX`) starts a frame
+                // too: that frame then fails to read, naming itself and its
+                // offset, instead of hiding in the frame before it.
+                const ITEMS: [&[u8]; 4] = [
+                    b"ITEM: TIMESTEP",
+                    b"ITEM: NUMBER OF ATOMS",
+                    b"ITEM: BOX BOUNDS",
+                    b"ITEM: ATOMS",
+                ];
+                if text.starts_with(b"ITEM: TIMESTEP")
+                    || (text.starts_with(b"ITEM:") && !ITEMS.iter().any(|i| text.starts_with(i)))
+                {
                     starts.push(here);
                 }
             }
