@@ -705,3 +705,28 @@ fn degenerate_cameras_and_ignored_options_are_refused() {
     ]);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
 }
+
+/// Without a Vulkan driver the line says what is missing and how to get
+/// it, not the loader's raw result.
+#[test]
+fn no_vulkan_driver_is_one_clear_line() {
+    let out = tmp("nodriver.png");
+    let o = bin()
+        .env("VK_ICD_FILENAMES", "/nonexistent/icd.json")
+        .env("VK_DRIVER_FILES", "/nonexistent/icd.json")
+        .args([
+            "render", "--scene", "random", "--atoms", "100", "--width", "32", "--height", "32",
+            "--out",
+        ])
+        .arg(&out)
+        .output()
+        .expect("run");
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{e}");
+    assert_eq!(e.trim_end().lines().count(), 1, "{e}");
+    assert!(
+        e.contains("no Vulkan device found") && e.contains("tools/setup.sh"),
+        "{e}"
+    );
+    assert!(!out.exists());
+}

@@ -227,7 +227,12 @@ fn create_instance(
     if opts.validate {
         info = info.push_next(&mut features);
     }
-    let instance = unsafe { entry.create_instance(&info, None) }.vk("vkCreateInstance")?;
+    // SAFETY: `info` and everything it points to outlive the call.
+    let instance = match unsafe { entry.create_instance(&info, None) } {
+        // (the loader found no driver manifest it could use)
+        Err(vk::Result::ERROR_INCOMPATIBLE_DRIVER) => return Err(Error::NoDevice),
+        r => r.vk("vkCreateInstance")?,
+    };
     Ok((instance, debug_utils))
 }
 
