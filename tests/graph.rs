@@ -17,7 +17,9 @@ fn every_mode_records_a_barrier_for_every_hazard() {
     let cam = camera(&scene, 64, 48, None);
     let mut checked = 0;
     for raster in [RasterMode::Compute, RasterMode::Graphics] {
-        let mut r = Renderer::new(&ctx, &scene, settings(cam, ShadowMode::None)).expect("renderer");
+        let mut s = settings(cam, ShadowMode::None);
+        s.raster = raster;
+        let mut r = Renderer::new(&ctx, &scene, s).expect("renderer");
         for shadows in [
             ShadowMode::None,
             ShadowMode::Issm,
@@ -104,4 +106,53 @@ fn readme_pass_table_is_the_pass_list() {
     sorted.sort();
     sorted.dedup();
     assert_eq!(sorted.len(), names.len(), "duplicate pass names");
+}
+
+/// `Renderer::update` refuses what a live renderer cannot change and what
+/// is out of range, and leaves the settings as they were then; what it
+/// accepts is what the next frame uses.
+#[test]
+fn update_refuses_fixed_and_bad_settings_and_keeps_the_old_ones() {
+    let ctx = validated_context();
+    let scene = load_data("1tii.pdb");
+    let cam = camera(&scene, 64, 48, None);
+    let mut r = Renderer::new(&ctx, &scene, settings(cam, ShadowMode::Issm)).expect("renderer");
+    let before = r.settings().clone();
+    for (edit, frag) in [
+        (
+            Box::new(|s: &mut sphereshade::settings::RenderSettings| {
+                s.raster = RasterMode::Graphics
+            }) as Box<dyn Fn(&mut sphereshade::settings::RenderSettings)>,
+            "--raster cannot change on a live renderer",
+        ),
+        (
+            Box::new(|s| s.issm.size = 1024),
+            "the ISSM parameters cannot change",
+        ),
+        (
+            Box::new(|s| s.opacity = 1.5),
+            "--opacity must be between 0 and 1",
+        ),
+        (
+            Box::new(|s| s.light = glam::DVec3::ZERO),
+            "--light must be a finite",
+        ),
+    ] {
+        let e = r.update(|s| edit(s)).expect_err(frag).to_string();
+        assert!(e.contains(frag), "{e}");
+        assert_eq!(r.settings(), &before, "{frag}: settings changed");
+    }
+    r.update(|s| {
+        s.shadows = ShadowMode::Deep;
+        s.opacity = 0.5;
+    })
+    .expect("update");
+    assert_eq!(
+        (r.settings().shadows, r.settings().opacity),
+        (ShadowMode::Deep, 0.5)
+    );
+    r.render_frame().expect("frame");
+    assert!(r.inspect().deep_stats().is_some(), "the deep lists ran");
+    drop(r);
+    assert_no_validation_messages(&ctx);
 }
