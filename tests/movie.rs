@@ -436,3 +436,71 @@ fn lammps_frames_are_read_whole_or_named() {
     ));
     let _ = std::fs::remove_dir_all(&d);
 }
+
+/// The binary readers stop at a damaged frame with one line naming the
+/// file, the frame and its byte offset, after rendering exactly the frames
+/// before it (numbered by their index; none skipped).
+#[test]
+fn binary_trajectories_stop_at_the_damage() {
+    let d = dir("damage");
+    let gro = data("adk_oplsaa.gro");
+    let pdb = data("adk_open.pdb");
+    let mut cases: Vec<(String, PathBuf, &str, usize)> = Vec::new();
+    for ext in ["xtc", "trr"] {
+        let bytes = std::fs::read(data(&format!("adk_oplsaa.{ext}"))).unwrap();
+        let cut = d.join(format!("cut.{ext}"));
+        std::fs::write(&cut, &bytes[..bytes.len() * 65 / 100]).unwrap();
+        cases.push((gro.clone(), cut, "frame 6 at byte", 6));
+        // the third frame's magic number damaged
+        let magic = &bytes[..4];
+        let second = 4 + bytes[4..].windows(4).position(|w| w == magic).unwrap();
+        let third = second
+            + 4
+            + bytes[second + 4..]
+                .windows(4)
+                .position(|w| w == magic)
+                .unwrap();
+        let mut bad = bytes.clone();
+        bad[third..third + 4].copy_from_slice(&[0xde, 0xad, 0xbe, 0xef]);
+        let p = d.join(format!("magic.{ext}"));
+        std::fs::write(&p, &bad).unwrap();
+        cases.push((gro.clone(), p, "frame 2 at byte", 2));
+    }
+    let dcd = std::fs::read(data("adk_dims.dcd")).unwrap();
+    let cut = d.join("cut.dcd");
+    std::fs::write(&cut, &dcd[..dcd.len() * 65 / 100]).unwrap();
+    cases.push((pdb, cut, "frame 63 at byte", 63));
+    for (top, traj, frag, frames) in cases {
+        let name = traj
+            .file_name()
+            .unwrap()
+            .to_string_lossy()
+            .replace('.', "_");
+        let out = d.join(format!("{name}_%d.png")).display().to_string();
+        let e = err(&run(
+            &traj_args(&top, traj.to_str().unwrap(), &["--out", &out]),
+            None,
+        ));
+        let shown = traj.file_name().unwrap().to_string_lossy().into_owned();
+        assert!(
+            e.contains(&format!("{shown}: {frag}"))
+                && e.contains(&format!(
+                    "the {frames} frames before it were rendered and written"
+                )),
+            "{shown}: {e}"
+        );
+        let mut pngs: Vec<String> = files(&d)
+            .into_iter()
+            .filter(|f| f.starts_with(&format!("{name}_")))
+            .collect();
+        pngs.sort_by_key(|f| f.len());
+        assert_eq!(
+            pngs,
+            (0..frames)
+                .map(|k| format!("{name}_{k}.png"))
+                .collect::<Vec<_>>(),
+            "{shown}"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&d);
+}
