@@ -219,7 +219,7 @@ void main() {
     // key keeps only a small fraction of its diffuse in full shadow; fill
     // and rim are small and occluded too, so they do not wash creases out.
     float ao = amb.x;
-    float key = nk * mix(pc.shadow_diffuse, 1.0, vis_key);
+    float key = nk * mix(pc.knobs.shadow_diffuse, 1.0, vis_key);
     float fill = 0.06 * max(dot(n, l_fill), 0.0);
     float rf = 1.0 - max(dot(n, v), 0.0);
     float rim = 0.08 * rf * rf * rf * max(dot(n, l_rim) + 0.3, 0.0);

@@ -80,6 +80,48 @@ pub mod consts {
     include!("gpu_consts.rs");
 }
 
+/// A knob between 0 and 1 (clap value parser of `gpu_knobs!` fields).
+pub fn unit_interval(s: &str) -> Result<f32, String> {
+    match s.parse::<f32>() {
+        Ok(v) if (0.0..=1.0).contains(&v) => Ok(v),
+        _ => Err(format!("'{s}': expected a number between 0 and 1")),
+    }
+}
+
+/// Turns the shared knob structs into `#[repr(C)]` Pod structs that are also
+/// clap arguments (defaults from their attributes); build.rs turns the same
+/// list into `knobs/NAME.glsl` (a GLSL struct).
+macro_rules! gpu_knobs {
+    ($($(#[doc = $sdoc:expr])* $name:ident $file:literal {
+        $($(#[doc = $doc:expr])* $(#[arg($($arg:tt)*)])* $field:ident : $ty:ty,)*
+    })*) => {
+        $(
+            $(#[doc = $sdoc])*
+            #[doc = concat!("\n\nGLSL: `#include \"knobs/", $file, ".glsl\"`.")]
+            #[repr(C)]
+            #[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable, clap::Args)]
+            pub struct $name {
+                $( $(#[doc = $doc])* $(#[arg($($arg)*)])* pub $field: $ty, )*
+            }
+
+            impl Default for $name {
+                /// The defaults of the clap attributes.
+                fn default() -> Self {
+                    #[derive(clap::Parser)]
+                    struct Only {
+                        #[command(flatten)]
+                        v: $name,
+                    }
+                    match <Only as clap::Parser>::try_parse_from(["sphereshade"]) {
+                        Ok(o) => o.v,
+                        Err(e) => panic!("{}: bad default: {e}", stringify!($name)),
+                    }
+                }
+            }
+        )*
+    };
+}
+
 /// Turns the shared push blocks into `#[repr(C)]` Pod structs (build.rs
 /// turns the same list into `push/NAME.glsl`).
 macro_rules! gpu_push {

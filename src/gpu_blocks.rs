@@ -6,15 +6,31 @@
 // (`#include "push/NAME.glsl"`, `#include "spec/NAME.glsl"`), so that the
 // order, types and size of a block cannot drift between the two sides. A
 // doc comment travels to both. Field types: `u32`, `i32`, `f32`, `bool`
-// (spec only) and `[u32; N]` (push padding). A spec include also defines
+// (spec only), `[u32; N]` (push padding) and a `gpu_knobs!` struct (a
+// GLSL struct of scalars, `#include "knobs/NAME.glsl"`: knob structs are
+// also clap arguments, so a knob is written once). A spec include also defines
 // SPEC_NEXT_ID, the id after its last constant (a tiled shader's
 // TILE_LIST_ID).
+
+gpu_knobs! {
+    /// The shading knobs that reach `shade` as they are: flattened into the
+    /// command line (through `Look`), copied whole into `ShadePush::knobs`.
+    /// A new one is its field here and the shader line that reads
+    /// `pc.knobs.NAME`.
+    ShadeKnobs "shade_knobs" {
+        /// Fraction of the key light's diffuse term kept in full shadow (the
+        /// ISSM paper's rule: a shadowed point keeps its ambient light and
+        /// this much of the key's diffuse term, and loses its specular).
+        #[arg(long, default_value_t = 0.05, allow_negative_numbers = true, value_parser = crate::gpu::unit_interval)]
+        shadow_diffuse: f32,
+    }
+}
 
 gpu_push! {
     /// `shade` (glsl/shade.comp).
     ShadePush "shade" {
-        /// Fraction of the key light's diffuse term kept in full shadow.
-        shadow_diffuse: f32,
+        /// The knobs the shader reads as they are.
+        knobs: ShadeKnobs,
         /// Silhouette line width in pixels (with OUTLINE).
         outline_px: f32,
         /// Depth cue from view_z fog_near to fog_far (read with FOG, which

@@ -465,6 +465,9 @@ pub struct Look {
     /// Depth cue toward the background between view distances NEAR,FAR.
     #[arg(long, allow_hyphen_values = true)]
     pub fog: Option<Fog>,
+    /// The knobs `shade` reads as they are (src/gpu_blocks.rs).
+    #[command(flatten)]
+    pub knobs: crate::gpu::blocks::ShadeKnobs,
     /// Colour written as RGBA16 (`--png-depth 16`, an output option).
     #[arg(skip)]
     pub color16: bool,
@@ -718,6 +721,7 @@ mod tests {
             (l.background, l.outline, l.fog, l.color16),
             (Background::Gradient, 0.0, None, false)
         );
+        assert_eq!(l.knobs.shadow_diffuse, 0.05);
         let i = IssmParams::default();
         assert_eq!(
             (i.size, i.t, i.soft_s, i.soft_x, i.soft_b),
@@ -742,5 +746,14 @@ mod tests {
             .expect("parse");
         assert_eq!((p.o.issm.t, p.o.look.outline), (IssmT(None), 2.0));
         assert_eq!(p.o.shadow_maps, ShadowMapParams::default());
+        // a knob's range lives in its attribute
+        let e = <P as clap::Parser>::try_parse_from(["x", "--shadow-diffuse", "2"])
+            .err()
+            .expect("out of range")
+            .to_string();
+        assert!(
+            e.contains("--shadow-diffuse") && e.contains("between 0 and 1"),
+            "{e}"
+        );
     }
 }

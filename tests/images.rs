@@ -660,3 +660,34 @@ fn eight_k_in_tiles_and_4k_with_ssaa_4() {
         "{partial} px, levels {levels:?}"
     );
 }
+
+/// `--shadow-diffuse` (a knob of src/gpu_blocks.rs) reaches the shader:
+/// keeping all of the key's diffuse term in shadow brightens exactly the
+/// shadowed pixels; without shadows it changes nothing.
+#[test]
+fn shadow_diffuse_knob_reaches_shade() {
+    let scene = load_data("1tii.pdb");
+    let shot = |diffuse: f32, shadows: ShadowMode| {
+        let s = resolve(&scene, 160, 120, shadows, SsdoMode::Off, |o| {
+            o.look.knobs.shadow_diffuse = diffuse
+        });
+        rgba(&render(&scene, s, Aov::Color)).clone()
+    };
+    let (dark, lit) = (shot(0.05, ShadowMode::Issm), shot(1.0, ShadowMode::Issm));
+    let sum = |img: &image::RgbaImage| -> u64 {
+        img.pixels()
+            .map(|p| p.0[0] as u64 + p.0[1] as u64 + p.0[2] as u64)
+            .sum()
+    };
+    let changed = dark
+        .pixels()
+        .zip(lit.pixels())
+        .filter(|(a, b)| a != b)
+        .count();
+    assert!(changed > 100, "only {changed} pixels changed");
+    assert!(
+        sum(&lit) > sum(&dark),
+        "more diffuse light in shadow is brighter"
+    );
+    assert_eq!(shot(0.05, ShadowMode::None), shot(1.0, ShadowMode::None));
+}

@@ -20,11 +20,6 @@ use crate::vk::pipeline::{Binding, PipelineDesc, texel, wo};
 use crate::vk::{Buffer, Context, Recorder};
 use ash::vk::Format;
 
-/// Fraction of the key light's diffuse term kept in full shadow: the
-/// lighting rule of the ISSM paper (a fully shadowed point keeps ambient
-/// and this fraction of the key's diffuse term, and loses its specular).
-pub const SHADOW_DIFFUSE: f32 = 0.05;
-
 pub struct ShadePass {
     variants: Variants,
 }
@@ -122,7 +117,7 @@ impl ShadeFrame {
                 },
             },
             push: ShadePush {
-                shadow_diffuse: SHADOW_DIFFUSE,
+                knobs: settings.look.knobs,
                 outline_px: outline_px as f32,
                 fog_near: fog.map_or(0.0, |f| f.0[0] as f32),
                 fog_far: fog.map_or(0.0, |f| f.0[1] as f32),
