@@ -237,13 +237,11 @@ pub struct RenderSettings {
     pub shadow_maps: ShadowMapParams,
     pub opacity: f32,
     pub ssdo: SsdoMode,
-    pub blur: bool,
+    /// The SSDO stage's knobs (blur, semantic levels).
+    pub ssdo_knobs: SsdoKnobs,
     pub raster: RasterMode,
-    /// Initial deep-list pool size in chunks (None = estimate from the scene).
-    pub deep_pool_chunks: Option<u32>,
-    /// Zoom thresholds (visible height in world units, descending) where the
-    /// next finer region level takes over; None = relative to scene size.
-    pub semantic_levels: Option<Vec<f64>>,
+    /// The deep lists' knobs.
+    pub deep: DeepParams,
     /// Keep the shadow and ao AOVs (4 B/px more) for `read_shadow` and
     /// `read_ambient`; off, frames write colour only.
     pub aovs: bool,
@@ -486,6 +484,46 @@ impl Look {
 
 default_from_args!(Look);
 
+/// The SSDO stage's knobs, flattened into the command line (the mode itself
+/// is `--ssdo`, a bench axis).
+#[derive(Clone, Debug, PartialEq, clap::Args)]
+pub struct SsdoKnobs {
+    /// Bilateral blur of ambient occlusion.
+    #[arg(
+        long,
+        default_value = "on",
+        value_name = "BLUR",
+        action = clap::ArgAction::Set,
+        value_parser = clap::builder::TypedValueParser::map(
+            clap::builder::PossibleValuesParser::new(["on", "off"]),
+            |s: String| s == "on"
+        )
+    )]
+    pub blur: bool,
+    /// Zoom thresholds for semantic SSDO levels: comma list of visible
+    /// heights (world units, descending) where the next finer level takes over
+    /// (default: relative to the scene size).
+    #[arg(long)]
+    pub semantic_levels: Option<Levels>,
+}
+
+default_from_args!(SsdoKnobs);
+
+/// The deep lists' knobs.
+#[derive(Clone, Copy, Debug, PartialEq, clap::Args)]
+pub struct DeepParams {
+    /// Initial deep-list pool size in chunks of 64 entries (grown on overflow;
+    /// default: estimated from the scene).
+    #[arg(
+        id = "deep_pool_chunks",
+        long = "deep-pool-chunks",
+        value_name = "DEEP_POOL_CHUNKS"
+    )]
+    pub pool_chunks: Option<u32>,
+}
+
+default_from_args!(DeepParams);
+
 /// `--semantic-levels T0,T1,...`: positive, descending.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Levels(pub Vec<f64>);
@@ -574,16 +612,10 @@ pub struct Options {
     pub issm: IssmParams,
     #[command(flatten)]
     pub shadow_maps: ShadowMapParams,
-    /// Bilateral blur of ambient occlusion.
-    #[arg(long, value_enum, default_value_t = Options::default().blur)]
-    pub blur: OnOff,
-    /// Initial deep-list pool size in chunks of 64 entries (grown on overflow).
-    #[arg(long)]
-    pub deep_pool_chunks: Option<u32>,
-    /// Zoom thresholds for semantic SSDO levels: comma list of visible
-    /// heights (world units, descending) where the next finer level takes over.
-    #[arg(long)]
-    pub semantic_levels: Option<Levels>,
+    #[command(flatten)]
+    pub ssdo_knobs: SsdoKnobs,
+    #[command(flatten)]
+    pub deep: DeepParams,
     /// Enable validation (GPU-assisted + synchronization); exit 3 on any message.
     #[arg(long)]
     pub validate: bool,
@@ -613,9 +645,8 @@ impl Default for Options {
             fov: None,
             issm: IssmParams::default(),
             shadow_maps: ShadowMapParams::default(),
-            blur: OnOff::On,
-            deep_pool_chunks: None,
-            semantic_levels: None,
+            ssdo_knobs: SsdoKnobs::default(),
+            deep: DeepParams::default(),
             validate: false,
             device: None,
             ssaa: 1,
@@ -668,16 +699,15 @@ impl Options {
             shadow_maps: self.shadow_maps,
             opacity: axes.opacity,
             ssdo: axes.ssdo,
-            blur: self.blur.on(),
+            ssdo_knobs: self.ssdo_knobs.clone(),
             raster: axes.raster,
-            deep_pool_chunks: self.deep_pool_chunks,
+            deep: self.deep,
             aovs: false,
             window: None,
             ssaa: self.ssaa,
             tile_size: self.tile_size,
             tile_lists: true,
             look: self.look,
-            semantic_levels: self.semantic_levels.as_ref().map(|l| l.0.clone()),
         })
     }
 }
@@ -722,6 +752,11 @@ mod tests {
             (Background::Gradient, 0.0, None, false)
         );
         assert_eq!(l.knobs.shadow_diffuse, 0.05);
+        let (s, d) = (SsdoKnobs::default(), DeepParams::default());
+        assert_eq!(
+            (s.blur, s.semantic_levels, d.pool_chunks),
+            (true, None, None)
+        );
         let i = IssmParams::default();
         assert_eq!(
             (i.size, i.t, i.soft_s, i.soft_x, i.soft_b),
@@ -742,9 +777,23 @@ mod tests {
             #[command(flatten)]
             o: Options,
         }
-        let p = <P as clap::Parser>::try_parse_from(["x", "--issm-t", "auto", "--outline", "2"])
-            .expect("parse");
+        let p = <P as clap::Parser>::try_parse_from([
+            "x",
+            "--issm-t",
+            "auto",
+            "--outline",
+            "2",
+            "--blur",
+            "off",
+            "--deep-pool-chunks",
+            "9",
+        ])
+        .expect("parse");
         assert_eq!((p.o.issm.t, p.o.look.outline), (IssmT(None), 2.0));
+        assert_eq!(
+            (p.o.ssdo_knobs.blur, p.o.deep.pool_chunks),
+            (false, Some(9))
+        );
         assert_eq!(p.o.shadow_maps, ShadowMapParams::default());
         // a knob's range lives in its attribute
         let e = <P as clap::Parser>::try_parse_from(["x", "--shadow-diffuse", "2"])

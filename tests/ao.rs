@@ -36,7 +36,7 @@ fn correlation_at(
     let cam = camera(&scene, w, h, fov);
     let mut s = settings(cam, ShadowMode::None);
     s.ssdo = mode;
-    s.blur = true;
+    s.ssdo_knobs.blur = true;
     let mut r = Renderer::new(&ctx, &scene, s).expect("renderer");
     assert_eq!(
         r.inspect().ssdo_receivers(),

@@ -110,7 +110,7 @@ fn tile_lists_change_no_byte_of_the_image() {
         }
         let mut s = settings(cam, shadows);
         s.ssdo = SsdoMode::Semantic;
-        s.blur = true;
+        s.ssdo_knobs.blur = true;
         s.light = DVec3::new(-1.0, -0.5, -1.0);
         let with = images(&s, &scene);
         s.tile_lists = false;

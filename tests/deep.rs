@@ -641,7 +641,7 @@ fn overflow_grows_pool_and_matches_big_pool() {
     let scene = scene::procedural("random", 1500, 21).expect("random");
     let render = |pool: Option<u32>| {
         let mut s = deep_settings(&scene, 160, 120, 128, 1.0);
-        s.deep_pool_chunks = pool;
+        s.deep.pool_chunks = pool;
         let mut r = Renderer::new(&ctx, &scene, s).expect("renderer");
         r.render_frame().expect("frame");
         guards_ok("overflow", &ctx, &r);

@@ -35,7 +35,7 @@ fn every_mode_records_a_barrier_for_every_hazard() {
                     }
                     r.update(|set| set.shadows = shadows).unwrap();
                     r.update(|set| set.ssdo = ssdo).unwrap();
-                    r.update(|set| set.blur = blur).expect("blur");
+                    r.update(|set| set.ssdo_knobs.blur = blur).expect("blur");
                     let log = r.frame_log().expect("log");
                     let what = format!("{raster:?} {shadows:?} {ssdo:?} blur {blur}");
                     let problems = check_hazards(&log);

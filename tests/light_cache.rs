@@ -52,7 +52,7 @@ fn cached_light_structures_give_the_rebuilt_image() {
         let cam = camera(&scene, 96, 72, None);
         let mut s = settings(cam, mode);
         s.ssdo = SsdoMode::Semantic;
-        s.blur = true;
+        s.ssdo_knobs.blur = true;
         if mode == ShadowMode::Osm {
             s.opacity = 0.6;
         }

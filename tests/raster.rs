@@ -382,7 +382,7 @@ fn pipelined_frames_match_synchronous_rendering() {
     let s = scene::procedural("capsid", 3000, 6).expect("scene");
     let mut st = settings(camera(&s, 96, 72, None), ShadowMode::Issm);
     st.ssdo = sphereshade::settings::SsdoMode::Semantic;
-    st.blur = true;
+    st.ssdo_knobs.blur = true;
     let cams: Vec<_> = (0..4)
         .map(|k| sphereshade::bench::orbit_camera(&st.camera, k, 4).unwrap())
         .collect();

@@ -149,7 +149,7 @@ fn pits_scene() -> (Scene, Camera, [DVec3; 2]) {
 fn ambient(ctx: &Context, scene: &Scene, cam: Camera, mode: SsdoMode, blur: bool) -> Vec<f32> {
     let mut s = settings(cam, ShadowMode::None);
     s.ssdo = mode;
-    s.blur = blur;
+    s.ssdo_knobs.blur = blur;
     s.light = DVec3::new(0.0, -1.0, 0.0);
     let mut r = Renderer::new(ctx, scene, s).expect("renderer");
     r.render_frame().expect("frame");

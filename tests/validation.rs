@@ -140,7 +140,7 @@ fn renderer_teardown_leaks_nothing() {
     ] {
         let mut st = settings(camera(&s, 64, 48, None), shadows);
         st.ssdo = ssdo;
-        st.blur = true;
+        st.ssdo_knobs.blur = true;
         let mut r = Renderer::new(&ctx, &s, st).expect("renderer");
         r.render_frame().expect("frame");
     }

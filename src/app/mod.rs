@@ -231,7 +231,7 @@ impl<'c> App<'c> {
             "sphereshade | {playing}{n} spheres | {fps:.1} fps | gpu {gpu:.1} ms | shadows {} ssdo {} blur {} opacity {:.2} | {} | H help",
             s.shadows.name(),
             s.ssdo.name(),
-            if s.blur { "on" } else { "off" },
+            if s.ssdo_knobs.blur { "on" } else { "off" },
             s.opacity,
             passes.join(" ")
         ));
@@ -409,7 +409,7 @@ impl<'c> App<'c> {
         match key.as_ref() {
             Key::Character("s" | "S") => r.update(|n| n.shadows = next(s.shadows))?,
             Key::Character("o" | "O") => r.update(|n| n.ssdo = next(s.ssdo))?,
-            Key::Character("b" | "B") => r.update(|n| n.blur = !s.blur)?,
+            Key::Character("b" | "B") => r.update(|n| n.ssdo_knobs.blur = !s.ssdo_knobs.blur)?,
             Key::Character("+" | "=") => r.update(|n| n.opacity = (s.opacity + 0.1).min(1.0))?,
             Key::Character("-" | "_") => r.update(|n| n.opacity = (s.opacity - 0.1).max(0.0))?,
             Key::Character("r" | "R") => {
@@ -710,7 +710,7 @@ pub fn run(cmd: ViewCmd) -> Result<Exit> {
                 "view: final state shadows {} ssdo {} blur {} opacity {} light {}",
                 s.shadows,
                 s.ssdo,
-                if s.blur { "on" } else { "off" },
+                if s.ssdo_knobs.blur { "on" } else { "off" },
                 s.opacity,
                 crate::settings::V3(s.light)
             );

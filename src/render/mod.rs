@@ -179,7 +179,7 @@ impl Resources {
 fn ssdo_modes(settings: &RenderSettings) -> SsdoModes {
     SsdoModes {
         semantic: settings.ssdo == SsdoMode::Semantic,
-        blur: settings.blur,
+        blur: settings.ssdo_knobs.blur,
         lists: settings.tile_lists,
     }
 }
@@ -247,9 +247,14 @@ impl<'c> Renderer<'c> {
 
         let (bs_center, bs_radius) = scene.bounding_sphere();
         let levels = semantic::useful_levels(scene);
-        let thresholds = settings.semantic_levels.clone().unwrap_or_else(|| {
-            semantic::default_thresholds(levels.len(), 2.0 * bs_radius as f64 * 1.05)
-        });
+        let thresholds = settings
+            .ssdo_knobs
+            .semantic_levels
+            .as_ref()
+            .map(|l| l.0.clone())
+            .unwrap_or_else(|| {
+                semantic::default_thresholds(levels.len(), 2.0 * bs_radius as f64 * 1.05)
+            });
         // Without a hierarchy every sphere is its own region (semantic SSDO
         // then equals plain SSDO).
         let no_levels = levels.is_empty() as u32;
@@ -318,10 +323,10 @@ impl<'c> Renderer<'c> {
                 "the shadow-map parameters",
                 next.shadow_maps != cur.shadow_maps,
             ),
-            ("--deep-pool", next.deep_pool_chunks != cur.deep_pool_chunks),
+            ("--deep-pool-chunks", next.deep != cur.deep),
             (
                 "--semantic-levels",
-                next.semantic_levels != cur.semantic_levels,
+                next.ssdo_knobs.semantic_levels != cur.ssdo_knobs.semantic_levels,
             ),
         ];
         if let Some((what, _)) = fixed.iter().find(|f| f.1) {

@@ -221,7 +221,7 @@ impl DeepShadows {
         let ctx = setup.ctx;
         let light = setup.fit(setup.settings.issm.size)?;
         let radii: Vec<f32> = setup.radii().collect();
-        let pool_chunks = setup.settings.deep_pool_chunks;
+        let pool_chunks = setup.settings.deep.pool_chunks;
         let sphere_count = radii.len() as u32;
         if light.fov_deg.is_some() {
             return Err(Error::Internal(
