@@ -88,6 +88,28 @@ pub fn unit_interval(s: &str) -> Result<f32, String> {
     }
 }
 
+/// `Default` from the clap attributes, so that a knob's default is written
+/// once, beside its flag, doc comment and range.
+macro_rules! default_from_args {
+    ($t:ty) => {
+        impl Default for $t {
+            fn default() -> Self {
+                #[derive(clap::Parser)]
+                struct Only {
+                    #[command(flatten)]
+                    v: $t,
+                }
+                match <Only as clap::Parser>::try_parse_from(["sphereshade"]) {
+                    Ok(o) => o.v,
+                    // (the attributes' own defaults: a test parses them)
+                    Err(e) => panic!("{}: bad default: {e}", stringify!($t)),
+                }
+            }
+        }
+    };
+}
+pub(crate) use default_from_args;
+
 /// Turns the shared knob structs into `#[repr(C)]` Pod structs that are also
 /// clap arguments (defaults from their attributes); build.rs turns the same
 /// list into `knobs/NAME.glsl` (a GLSL struct).
@@ -104,20 +126,7 @@ macro_rules! gpu_knobs {
                 $( $(#[doc = $doc])* $(#[arg($($arg)*)])* pub $field: $ty, )*
             }
 
-            impl Default for $name {
-                /// The defaults of the clap attributes.
-                fn default() -> Self {
-                    #[derive(clap::Parser)]
-                    struct Only {
-                        #[command(flatten)]
-                        v: $name,
-                    }
-                    match <Only as clap::Parser>::try_parse_from(["sphereshade"]) {
-                        Ok(o) => o.v,
-                        Err(e) => panic!("{}: bad default: {e}", stringify!($name)),
-                    }
-                }
-            }
+            default_from_args!($name);
         )*
     };
 }

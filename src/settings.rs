@@ -6,6 +6,7 @@
 
 use crate::camera::Camera;
 use crate::error::{Error, Result};
+use crate::gpu::default_from_args;
 use crate::scene::Scene;
 use glam::DVec3;
 use serde::Serialize;
@@ -78,26 +79,6 @@ macro_rules! value_name {
         impl fmt::Display for $t {
             fn fmt(&self, f: &mut fmt::Formatter) -> fmt::Result {
                 f.write_str(&self.name())
-            }
-        }
-    };
-}
-/// `Default` from the clap attributes, so that a knob's default is written
-/// once, beside its flag, doc comment and range.
-macro_rules! default_from_args {
-    ($t:ty) => {
-        impl Default for $t {
-            fn default() -> Self {
-                #[derive(clap::Parser)]
-                struct Only {
-                    #[command(flatten)]
-                    v: $t,
-                }
-                match <Only as clap::Parser>::try_parse_from(["sphereshade"]) {
-                    Ok(o) => o.v,
-                    // (the attributes' own defaults: a test parses them)
-                    Err(e) => panic!("{}: bad default: {e}", stringify!($t)),
-                }
             }
         }
     };
