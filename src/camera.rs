@@ -242,7 +242,17 @@ impl Default for CameraFit {
 
 /// Builds the DESIGN.md default camera for a scene, overridable per field.
 pub fn default_camera(scene: &Scene, width: u32, height: u32, fit: &CameraFit) -> Result<Camera> {
-    let (bs_center, bs_radius) = scene.bounding_sphere();
+    fitted_camera(scene.bounding_sphere(), width, height, fit)
+}
+
+/// [`default_camera`] for a scene whose bounding sphere (centre, radius)
+/// is known.
+pub fn fitted_camera(
+    (bs_center, bs_radius): (glam::Vec3, f32),
+    width: u32,
+    height: u32,
+    fit: &CameraFit,
+) -> Result<Camera> {
     let center = fit.center.unwrap_or(bs_center.as_dvec3());
     let h = fit
         .view_height

@@ -642,8 +642,10 @@ impl Options {
     /// defaults are fitted to its spheres.
     pub fn resolve(&self, axes: &Axes, scene: &Scene) -> Result<RenderSettings> {
         let input = |m: String| Err(Error::Input(m));
-        let camera = crate::camera::default_camera(
-            scene,
+        // (one pass over the spheres serves the camera and its check)
+        let bounds = scene.bounding_sphere();
+        let camera = crate::camera::fitted_camera(
+            bounds,
             axes.width,
             axes.height,
             &crate::camera::CameraFit {
@@ -654,7 +656,7 @@ impl Options {
                 fov: self.fov,
             },
         )?;
-        resolvable(&camera, scene)?;
+        resolvable(&camera, bounds)?;
         if !(0.0..=1.0).contains(&axes.opacity) {
             return input("--opacity must be between 0 and 1".into());
         }
@@ -696,8 +698,7 @@ impl Options {
 /// Refuses a camera whose pixels (or, in perspective, whose eye distance)
 /// the GPU's f32 rays cannot resolve against the scene's coordinates: it
 /// would render a uniform image and exit 0.
-fn resolvable(cam: &crate::camera::Camera, scene: &Scene) -> Result<()> {
-    let (c, r) = scene.bounding_sphere();
+fn resolvable(cam: &crate::camera::Camera, (c, r): (glam::Vec3, f32)) -> Result<()> {
     let scale = (c.as_dvec3().abs().max_element() + r as f64).max(f64::MIN_POSITIVE);
     let px = cam.view_height / cam.height as f64;
     if !(px >= f32::EPSILON as f64 * scale) {

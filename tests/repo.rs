@@ -199,12 +199,10 @@ fn no_import_cycles_inside_any_folder() {
             // The longest prefix that is a module, then one re-export step.
             while target.len() > 1 && !modules.contains(&target) {
                 let name = target.pop().unwrap();
-                let parent = target.clone();
-                if let Some(child) = reexport.get(&(parent.clone(), name.clone())) {
+                if let Some(child) = reexport.get(&(target.clone(), name)) {
                     target.push(child.clone());
                     break;
                 }
-                let _ = name;
             }
             let common = m.iter().zip(&target).take_while(|(a, b)| a == b).count();
             if common < m.len() && common < target.len() {

@@ -9,7 +9,7 @@ use crate::error::Result;
 use crate::passes::screen::ScreenInputs;
 use crate::settings::{RasterMode, RenderSettings};
 use crate::stages::raster::{RasterInputs, RasterStage};
-use crate::stages::shading::{ShadeFrame, ShadeInputs, ShadePass};
+use crate::stages::shading::{ShadeInputs, ShadePass};
 use crate::stages::shadows::{ShadowInputs, ShadowStage};
 use crate::stages::ssdo::{SsdoInputs, SsdoOutputs, SsdoStage};
 use crate::vk::{Buffer, Context, Recorder};
@@ -143,6 +143,7 @@ impl Resources {
     pub(super) fn record_frame(
         &self,
         settings: &RenderSettings,
+        params: &super::FrameParams,
         globals: &Buffer,
         rec: &mut Recorder,
     ) -> Result<()> {
@@ -181,8 +182,8 @@ impl Resources {
                 .raster
                 .record_tiles(rec, globals, &t.raster, size, settings.tile_lists)?;
 
-        let ssdo_params = self.ssdo_params(settings);
-        let lookup = self.lookup(settings, &ssdo_params);
+        let ssdo_params = &params.ssdo;
+        let lookup = self.lookup(settings, ssdo_params);
         let screen = ScreenInputs {
             globals,
             vis: &t.raster.vis,
@@ -202,7 +203,7 @@ impl Resources {
                     scratch: &t.shade.color,
                 },
                 &t.ssdo,
-                &ssdo_params,
+                ssdo_params,
                 super::ssdo_modes(settings),
             )?
         } else {
@@ -223,13 +224,7 @@ impl Resources {
                 tiles,
             },
             &t.shade,
-            &ShadeFrame::new(
-                settings,
-                &lookup,
-                &ssdo_params,
-                self.bgra,
-                self.typical_radius,
-            ),
+            &params.shade,
             size,
         )
     }

@@ -18,6 +18,7 @@ use crate::gpu::{Globals, GpuSphere, SphereAttr};
 use crate::scene::Scene;
 use crate::semantic;
 use crate::settings::{RasterMode, RenderSettings, SsdoMode};
+use crate::stages::shading::ShadeFrame;
 use crate::stages::shadows::{Lookup, ShadowSetup};
 use crate::stages::ssdo::{SceneScale, SsdoModes, SsdoParams};
 use crate::vk::guard::Destroy;
@@ -138,21 +139,16 @@ impl Resources {
 
     /// Makes the pipelines this frame's modes need (the first time), and
     /// the frame's uniforms: the lookup's parameters, the half size.
-    fn prepare(&mut self, ctx: &Context, settings: &RenderSettings) -> Result<()> {
+    /// Returns the stages' parameters for the frame (computed once here).
+    fn prepare(&mut self, ctx: &Context, settings: &RenderSettings) -> Result<FrameParams> {
         let (hw, hh) = self.targets.half();
         self.globals.counts[1] = hw;
         self.globals.counts[2] = hh;
         let p = self.ssdo_params(settings);
         // The lookup borrows the technique: keep what the pipelines need.
-        let (plain, mode) = {
+        let (plain, shade) = {
             let l = self.lookup(settings, &p);
-            let frame = crate::stages::shading::ShadeFrame::new(
-                settings,
-                &l,
-                &p,
-                self.bgra,
-                self.typical_radius,
-            );
+            let frame = ShadeFrame::new(settings, &l, &p, self.bgra, self.typical_radius);
             let plain: Lookup<'static> = Lookup {
                 kind: l.kind,
                 soft: l.soft,
@@ -160,19 +156,26 @@ impl Resources {
                 buffers: Vec::new(),
                 params: l.params,
             };
-            (plain, frame.mode)
+            (plain, frame)
         };
         self.globals.shadow_f0 = plain.params.f0;
         self.globals.shadow_f1 = plain.params.f1;
         self.globals.shadow_u = plain.params.u;
-        self.stages.shade.prepare(ctx, mode, &plain)?;
+        self.stages.shade.prepare(ctx, shade.mode, &plain)?;
         if settings.ssdo_on() {
             self.stages
                 .ssdo
                 .prepare(ctx, &p, ssdo_modes(settings), &plain, self.sphere_count)?;
         }
-        Ok(())
+        Ok(FrameParams { ssdo: p, shade })
     }
+}
+
+/// The stages' parameters of one frame: computed by `prepare`, recorded by
+/// `record_frame`.
+pub(crate) struct FrameParams {
+    pub ssdo: SsdoParams,
+    pub shade: ShadeFrame,
 }
 
 /// The SSDO stage's switches from the settings.
@@ -385,7 +388,8 @@ impl<'c> Renderer<'c> {
 }
 
 impl Resources {
-    /// The light or the spheres changed: every technique refits.
+    /// The light or the spheres changed: every technique refits (the
+    /// caller then puts the new light view in the globals).
     fn light_changed(&mut self, ctx: &Context, settings: &RenderSettings) -> Result<()> {
         let Resources { geom, stages, .. } = self;
         stages.shadows.light_changed(&ShadowSetup {
@@ -393,9 +397,7 @@ impl Resources {
             spheres: geom,
             light_dir: settings.light,
             settings,
-        })?;
-        self.update_light_view(settings);
-        Ok(())
+        })
     }
 }
 

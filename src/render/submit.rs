@@ -119,7 +119,7 @@ impl Renderer<'_> {
             res,
             ..
         } = self;
-        res.prepare(ctx, settings)?;
+        let params = res.prepare(ctx, settings)?;
         let fs = &mut slots[slot];
         fs.wait(ctx)?;
         match fs.globals.mapped_mut() {
@@ -150,7 +150,7 @@ impl Renderer<'_> {
         let recorded = {
             let mut rec = Recorder::new(ctx, cmd, &mut fs.arena, Some(&mut fs.profiler));
             rec.restrict_to(graph::pass_names());
-            res.record_frame(settings, &fs.globals, &mut rec)
+            res.record_frame(settings, &params, &fs.globals, &mut rec)
         };
         // SAFETY: cmd is in the recording state.
         unsafe { dev.end_command_buffer(cmd) }.map_err(|result| Error::Vk {
@@ -185,7 +185,7 @@ impl Renderer<'_> {
     pub fn frame_log(&mut self) -> Result<Vec<crate::vk::barrier::Event>> {
         self.ensure_orders()?;
         let ctx = self.ctx;
-        self.res.prepare(ctx, &self.settings)?;
+        let params = self.res.prepare(ctx, &self.settings)?;
         let cmd = ctx.command_buffer("frame log")?;
         let mut arena = crate::vk::descriptors::DescriptorArena::default();
         let begin = vk::CommandBufferBeginInfo::default();
@@ -200,7 +200,7 @@ impl Renderer<'_> {
                 rec.restrict_to(graph::pass_names());
                 rec.keep_log();
                 self.res
-                    .record_frame(&self.settings, &self.slots[0].globals, &mut rec)?;
+                    .record_frame(&self.settings, &params, &self.slots[0].globals, &mut rec)?;
                 Ok(rec.take_log())
             });
         // SAFETY: the object is not used by any pending GPU work (waited for above / by the owner).
