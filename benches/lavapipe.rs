@@ -185,6 +185,7 @@ fn main() {
                 push_size: 16,
                 local_size: 64,
                 constants: &[mode, 1],
+                scene: 0,
             },
         )
         .expect("pipeline");

@@ -27,7 +27,6 @@
 layout(local_size_x_id = 0) in;
 
 layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
-layout(set = 0, binding = 1) readonly buffer Spheres { vec4 spheres[]; };
 layout(set = 0, binding = 2) buffer Texels { DeepTexel texels[]; };
 layout(set = 0, binding = 3) readonly buffer Tiles { DeepTile tiles[]; };
 layout(set = 0, binding = 4) writeonly buffer Depth { float e_depth[]; };
@@ -40,8 +39,15 @@ layout(set = 0, binding = 9) buffer Inline { uint inline_bits[]; };
 layout(constant_id = 2) const uint MODE = DEEP_COUNT;
 
 #include "push/deep_splat.glsl"
+#include "scene.glsl"
 
-Footprint band_footprint(uint id) { return deep_footprint(g.light, spheres[id]); }
+Footprint band_footprint(uint id) {
+    vec4 s = scene_sphere(id);
+    Footprint f = deep_footprint(g.light, s);
+    // (an unused slot of an instanced batch has no footprint)
+    if (scene_instanced() && s.w < 0.0) f.rect = ivec4(1, 1, 0, 0);
+    return f;
+}
 
 void visit(uint id, Footprint f, ivec2 t) {
     if (!deep_overlaps(f, t)) return;

@@ -12,15 +12,15 @@ layout(local_size_x_id = 0) in;
 
 layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
 layout(set = 0, binding = 1) uniform usamplerBuffer issmTex; // R32UI view: even words = ids
-layout(set = 0, binding = 2) uniform samplerBuffer sphereTex;
 layout(set = 0, binding = 3) writeonly buffer Resolved { vec4 resolved[]; };
 
 #include "push/issm_resolve.glsl"
+#include "scene.glsl"
 
 void main() {
     uint i = FLAT_ID;
     if (i >= pc.texels) return;
     uint id = texelFetch(issmTex, int(2u * i)).x;
-    vec4 s = texelFetch(sphereTex, id == NO_SPHERE ? 0 : int(id));
+    vec4 s = scene_sphere(id == NO_SPHERE ? 0u : id);
     resolved[i] = id == NO_SPHERE ? ISSM_EMPTY : vec4(light_space(g.light, s.xyz), s.w);
 }

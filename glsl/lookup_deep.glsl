@@ -40,7 +40,7 @@ float key_visibility(Surface s, uint pixel) {
         if (e_depth[addr] > limit) break;
         uint id = e_id[addr];
         if (id != s.id && id < g.counts.x) {
-            vec4 sp = texelFetch(sphereTex, int(id));
+            vec4 sp = scene_sphere(id);
             vec3 oc = sp.xyz - p;
             float kk = dot(oc, dl);
             vec3 perp = oc - kk * dl;

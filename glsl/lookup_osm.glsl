@@ -47,7 +47,7 @@ float optical_depth(View L, ivec2 t, float u, vec3 own_cv, float own_r) {
 }
 
 float key_visibility(Surface s, uint pixel) {
-    vec4 sp = texelFetch(sphereTex, int(s.id));
+    vec4 sp = scene_sphere(s.id);
     vec3 p = s.p;
     View L = g.light;
     vec3 own_cv = view_space(L, sp.xyz, false);

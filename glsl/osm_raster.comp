@@ -18,12 +18,12 @@
 layout(local_size_x_id = 0) in;
 
 layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
-layout(set = 0, binding = 1) readonly buffer Spheres { vec4 spheres[]; };
 layout(set = 0, binding = 2) buffer Opacity { uint opacity[]; };
 layout(set = 0, binding = 3) buffer Jobs { uvec2 jobs[]; };
 layout(set = 0, binding = 4) buffer Counters { uint counters[]; };
 
 #include "push/osm_raster.glsl"
+#include "scene.glsl"
 
 #define OSM_Z_MIN pc.z_min
 #define OSM_INV_DZ pc.inv_dz
@@ -38,11 +38,13 @@ struct Footprint {
 
 Footprint band_footprint(uint id) {
     View L = g.light;
-    vec4 s = spheres[id];
+    vec4 s = scene_sphere(id);
     Footprint f;
     f.cv = view_space(L, s.xyz, false);
     f.r = s.w;
-    f.rect = sphere_rect(L, f.cv, s.w, false); // light views are orthographic
+    // light views are orthographic; an unused slot of an instanced batch
+    // has no footprint
+    f.rect = scene_instanced() && s.w < 0.0 ? ivec4(1, 1, 0, 0) : sphere_rect(L, f.cv, s.w, false);
     return f;
 }
 

@@ -24,12 +24,15 @@ layout(set = 0, binding = 5) uniform usamplerBuffer visWordTex;
 // early-depth test turns more of the later visits away before their
 // atomics, and the halves take alike work on different cache lines
 // (glsl/bands.glsl's SPHERE_AT; src/stages/raster/compute.rs `view_order`).
+// (instanced scenes: the order is over batches of BATCH_ATOMS slots)
 layout(set = 0, binding = 6) uniform usamplerBuffer orderTex;
-#define SPHERE_AT(i) texelFetch(orderTex, int(i)).x
-// The spheres as RGBA32F texels: in a view's order a sphere's address is
-// not the invocation's, and a storage load at per-lane addresses is a
+// The spheres as texels (scene.glsl): in a view's order a sphere's address
+// is not the invocation's, and a storage load at per-lane addresses is a
 // scalar loop per component on lavapipe; a texel fetch is a vector gather.
-layout(set = 0, binding = 7) uniform samplerBuffer sphereTex;
+#include "scene.glsl"
+#define SPHERE_AT(i) (scene_instanced() \
+    ? (texelFetch(orderTex, int((i) >> BATCH_SHIFT)).x << BATCH_SHIFT) | scene_lane(i) \
+    : texelFetch(orderTex, int(i)).x)
 
 #include "push/raster.glsl"
 
@@ -53,10 +56,11 @@ struct Footprint {
 Footprint band_footprint(uint id) {
     Footprint f;
     f.v = pc.view_index == 0u ? g.cam : g.light;
-    vec4 s = texelFetch(sphereTex, int(id));
+    vec4 s = scene_sphere(id);
     f.cv = view_space(f.v, s.xyz, PERSP);
     f.r = s.w;
-    f.rect = sphere_rect(f.v, f.cv, s.w, PERSP);
+    // (an unused slot of an instanced batch has no footprint)
+    f.rect = scene_instanced() && s.w < 0.0 ? ivec4(1, 1, 0, 0) : sphere_rect(f.v, f.cv, s.w, PERSP);
     f.step = 1.0 / f.v.center.w;
     f.origin = vec2(0.5 - 0.5 * f.v.right.w, 0.5 * f.v.up.w - 0.5) * vec2(f.step, f.step) - f.cv.xy;
     return f;

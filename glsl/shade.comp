@@ -16,15 +16,17 @@ layout(local_size_x_id = 0) in;
 
 layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
 layout(set = 0, binding = 1) uniform usamplerBuffer visTex;
-layout(set = 0, binding = 2) uniform samplerBuffer sphereTex;
-layout(set = 0, binding = 3) uniform usamplerBuffer attrTex; // R32UI, ATTR_REGION
 layout(set = 0, binding = 4) uniform usamplerBuffer recordTex;  // per 2x2 block, ssdo_record.glsl
 layout(set = 0, binding = 5) uniform usamplerBuffer aoTex;  // per pixel or 2x2 block, pack_ao
 layout(set = 0, binding = 6) writeonly buffer Color { uint color[]; };
 layout(set = 0, binding = 7) writeonly buffer Aov { uint aov[]; };
-layout(set = 0, binding = 8) uniform usamplerBuffer sphereAoTex;  // per sphere (AO_SPHERE)
-layout(set = 0, binding = 10) uniform usamplerBuffer colorTex;  // RGBA8 per sphere
-#define SURFACE_ALBEDO
+// Per listed sphere (AO_SPHERE): its entry from the flags ssdo_prep set and
+// the list's per-word bases (ssdo_list.comp).
+layout(set = 0, binding = 8) uniform usamplerBuffer sphereAoTex;
+layout(set = 0, binding = 2) uniform usamplerBuffer flagTex;
+layout(set = 0, binding = 3) uniform usamplerBuffer wordBaseTex;
+#define SCENE_ATTRIBUTES
+#include "scene.glsl"
 
 #include "push/shade.glsl"
 
@@ -75,7 +77,7 @@ vec4 background_at(uvec2 px) {
 }
 
 uint region_of(uint id) {
-    return g.counts.w != 0u ? 0u : ATTR_REGION(id, pc.level);
+    return g.counts.w != 0u ? 0u : scene_region(id, pc.level);
 }
 
 // Silhouette lines (as ChimeraX's and Mol*'s): a pixel lies on a line when
@@ -115,7 +117,7 @@ bool on_outline(uvec2 px, bool cov, float z, uint region) {
 void ssdo_at(uvec2 px, float z, vec3 n, uint id, out vec2 v, out vec3 bounce, out float screen_vis) {
     uint hw = g.counts.y, hh = g.counts.z;
     bool regions = g.counts.w == 0u;
-    uint reg = regions ? region_hash(ATTR_REGION(id, pc.level)) : 0u;
+    uint reg = regions ? region_hash(scene_region(id, pc.level)) : 0u;
     vec2 f = (vec2(px) - 0.5) * 0.5;
     vec2 b0 = floor(f);
     vec2 fr = f - b0;
@@ -187,7 +189,10 @@ void main() {
             mat3 b = !PERSP ? mat3(g.cam.right.xyz, g.cam.up.xyz, g.cam.dir.xyz)
                                         : sphere_basis(vdir, g.cam.up.xyz);
             vec3 nc = n * b;
-            sphere_ao_at(texelFetch(sphereAoTex, int(s.id)), nc, v, bounce);
+            uint w = s.id >> 5u;
+            uint below = texelFetch(flagTex, int(w)).x & ((1u << (s.id & 31u)) - 1u);
+            uint entry = texelFetch(wordBaseTex, int(w)).x + uint(bitCount(below));
+            sphere_ao_at(texelFetch(sphereAoTex, int(entry)), nc, v, bounce);
 #if defined(SHADOW_SCREEN)
             uvec2 blk = px / SSDO_BLOCK;
             screen_vis = unpack_record(texelFetch(recordTex, int(blk.y * g.counts.y + blk.x))).visibility;

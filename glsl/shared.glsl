@@ -41,18 +41,14 @@ struct Globals {
     vec4 shadow_f0;   // shadow technique lookup parameters (lookup_*.glsl)
     vec4 shadow_f1;
     uvec4 shadow_u;
+    uvec4 scene;      // instanced scenes' levels (scene.glsl scene_region)
 };
 
-// (Colours are a separate RGBA8 word per sphere, colorTex.)
+// (Colours are a separate RGBA8 word per sphere, colorTex; scene.glsl
+// reads both.)
 struct SphereAttr {
     uvec4 region; // region ids per hierarchy level, outermost first
 };
-
-// Region id of sphere `id` at hierarchy `level`, from the attributes bound
-// as an R32UI texel view `attrTex` (4 words per sphere): one 4-byte gather
-// where a 16-byte texel and a dynamic pick of one of its words cost ssdo_prep
-// ~4 ms of its ~28 on the 1M capsid at 1080p (lavapipe).
-#define ATTR_REGION(id, level) texelFetch(attrTex, int(4u * (id) + (level))).x
 
 // Flat invocation index; dispatch() folds large 1D grids into y.
 #define FLAT_ID (gl_GlobalInvocationID.x + gl_GlobalInvocationID.y * gl_NumWorkGroups.x * gl_WorkGroupSize.x)

@@ -34,8 +34,8 @@ layout(set = 0, binding = 1) uniform usamplerBuffer recordTex;
 layout(set = 0, binding = 2) uniform SampleTable { vec4 samples[64]; };
 layout(set = 0, binding = 3) writeonly buffer Ao { uint ao[]; };
 layout(set = 0, binding = 4) uniform usamplerBuffer visTex;
-layout(set = 0, binding = 5) uniform samplerBuffer sphereTex;
-layout(set = 0, binding = 6) uniform usamplerBuffer attrTex; // R32UI, ATTR_REGION
+#define SCENE_ATTRIBUTES
+#include "scene.glsl"
 // The visibility buffer as 32-bit words: a tap reads only the depth half
 // of a key (a one-component gather; background keys are all ones).
 layout(set = 0, binding = 7) uniform usamplerBuffer visWordTex;

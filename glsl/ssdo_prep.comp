@@ -12,10 +12,8 @@ layout(local_size_x_id = 0) in;
 
 layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
 layout(set = 0, binding = 1) uniform usamplerBuffer visTex;
-layout(set = 0, binding = 2) uniform samplerBuffer sphereTex;
-layout(set = 0, binding = 3) uniform usamplerBuffer attrTex; // R32UI, ATTR_REGION
-layout(set = 0, binding = 8) uniform usamplerBuffer colorTex;  // RGBA8 per sphere
-#define SURFACE_ALBEDO
+#define SCENE_ATTRIBUTES
+#include "scene.glsl"
 layout(set = 0, binding = 4) writeonly buffer Records { uvec4 records[]; };
 layout(set = 0, binding = 5) buffer Flags { uint flags[]; };
 // Per-sphere SSDO (MARK): the depth words of the block's four pixels (~0
@@ -96,11 +94,11 @@ void main() {
     r.n = s.n;
     if (g.counts.w != 0u) {
         // No hierarchy: every sphere is its own region.
-        r.region_a = region_hash(s.id);
+        r.region_a = region_hash(scene_index(s.id));
         r.region_b = r.region_a;
     } else {
-        r.region_a = region_hash(ATTR_REGION(s.id, pc.level_a));
-        r.region_b = region_hash(ATTR_REGION(s.id, pc.level_b));
+        r.region_a = region_hash(scene_region(s.id, pc.level_a));
+        r.region_b = region_hash(scene_region(s.id, pc.level_b));
     }
     r.visibility = key_visibility(s, pixel);
     vec3 l_key = -normalize(g.light_dir.xyz);

@@ -26,8 +26,8 @@ layout(set = 0, binding = 1) uniform usamplerBuffer recordTex;
 layout(set = 0, binding = 2) writeonly buffer SphereAo { uvec4 sphere_ao[]; };
 layout(set = 0, binding = 3) readonly buffer List { uint list[]; };
 layout(set = 0, binding = 4) readonly buffer Counters { uint counters[]; };
-layout(set = 0, binding = 5) uniform samplerBuffer sphereTex;
-layout(set = 0, binding = 6) uniform usamplerBuffer attrTex; // R32UI, ATTR_REGION
+#define SCENE_ATTRIBUTES
+#include "scene.glsl"
 // The visibility buffer as 32-bit words: depth (odd) and id (even) halves.
 layout(set = 0, binding = 7) uniform usamplerBuffer visWordTex;
 // The taps' depth words, four per 2x2 block (ssdo_prep.comp): the taps'
@@ -50,7 +50,7 @@ float occluder_weight(uvec2 own, uvec2 q, Record rec) {
     if (!SEMANTIC) return 1.0;
     uvec2 rq;
     if (g.counts.w != 0u) {
-        rq = uvec2(region_hash(texelFetch(visWordTex, int(2u * (q.y * g.cam.dims.x + q.x))).x));
+        rq = uvec2(region_hash(scene_index(texelFetch(visWordTex, int(2u * (q.y * g.cam.dims.x + q.x))).x)));
     } else {
         rq = uvec2(rec.region_a, rec.region_b);
     }
@@ -61,7 +61,7 @@ void main() {
     uint job = (gl_WorkGroupID.x + gl_WorkGroupID.y * MAX_GROUPS_X) * gl_WorkGroupSize.x + gl_LocalInvocationID.x;
     if (job >= counters[S_LISTED]) return;
     uint id = list[job];
-    vec4 sp = texelFetch(sphereTex, int(id));
+    vec4 sp = scene_sphere(id);
     vec3 c = to_space(sp.xyz);
     float r = sp.w;
     // a seen surface farther from the centre than this is not this sphere
@@ -70,7 +70,7 @@ void main() {
     uvec2 own = SEMANTIC ? regions_of(id) : uvec2(0u);
     mat3 basis = PERSP ? sphere_basis(normalize(sp.xyz - (g.cam.center.xyz - g.cam.dir.w * g.cam.dir.xyz)), g.cam.up.xyz)
                        : mat3(1.0);
-    float rot = sphere_rot(id), jit = sphere_jitter(id);
+    float rot = sphere_rot(scene_index(id)), jit = sphere_jitter(scene_index(id));
     vec3 zb = basis[2];
     SH9 acc;
     acc.a = vec4(0.0);
@@ -164,5 +164,6 @@ void main() {
         }
     }
     // the mean over the hemisphere a pixel sees: half the directions
-    sphere_ao[id] = sphere_ao_pack(acc, pc.bounce * bounce * 0.5);
+    // (at the sphere's list entry: shade finds it by sphere_entry)
+    sphere_ao[job] = sphere_ao_pack(acc, pc.bounce * bounce * 0.5);
 }

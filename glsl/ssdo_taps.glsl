@@ -1,6 +1,7 @@
 // The SSDO tap helpers shared by the per-pixel/per-block receivers
 // (ssdo.comp) and the per-sphere ones (ssdo_sphere.comp). Needs, before
-// inclusion: `Globals g`, `recordTex`, `visWordTex`, `attrTex`, push constants `pc`
+// inclusion: `Globals g`, `recordTex`, `visWordTex`, scene.glsl (with
+// SCENE_ATTRIBUTES), push constants `pc`
 // (SsdoPush), the specialization constants SEMANTIC and PERSP, and
 // ssdo_record.glsl. With TAP_DEPTH_BLOCKED defined the taps read the depth
 // words from `tapDepthTex` (ssdo_prep.comp's block-ordered copy) instead.
@@ -10,10 +11,10 @@
 Record record_at(uvec2 b) { return unpack_record(texelFetch(recordTex, int(b.y * g.counts.y + b.x))); }
 
 // The region hashes of sphere id at the two active levels (needs
-// `attrTex`); without a hierarchy every sphere is its own region.
+// scene_region); without a hierarchy every sphere is its own region.
 uvec2 regions_of(uint id) {
-    if (g.counts.w != 0u) return uvec2(region_hash(id));
-    return uvec2(region_hash(ATTR_REGION(id, pc.level_a)), region_hash(ATTR_REGION(id, pc.level_b)));
+    if (g.counts.w != 0u) return uvec2(region_hash(scene_index(id)));
+    return uvec2(region_hash(scene_region(id, pc.level_a)), region_hash(scene_region(id, pc.level_b)));
 }
 
 // Occluder weight of a surface with regions (qa, qb) for a receiver (ra, rb).

@@ -2,12 +2,13 @@
 // exactly from its (pixel ray, sphere id) instead of a stored G-buffer.
 // Needs, before inclusion: `Globals g`, the visibility buffer as a uniform
 // texel buffer `visTex` (RG32UI: x = sphere id, y = depth key bits; both
-// ~0 = background), the spheres as `sphereTex` (RGBA32F: centre, radius)
-// and the specialization constant PERSP (a perspective camera).
+// ~0 = background), scene.glsl (with SCENE_ATTRIBUTES for albedo_of) and
+// the specialization constant PERSP (a perspective camera).
 // Texel fetches are vector gathers on lavapipe (docs/LAVAPIPE.md).
 #ifndef SURFACE_GLSL
 #define SURFACE_GLSL
 #include "shared.glsl"
+#include "scene.glsl"
 
 struct Surface {
     vec3 p;     // world position
@@ -30,7 +31,7 @@ bool surface_of(uvec2 q, out Surface s) {
     if (v.x == NO_SPHERE) return false;
     s.id = v.x;
     s.key = uintBitsToFloat(v.y);
-    vec4 sp = texelFetch(sphereTex, int(s.id));
+    vec4 sp = scene_sphere(s.id);
     s.sphere = sp;
     vec3 o, d;
     view_ray(g.cam, s.img, PERSP, o, d);
@@ -44,12 +45,11 @@ bool surface_of(uvec2 q, out Surface s) {
     return true;
 }
 
-// Linear albedo of a sphere from `colorTex`, one RGBA8 word per sphere:
-// the attribute texels (32 B per sphere then) held it too, but as a random
+// Linear albedo of a sphere from its RGBA8 colour word (scene_color): the
+// attribute texels (32 B per sphere then) held it too, but as a random
 // fetch per pixel they cost ~10 ms of the 1M capsid's shade on lavapipe.
-// (includers that want it define SURFACE_ALBEDO and declare `colorTex`)
 vec3 srgb_to_linear(vec3 c) { return pow(c, vec3(2.2)); }
-#ifdef SURFACE_ALBEDO
-vec3 albedo_of(uint id) { return srgb_to_linear(unpack_rgba8(texelFetch(colorTex, int(id)).x).rgb); }
+#ifdef SCENE_ATTRIBUTES
+vec3 albedo_of(uint id) { return srgb_to_linear(unpack_rgba8(scene_color(id)).rgb); }
 #endif
 #endif

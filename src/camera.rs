@@ -172,7 +172,7 @@ impl Window {
 /// An orthographic square view along `light_dir`, fitted tightly to the
 /// spheres' extent across the light (not to the camera frustum).
 pub fn light_view(
-    spheres: impl Iterator<Item = ([f32; 3], f32)> + Clone,
+    spheres: impl Iterator<Item = ([f32; 3], f32)>,
     light_dir: DVec3,
     size: u32,
 ) -> Result<Camera> {

@@ -43,6 +43,11 @@ pub struct Globals {
     pub shadow_f0: [f32; 4],
     pub shadow_f1: [f32; 4],
     pub shadow_u: [u32; 4],
+    /// Instanced scenes' region levels (glsl/scene.glsl `scene_region`):
+    /// x the number of tree levels (they come first), y the chain stride
+    /// (chain region = instance * y + chain), z the molecule level's index,
+    /// w the chain level's (NO_LEVEL: none).
+    pub scene: [u32; 4],
 }
 
 /// Per-sphere attributes used after visibility: the regions (SSDO, the
@@ -59,11 +64,16 @@ pub struct SphereAttr {
 /// Geometry as the rasterizer reads it: centre xyz, radius w.
 pub type GpuSphere = [f32; 4];
 
+/// A batch of an instanced scene (glsl/scene.glsl): x the instance, y its
+/// first atom (index into the molecule atoms), z the expanded index of
+/// that atom, w the atom count (1..=BATCH_ATOMS) | molecule type << 8.
+pub type GpuBatch = [u32; 4];
+
 /// Visibility-buffer value of a pixel no sphere covers.
 pub const VIS_EMPTY: u64 = u64::MAX;
 
 const _: () = assert!(std::mem::size_of::<GpuView>() == 96);
-const _: () = assert!(std::mem::size_of::<Globals>() == 2 * 96 + 7 * 16);
+const _: () = assert!(std::mem::size_of::<Globals>() == 2 * 96 + 8 * 16);
 const _: () = assert!(std::mem::size_of::<SphereAttr>() == 16);
 const _: () = assert!(std::mem::size_of::<GpuSphere>() == 16);
 

@@ -77,7 +77,10 @@ gpu_push! {
         words: u32,
         /// log2 of ssdo_sphere.comp's workgroup size (groups counted by shifts).
         group_shift: u32,
-        pad: [u32; 2],
+        /// Entries the list (and the results) hold: the buffer's pixels at
+        /// most, since every listed sphere is seen in one.
+        capacity: u32,
+        pad: u32,
     }
 
     /// `blur_h`, `blur_v` (glsl/blur.comp).

@@ -154,6 +154,12 @@ pub fn render_trajectory(
     args: &MovieArgs,
     resolve: &dyn Fn(&Scene) -> Result<RenderSettings>,
 ) -> Result<usize> {
+    if topology.instancing.is_some() {
+        return Err(Error::Input(format!(
+            "{}: an instanced model has no per-atom trajectory (--trajectory needs a plain topology)",
+            shown(Path::new(&topology.source))
+        )));
+    }
     let mut reader = traj::open(args.trajectory)?;
     let (tname, top_n, traj_n) = (
         shown(args.trajectory),

@@ -290,8 +290,21 @@ pub fn ids_from_vis(vis: &[u64]) -> Vec<Option<u32>> {
         .collect()
 }
 
-/// `id`: (index + 1) little-endian in R, G, B; A = 255; background 0,0,0,255.
-pub fn id_image(w: u32, h: u32, vis: &[u64]) -> AovImage {
+/// Scenes of this many spheres or more get the wide id AOV.
+pub const WIDE_IDS: u64 = 1 << 24;
+
+/// `id`: (index + 1) little-endian in R, G, B; A = 255; background
+/// 0,0,0,255. A scene of `spheres` >= 2^24 (DESIGN.md): RGBA16, index + 1
+/// in R (bits 0-15), G (16-31), B (32-47), A = 65535.
+pub fn id_image(w: u32, h: u32, vis: &[u64], spheres: u64) -> AovImage {
+    if spheres >= WIDE_IDS {
+        let mut img = image::ImageBuffer::<image::Rgba<u16>, Vec<u16>>::new(w, h);
+        for (p, id) in img.pixels_mut().zip(ids_from_vis(vis)) {
+            let v = id.map_or(0, |i| i as u64 + 1);
+            *p = image::Rgba([v as u16, (v >> 16) as u16, (v >> 32) as u16, 65535]);
+        }
+        return AovImage::Rgba16(img);
+    }
     let mut img = image::RgbaImage::new(w, h);
     for (p, id) in img.pixels_mut().zip(ids_from_vis(vis)) {
         let v = id.map_or(0, |i| i + 1);
@@ -376,13 +389,55 @@ pub struct CachedStats {
     pub frame_ms: Vec<f64>,
 }
 
+/// The camera a frame used (fitted or given), as DESIGN.md's `camera`.
+#[derive(Clone, Debug, Default, Serialize, serde::Deserialize, PartialEq)]
+pub struct CameraStats {
+    pub view_dir: [f64; 3],
+    pub up: [f64; 3],
+    pub view_center: [f64; 3],
+    pub view_height: f64,
+    pub fov: Option<f64>,
+}
+
+impl CameraStats {
+    pub fn of(c: &crate::camera::Camera) -> Self {
+        CameraStats {
+            view_dir: c.dir.to_array(),
+            up: c.up.to_array(),
+            view_center: c.center.to_array(),
+            view_height: c.view_height,
+            fov: c.fov_deg,
+        }
+    }
+}
+
 /// One run, exactly the DESIGN.md JSON object.
 #[derive(Clone, Debug, Serialize, serde::Deserialize, PartialEq)]
 pub struct RunStats {
     pub device: String,
     pub driver: String,
     pub input: String,
+    /// Spheres represented (an instanced scene's expanded count).
     pub spheres: u64,
+    /// Instanced scenes (null otherwise): instances, molecule types and
+    /// their atoms stored once.
+    #[serde(default)]
+    pub instances: Option<u64>,
+    #[serde(default)]
+    pub molecules: Option<u64>,
+    #[serde(default)]
+    pub unique_atoms: Option<u64>,
+    /// An instanced model drawn expanded (`--expand`, bench `--instancing
+    /// off`): one sphere record per atom.
+    #[serde(default)]
+    pub expanded: bool,
+    /// Spheres the frame drew (after culling and level of detail; every
+    /// represented sphere until those exist).
+    #[serde(default)]
+    pub spheres_drawn: u64,
+    /// The camera used.
+    #[serde(default)]
+    pub camera: CameraStats,
     pub width: u32,
     pub height: u32,
     pub frames: u32,

@@ -40,6 +40,11 @@ pub struct SceneArgs {
     /// Colour by element or chain.
     #[arg(long, default_value_t = SceneArgs::default().color, value_parser = ["element", "chain"])]
     pub color: String,
+    /// Expand an instanced model (PetWorld, cellPACK, manifest, --assembly)
+    /// into one sphere record per atom, as before instancing: the same
+    /// image, for comparisons (at most 2^24 spheres).
+    #[arg(long)]
+    pub expand: bool,
 }
 
 impl Default for SceneArgs {
@@ -53,6 +58,7 @@ impl Default for SceneArgs {
             replicate: None,
             radius_scale: 1.0,
             color: "element".into(),
+            expand: false,
         }
     }
 }
@@ -159,12 +165,20 @@ pub fn load_scene_with_progress(
             scene::procedural(name, atoms, 1)?
         }
     };
+    if args.expand && scene.instancing.is_some() {
+        scene = scene.expand()?;
+    }
     if args.atoms.is_some() && args.input.is_some() {
         return Err(Error::Input(
             "--atoms applies to procedural scenes (--scene) only".into(),
         ));
     }
     if let Some(n) = args.replicate {
+        if scene.instancing.is_some() {
+            return Err(Error::Input(
+                "--replicate applies to plain scenes (an instanced model: add --expand)".into(),
+            ));
+        }
         // Refuse before allocating: sphere ids are 24-bit in the id AOV.
         let total =
             scene.spheres.len() as u128 * n.iter().map(|&k| k.max(1) as u128).product::<u128>();
@@ -220,7 +234,7 @@ pub fn aov_image(r: &Renderer, aov: Aov) -> Result<output::AovImage> {
     let (w, h) = (cam.width, cam.height);
     Ok(match aov {
         Aov::Color => output::color_image(w, h, &r.inspect().read_color()?),
-        Aov::Id => output::id_image(w, h, &r.inspect().read_vis()?),
+        Aov::Id => output::id_image(w, h, &r.inspect().read_vis()?, r.inspect().represented()),
         Aov::Depth => {
             let d: Vec<f32> = r.inspect().read_gpos()?.iter().map(|p| p[3]).collect();
             output::depth_image(w, h, &d)
@@ -365,7 +379,7 @@ pub fn image_aov(img: &crate::render::tiles::Image, aov: Aov) -> output::AovImag
                 output::color_image(w, h, &img.color)
             }
         }
-        Aov::Id => output::id_image(w, h, &img.vis),
+        Aov::Id => output::id_image(w, h, &img.vis, img.spheres),
         Aov::Depth => {
             let d: Vec<f32> = img
                 .vis
@@ -434,6 +448,13 @@ pub fn render_layers(
     );
     let (mut shadow, mut ao) = (vec![1.0f32; px], vec![1.0f32; px]);
     let mut normal = vec![vec![0.0f32; px]; 3];
+    // instanced scenes: the instance and the atom within its molecule
+    let inst = scene.instancing.as_ref();
+    let (mut instance, mut atom) = if inst.is_some() {
+        (vec![-1.0f32; px], vec![-1.0f32; px])
+    } else {
+        (Vec::new(), Vec::new())
+    };
     let words = img.aov.as_deref().unwrap_or(&[]);
     for i in 0..px {
         let (a, b) = (color_words[2 * i], color_words[2 * i + 1]);
@@ -446,8 +467,12 @@ pub fn render_layers(
         if key == crate::gpu::VIS_EMPTY {
             continue;
         }
-        let sid = (key & 0xFFFF_FFFF) as usize;
+        let sid = key & 0xFFFF_FFFF;
         id[i] = (sid + 1) as f32;
+        if let Some((k, a)) = inst.and_then(|n| n.locate(sid)) {
+            instance[i] = k as f32;
+            atom[i] = a as f32;
+        }
         if let Some(&a) = words.get(i) {
             shadow[i] = (a & 0xFFFF) as f32 / 65535.0;
             ao[i] = if s1.ssdo_on() {
@@ -456,7 +481,9 @@ pub fn render_layers(
                 1.0
             };
         }
-        let sp = &scene.spheres[sid];
+        let sp = scene
+            .sphere(sid)
+            .ok_or_else(|| Error::Internal(format!("sphere {sid} of the id layer")))?;
         let c = glam::DVec3::new(
             sp.center[0] as f64,
             sp.center[1] as f64,
@@ -483,22 +510,24 @@ pub fn render_layers(
         <[Vec<f32>; 4]>::try_from(rgba).map_err(|_| Error::Internal("rgba".into()))?;
     let [nx, ny, nz] =
         <[Vec<f32>; 3]>::try_from(normal).map_err(|_| Error::Internal("normal".into()))?;
-    Ok((
-        vec![
-            ("R", r_),
-            ("G", g_),
-            ("B", b_),
-            ("A", a_),
-            ("depth", depth),
-            ("id", id),
-            ("shadow", shadow),
-            ("ao", ao),
-            ("normal.X", nx),
-            ("normal.Y", ny),
-            ("normal.Z", nz),
-        ],
-        stats,
-    ))
+    let mut layers = vec![
+        ("R", r_),
+        ("G", g_),
+        ("B", b_),
+        ("A", a_),
+        ("depth", depth),
+        ("id", id),
+        ("shadow", shadow),
+        ("ao", ao),
+        ("normal.X", nx),
+        ("normal.Y", ny),
+        ("normal.Z", nz),
+    ];
+    if inst.is_some() {
+        layers.push(("instance", instance));
+        layers.push(("atom", atom));
+    }
+    Ok((layers, stats))
 }
 
 /// Everything one render run produces.
@@ -694,11 +723,18 @@ pub fn run_stats(
     let (passes, total_ms) = output::summarize(times);
     let gpu_memory = r.inspect().memory_by_class();
     let s = r.settings();
+    let counts = r.inspect().instancing();
     RunStats {
         device: ctx.info.name.clone(),
         driver: ctx.info.driver.clone(),
         input: input.to_string(),
-        spheres: r.inspect().sphere_count() as u64,
+        spheres: r.inspect().represented(),
+        instances: counts.map(|c| c.instances),
+        molecules: counts.map(|c| c.molecules),
+        unique_atoms: counts.map(|c| c.unique_atoms),
+        expanded: r.inspect().expanded(),
+        spheres_drawn: r.inspect().represented(),
+        camera: output::CameraStats::of(&s.camera),
         width: s.camera.width,
         height: s.camera.height,
         frames: times.len().max(1) as u32,

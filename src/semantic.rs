@@ -28,6 +28,11 @@ pub struct LevelChoice {
 /// this was empty-able such scenes had one region in all, and semantic
 /// SSDO found no occluder at all: no ambient occlusion in the default mode.)
 pub fn useful_levels(scene: &Scene) -> Vec<u32> {
+    // (an instanced scene's levels were chosen from its tree: each one
+    // separates, and more than its predecessor)
+    if let Some(inst) = &scene.instancing {
+        return (0..inst.levels.len() as u32).collect();
+    }
     let n = scene.level_names.len().min(MAX_LEVELS);
     (0..n)
         .filter(|&level| {
@@ -113,6 +118,8 @@ mod tests {
                 .collect(),
             level_names: (0..levels).map(|l| format!("l{l}")).collect(),
             source: "test".into(),
+            instancing: None,
+            expanded: false,
         }
     }
 

@@ -215,6 +215,8 @@ pub fn white_spheres(scene: &Scene) -> Scene {
         spheres,
         level_names: Vec::new(),
         source: scene.source.clone(),
+        instancing: None,
+        expanded: false,
     }
 }
 

@@ -56,9 +56,10 @@ fn assembly_bomb(path: &Path) -> String {
     t += "#\nloop_\n_pdbx_struct_assembly_gen.assembly_id\n\
           _pdbx_struct_assembly_gen.oper_expression\n_pdbx_struct_assembly_gen.asym_id_list\n";
     t += &format!(
-        "1 '{}' A\n2 '{}' A\n#\nloop_\n",
+        "1 '{}' A\n2 '{}' A\n3 '{}' A\n#\nloop_\n",
         "(1-10)".repeat(10),
-        "(1-10)".repeat(4)
+        "(1-10)".repeat(4),
+        "(1-10)".repeat(7)
     );
     t += "_pdbx_struct_oper_list.id\n_pdbx_struct_oper_list.type\n";
     for i in 1..=3 {
@@ -138,9 +139,14 @@ fn cases(d: &Path) -> Vec<Case> {
             "more than 16777215, the most",
         ),
         c(
-            "assembly of 2e7 spheres",
-            render(vec![cif.clone(), "--assembly".into(), "2".into()], &[]),
-            "more than 16777215, the most",
+            "assembly of 2e10 spheres (instanced)",
+            render(vec![cif.clone(), "--assembly".into(), "3".into()], &[]),
+            "the most sphereshade renders (32-bit sphere ids)",
+        ),
+        c(
+            "assembly of 2e7 spheres expanded",
+            render(vec![cif.clone(), "--assembly".into(), "2".into(), "--expand".into()], &[]),
+            "more than 16777215, the most an expanded scene holds",
         ),
         c(
             "oper_expression of 1e10 operators",

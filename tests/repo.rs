@@ -40,8 +40,13 @@ fn test_data_matches_its_provenance_table() {
     let dir = Path::new(ROOT).join("tests/data");
     assert_eq!(
         check_table(&dir),
-        7,
-        "expected the 7 structure files in the table"
+        11,
+        "expected the 11 structure files in the table"
+    );
+    assert_eq!(
+        check_table(&dir.join("meso")),
+        4,
+        "expected the 4 mesoscale models in tests/data/meso/README.md"
     );
     assert_eq!(
         check_table(&dir.join("traj")),

@@ -41,13 +41,14 @@ fn hemisphere_samples_are_cosine_weighted() {
             push_size: 32,
             local_size: 64,
             constants: &[],
+            scene: 0,
         },
     )
     .expect("pipeline");
     let n = 8192u32;
     let mut out = Buffer::storage(&ctx, "samples", n as u64 * 16).expect("buffer");
     // The table SSDO itself binds.
-    let mut ssdo = sphereshade::stages::ssdo::passes::SsdoPass::new(&ctx).expect("ssdo");
+    let mut ssdo = sphereshade::stages::ssdo::passes::SsdoPass::new(&ctx, 0).expect("ssdo");
     for (normal, rot) in [
         ([0.0f32, 0.0, 1.0], 0.0f32),
         ([0.3, -0.8, 0.2], 0.37),

@@ -24,6 +24,7 @@ fn out_of_bounds_store_is_reported_by_gpu_av() {
             push_size: 4,
             local_size: 1,
             constants: &[],
+            scene: 0,
         },
     )
     .expect("pipeline");
@@ -96,6 +97,7 @@ fn gpu_struct_layout_matches_glsl() {
             push_size: 0,
             local_size: 1,
             constants: &[],
+            scene: 0,
         },
     )
     .expect("pipeline");
@@ -186,6 +188,7 @@ fn binding_mismatches_are_rejected_with_the_shader_and_binding_named() {
                 push_size: push,
                 local_size: 64,
                 constants: &[],
+                scene: 0,
             },
         )
     };

@@ -209,3 +209,53 @@ fn view_plays_a_trajectory() {
     assert!(shot.exists());
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// An instanced model (the HIV-1 cellPACK packing, 11,681 instances of 26
+/// bead molecules) in the viewer: every mode key and the light drags under
+/// validation, one renderer, and the last frame equals `render`'s.
+#[test]
+fn view_draws_an_instanced_model_in_every_mode() {
+    let dir = std::env::temp_dir().join(format!("sphereshade-view-meso-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let shot = dir.join("meso.png");
+    let input = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/data/meso/HIV-1_0.1.6-8_mixed_radii_pdb.json"
+    );
+    let o = view(
+        &[
+            input,
+            "--width",
+            "128",
+            "--height",
+            "96",
+            "--frames",
+            "36",
+            "--script",
+            "toggle-all",
+            "--validate",
+        ],
+        &shot,
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(0), "view failed: {err}");
+    assert!(err.contains("91956 spheres"), "{err}");
+    let state = err
+        .lines()
+        .find(|l| l.contains("final state"))
+        .unwrap_or_else(|| panic!("no final state: {err}"));
+    let light = state.rsplit("light ").next().unwrap().trim();
+    let render = render(
+        &[input, "--width", "128", "--height", "96", "--light", light],
+        &dir.join("render.png"),
+    );
+    let view = image::open(&shot).expect("screenshot").to_rgba8();
+    let pct = percent_close(&view, &render);
+    eprintln!("instanced model: the screenshot matches render on {pct:.3}% of pixels");
+    assert!(
+        pct >= 99.5,
+        "view and render differ on {:.3}% of pixels",
+        100.0 - pct
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

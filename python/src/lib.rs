@@ -472,7 +472,8 @@ impl Scene {
     }
 }
 
-/// Loads a structure file as the CLI does (`model`: a number or "all").
+/// Loads a structure file as the CLI does (`model`: a number or "all");
+/// an instanced model comes expanded (one row per represented sphere).
 #[pyfunction]
 #[pyo3(signature = (path, model=None, assembly=None, color="element"))]
 fn load(
@@ -498,6 +499,10 @@ fn load(
             "color '{color}': expected element or chain"
         )));
     }
+    let args = sphereshade::run::SceneArgs {
+        expand: true,
+        ..args
+    };
     let (scene, _) = py
         .allow_threads(|| sphereshade::run::load_scene(&args))
         .map_err(lib_error)?;

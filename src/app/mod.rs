@@ -221,7 +221,7 @@ impl<'c> App<'c> {
         let gpu: f64 = times.iter().map(|t| t.1).sum();
         let passes: Vec<String> = times.iter().map(|(n, t)| format!("{n} {t:.1}")).collect();
         let Some(r) = &self.renderer else { return };
-        let (n, s) = (r.inspect().sphere_count(), r.settings());
+        let (n, s) = (r.inspect().represented(), r.settings());
         let playing = self
             .player
             .as_ref()
@@ -283,9 +283,15 @@ impl<'c> App<'c> {
             eprintln!(
                 "view: renderer ready in {:.0} ms ({} spheres)",
                 started.elapsed().as_secs_f64() * 1e3,
-                r.inspect().sphere_count()
+                r.inspect().represented()
             );
             if let Some(t) = &self.cmd.trajectory {
+                if scene.instancing.is_some() {
+                    return Err(crate::Error::Input(format!(
+                        "{}: an instanced model has no per-atom trajectory",
+                        scene.source
+                    )));
+                }
                 let residues: Vec<u32> = if scene.level_names.len() >= 3 {
                     scene.spheres.iter().map(|s| s.region[2]).collect()
                 } else {

@@ -25,7 +25,8 @@ use std::path::PathBuf;
 pub struct BenchArgs {
     /// Structure files; each is one data set of the matrix.
     pub inputs: Vec<PathBuf>,
-    /// Procedural scenes (comma list) used when no input file is given.
+    /// Procedural scenes (comma list): the data sets when no input file is
+    /// given, else with `--atoms` more data sets beside the files.
     #[arg(long)]
     pub scene: Option<String>,
     /// Comma list of sphere counts for procedural scenes.
@@ -43,6 +44,12 @@ pub struct BenchArgs {
     /// Comma list of opacities.
     #[arg(long)]
     pub opacity: Option<String>,
+    /// Comma list: `on` draws instanced models (PetWorld, cellPACK,
+    /// manifests, --assembly) instanced, `off` expanded into one sphere
+    /// record per atom as before instancing (at most 2^24). Plain inputs
+    /// run once either way.
+    #[arg(long)]
+    pub instancing: Option<String>,
     /// Comma list of image sizes, e.g. 1920x1080,3840x2160.
     #[arg(long, conflicts_with_all = ["width", "height"])]
     pub size: Option<String>,
@@ -170,6 +177,8 @@ fn parse_size(s: &str) -> Result<(u32, u32)> {
 struct DataSet {
     name: String,
     scene: Scene,
+    /// An instanced scene expanded, when `--instancing` lists `off`.
+    expanded: Option<Scene>,
     load_ms: f64,
 }
 
@@ -180,7 +189,9 @@ fn data_sets(a: &BenchArgs, atoms: &[usize]) -> Result<Vec<DataSet>> {
         radius_scale: a.radius_scale,
         ..SceneArgs::default()
     };
-    if a.inputs.is_empty() {
+    // procedural scenes: alone, or beside files when asked for by name
+    // (e.g. a model against the 1M capsid in one run)
+    if a.inputs.is_empty() || (a.scene.is_some() && a.atoms.is_some()) {
         let names = a.scene.clone().unwrap_or_else(|| {
             if a.quick {
                 "capsid".into()
@@ -200,14 +211,18 @@ fn data_sets(a: &BenchArgs, atoms: &[usize]) -> Result<Vec<DataSet>> {
                 sets.push(DataSet {
                     name: format!("scene:{}", name.trim()),
                     scene,
+                    expanded: None,
                     load_ms,
                 });
             }
         }
-    } else {
-        if a.atoms.is_some() || a.scene.is_some() {
+    }
+    if !a.inputs.is_empty() {
+        if a.atoms.is_some() != a.scene.is_some() {
             return Err(Error::Input(
-                "--atoms/--scene apply when no input file is given".into(),
+                "with input files, --scene and --atoms go together (procedural data sets beside \
+                 the files)"
+                    .into(),
             ));
         }
         for p in &a.inputs {
@@ -220,6 +235,7 @@ fn data_sets(a: &BenchArgs, atoms: &[usize]) -> Result<Vec<DataSet>> {
             sets.push(DataSet {
                 name: p.display().to_string(),
                 scene,
+                expanded: None,
                 load_ms,
             });
         }
@@ -234,6 +250,8 @@ struct Technique {
     ssdo: SsdoMode,
     raster: RasterMode,
     opacity: f32,
+    /// Draw an instanced model expanded (`--instancing off`).
+    expanded: bool,
 }
 
 /// The default techniques: local lighting, ISSM hard/soft, deep opaque and
@@ -249,6 +267,7 @@ fn default_techniques() -> Vec<Technique> {
         ssdo,
         raster,
         opacity,
+        expanded: false,
     };
     vec![
         t(S::None, O::Off, Compute, 1.0),
@@ -268,15 +287,24 @@ pub fn data_dir() -> PathBuf {
     PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data"))
 }
 
+/// The structure files of tests/data and the mesoscale models of
+/// tests/data/meso (a BinaryCIF twin of an mmCIF file is the same spheres:
+/// left out).
 fn shared_data_files() -> Vec<PathBuf> {
     let dir = data_dir();
-    let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
-        .map(|rd| {
-            rd.filter_map(|e| e.ok().map(|e| e.path()))
-                .filter(|p| crate::scene::format_of(p).is_some())
-                .collect()
-        })
-        .unwrap_or_default();
+    let mut files: Vec<PathBuf> = Vec::new();
+    for d in [dir.clone(), dir.join("meso")] {
+        if let Ok(rd) = std::fs::read_dir(&d) {
+            files.extend(
+                rd.filter_map(|e| e.ok().map(|e| e.path()))
+                    .filter(|p| crate::scene::format_of(p).is_some())
+                    .filter(|p| {
+                        !(p.extension().is_some_and(|e| e == "bcif")
+                            && p.with_extension("cif").exists())
+                    }),
+            );
+        }
+    }
     files.sort();
     files
 }
@@ -331,6 +359,7 @@ pub fn run(a: &BenchArgs) -> Result<BenchReport> {
                             ssdo,
                             raster,
                             opacity,
+                            expanded: false,
                         });
                     }
                 }
@@ -340,6 +369,28 @@ pub fn run(a: &BenchArgs) -> Result<BenchReport> {
     } else {
         default_techniques()
     };
+    let instancing: Vec<bool> = match &a.instancing {
+        None => vec![true],
+        Some(s) => s
+            .split(',')
+            .map(|p| match p.trim() {
+                "on" => Ok(true),
+                "off" => Ok(false),
+                _ => Err(Error::Input(format!(
+                    "--instancing {s}: '{p}' is not on or off"
+                ))),
+            })
+            .collect::<Result<_>>()?,
+    };
+    let techniques: Vec<Technique> = instancing
+        .iter()
+        .flat_map(|&on| {
+            techniques.iter().map(move |t| Technique {
+                expanded: !on,
+                ..*t
+            })
+        })
+        .collect();
     let def_atoms = if a.quick {
         vec![100_000]
     } else {
@@ -353,6 +404,13 @@ pub fn run(a: &BenchArgs) -> Result<BenchReport> {
         (Some(s), _) => s.split(',').map(parse_size).collect::<Result<_>>()?,
     };
     let mut sets = data_sets(a, &atoms)?;
+    if instancing.contains(&false) {
+        for s in &mut sets {
+            if s.scene.instancing.is_some() {
+                s.expanded = Some(s.scene.expand()?);
+            }
+        }
+    }
     if a.inputs.is_empty() && a.scene.is_none() && a.atoms.is_none() && !a.quick {
         // The default matrix also covers the real files and a 1M lattice of 1TII.
         let files = shared_data_files();
@@ -410,14 +468,28 @@ pub fn run(a: &BenchArgs) -> Result<BenchReport> {
             let mut pool_bytes = 0u64;
             for (i, t) in techniques.iter().enumerate() {
                 done += 1;
+                if t.expanded && set.expanded.is_none() {
+                    // (a plain scene: its `on` run is the same run)
+                    continue;
+                }
+                if t.raster == RasterMode::Graphics && !t.expanded && set.scene.instancing.is_some()
+                {
+                    eprintln!(
+                        "bench: {}: the graphics baseline draws plain scenes only (skipped; \
+                         --instancing off draws it expanded)",
+                        set.name
+                    );
+                    continue;
+                }
                 let desc = format!(
-                    "{} ({} spheres) {w}x{h} shadows={} ssdo={} raster={} opacity={}",
+                    "{} ({} spheres) {w}x{h} shadows={} ssdo={} raster={} opacity={}{}",
                     set.name,
-                    set.scene.spheres.len(),
+                    set.scene.represented(),
                     t.shadows.name(),
                     t.ssdo.name(),
                     t.raster.name(),
-                    t.opacity
+                    t.opacity,
+                    if t.expanded { " instancing=off" } else { "" }
                 );
                 let elapsed = started.elapsed().as_secs_f64();
                 let eta = if done > 1 {
@@ -530,11 +602,15 @@ fn prepare<'c>(
         raster: t.raster,
         opacity: t.opacity,
     };
-    let settings = a.options.resolve(&axes, &set.scene)?;
+    let scene = match (&set.expanded, t.expanded) {
+        (Some(e), true) => e,
+        _ => &set.scene,
+    };
+    let settings = a.options.resolve(&axes, scene)?;
     let base = settings.camera;
     let run = run::PreparedRun::new(
         ctx,
-        &set.scene,
+        scene,
         settings,
         &run::RunRequest {
             input: &set.name,

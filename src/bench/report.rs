@@ -8,10 +8,11 @@ use crate::output::{self, RunStats};
 use crate::settings::{RasterMode, ShadowMode, SsdoMode};
 use std::collections::BTreeMap;
 
-pub(super) fn key(r: &RunStats) -> (String, u64, u32, u32, String, String, String, u64) {
+pub(super) fn key(r: &RunStats) -> (String, u64, bool, u32, u32, String, String, String, u64) {
     (
         r.input.clone(),
         r.spheres,
+        r.instances.is_some(),
         r.width,
         r.height,
         r.shadows.clone(),
@@ -21,9 +22,14 @@ pub(super) fn key(r: &RunStats) -> (String, u64, u32, u32, String, String, Strin
     )
 }
 
-/// Data set and size of a run, as ratio names carry it in brackets.
+/// Data set and size of a run, as ratio names carry it in brackets (an
+/// instanced model drawn expanded says so).
 fn data_tag(r: &RunStats) -> String {
-    format!("{} {}sph {}x{}", r.input, r.spheres, r.width, r.height)
+    let expanded = if r.expanded { " expanded" } else { "" };
+    format!(
+        "{} {}sph {}x{}{expanded}",
+        r.input, r.spheres, r.width, r.height
+    )
 }
 
 fn pass_ms(r: &RunStats, name: &str) -> Option<f64> {
@@ -58,6 +64,7 @@ pub fn ratios(runs: &[RunStats]) -> BTreeMap<String, f64> {
             runs.iter().find(|r| {
                 (r.input.as_str(), r.spheres, r.width, r.height)
                     == (base.input.as_str(), base.spheres, base.width, base.height)
+                    && r.expanded == base.expanded
                     && r.shadows == shadows.name()
                     && r.ssdo == ssdo.name()
                     && r.raster == raster.name()
@@ -157,6 +164,50 @@ pub fn ratios(runs: &[RunStats]) -> BTreeMap<String, f64> {
             format!("ms_per_million_spheres[{tag}]"),
             frame(r) / (r.spheres as f64 / 1e6),
         );
+    }
+    // An instanced model against itself expanded (same rounds), and
+    // against the 1M capsid at the same size (its own rounds: medians).
+    for r in runs.iter().filter(|r| r.instances.is_some()) {
+        let tech = format!("{}/{}", r.shadows, r.ssdo);
+        let twin = runs.iter().find(|x| {
+            x.expanded
+                && (
+                    x.input.as_str(),
+                    x.spheres,
+                    x.width,
+                    x.height,
+                    &x.shadows,
+                    &x.ssdo,
+                    &x.raster,
+                ) == (
+                    r.input.as_str(),
+                    r.spheres,
+                    r.width,
+                    r.height,
+                    &r.shadows,
+                    &r.ssdo,
+                    &r.raster,
+                )
+                && (x.opacity - r.opacity).abs() < 1e-6
+        });
+        if let Some(x) = twin {
+            out.insert(
+                format!("instanced_over_expanded[{} {tech}]", data_tag(r)),
+                over(r, x),
+            );
+        }
+        let capsid = runs.iter().find(|x| {
+            x.input == "scene:capsid"
+                && x.spheres == 1_000_000
+                && (x.width, x.height, &x.shadows, &x.ssdo, &x.raster)
+                    == (r.width, r.height, &r.shadows, &r.ssdo, &r.raster)
+        });
+        if let Some(c) = capsid {
+            out.insert(
+                format!("over_capsid_1m[{} {tech}]", data_tag(r)),
+                frame(r) / frame(c),
+            );
+        }
     }
     // Scaling: the exponent k of frame ms ~ spheres^k between the smallest
     // and largest count of one data set (1 = linear, below 1 = sub-linear).
@@ -394,6 +445,12 @@ mod tests {
             driver: "v".into(),
             input: "scene:capsid".into(),
             spheres: 2_000_000,
+            instances: None,
+            molecules: None,
+            unique_atoms: None,
+            expanded: false,
+            spheres_drawn: 2_000_000,
+            camera: Default::default(),
             width: 64,
             height: 48,
             frames: 3,

@@ -93,6 +93,7 @@ impl BandArgs {
                     push_size: std::mem::size_of::<BandCounters>() as u32,
                     local_size: 1,
                     constants: &[],
+                    scene: 0,
                 },
             )?,
         })

@@ -4,6 +4,7 @@
 //! itself lives with the stage that owns it (the stages module).
 
 pub mod bands;
+pub mod scene;
 pub mod screen;
 pub mod tiles;
 pub mod variants;

@@ -112,18 +112,20 @@ pub(crate) struct Stages {
 }
 
 impl Stages {
-    /// `levels` and `thresholds`: the semantic SSDO levels of the scene.
+    /// `levels` and `thresholds`: the semantic SSDO levels of the scene;
+    /// `scene`: its kind (passes::scene), every scene pipeline's SCENE_KIND.
     pub fn new(
         ctx: &Context,
         settings: &RenderSettings,
         levels: Vec<u32>,
         thresholds: Vec<f64>,
+        scene: u32,
     ) -> Result<Self> {
         Ok(Stages {
-            raster: RasterStage::new(ctx, settings.raster == RasterMode::Graphics)?,
+            raster: RasterStage::new(ctx, settings.raster == RasterMode::Graphics, scene)?,
             shadows: ShadowStage::new(),
-            ssdo: SsdoStage::new(levels, thresholds),
-            shade: ShadePass::new(),
+            ssdo: SsdoStage::new(levels, thresholds, scene),
+            shade: ShadePass::new(scene),
         })
     }
 
@@ -155,8 +157,7 @@ impl Resources {
             rec,
             &RasterInputs {
                 globals,
-                spheres: &self.spheres,
-                sphere_count: self.sphere_count,
+                scene: &self.scene,
                 perspective: cam.fov_deg.is_some(),
                 image: (cam.width, cam.height),
                 size,
@@ -168,11 +169,10 @@ impl Resources {
             rec,
             &ShadowInputs {
                 globals,
-                spheres: &self.spheres,
+                scene: &self.scene,
                 vis: &t.raster.vis,
                 opacity: settings.opacity,
                 pixels: t.pixels,
-                sphere_count: self.sphere_count,
                 raster: &self.stages.raster.compute,
             },
         )?;
@@ -187,9 +187,7 @@ impl Resources {
         let screen = ScreenInputs {
             globals,
             vis: &t.raster.vis,
-            spheres: &self.spheres,
-            attrs: &self.attrs,
-            colors: &self.colors,
+            scene: &self.scene,
         };
         let ssdo = if settings.ssdo_on() {
             self.stages.ssdo.record(

@@ -4,6 +4,7 @@
 use super::Renderer;
 use crate::camera::Camera;
 use crate::error::{Error, Result};
+use crate::passes::scene::SceneGeom;
 use crate::semantic::LevelChoice;
 use crate::stages::raster::compute::ViewIndex;
 use crate::stages::shadows::deep::{DeepShadows, DeepStats};
@@ -13,14 +14,46 @@ use crate::stages::shadows::shadow_map::ShadowMap;
 use crate::stages::ssdo::passes::Receivers;
 use std::collections::BTreeMap;
 
+/// What an instanced scene holds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct InstancingCounts {
+    pub instances: u64,
+    pub molecules: u64,
+    pub unique_atoms: u64,
+}
+
 /// A renderer seen from outside, borrowed.
 pub struct Inspect<'r, 'c> {
     pub(super) r: &'r Renderer<'c>,
 }
 
 impl<'r> Inspect<'r, '_> {
+    /// Sphere ids a per-sphere pass covers (instanced scenes: every slot
+    /// of the batches).
     pub fn sphere_count(&self) -> u32 {
-        self.r.res.sphere_count
+        self.r.res.scene.slots
+    }
+
+    /// Represented spheres (instanced: expanded).
+    pub fn represented(&self) -> u64 {
+        self.r.res.geom.len()
+    }
+
+    /// Whether the scene is an instanced model drawn expanded.
+    pub fn expanded(&self) -> bool {
+        self.r.res.expanded
+    }
+
+    /// An instanced scene's counts (None for plain scenes).
+    pub fn instancing(&self) -> Option<InstancingCounts> {
+        match &self.r.res.geom {
+            SceneGeom::Plain(_) => None,
+            SceneGeom::Instanced(i) => Some(InstancingCounts {
+                instances: i.instance_molecule.len() as u64,
+                molecules: i.molecules.len() as u64,
+                unique_atoms: i.atoms.len() as u64,
+            }),
+        }
     }
 
     /// Whether the key light's view has its sphere order for the current
@@ -63,10 +96,10 @@ impl<'r> Inspect<'r, '_> {
             }
         };
         let (order, bands) = self.r.res.stages.raster.memory();
-        add(
-            "scene",
-            self.r.res.spheres.size + self.r.res.attrs.size + self.r.res.colors.size + order,
-        );
+        for (class, bytes) in self.r.res.scene.memory() {
+            add(class, bytes);
+        }
+        add("scene", order);
         add(
             "uniforms",
             self.r.slots.iter().map(|f| f.globals.size).sum::<u64>(),
@@ -84,8 +117,25 @@ impl<'r> Inspect<'r, '_> {
         m
     }
 
-    /// Visibility buffer (depth|id per pixel), without the guard words.
+    /// Visibility buffer (depth|id per pixel), without the guard words;
+    /// ids are indices in input (expanded) order, as the id AOV names them.
     pub fn read_vis(&self) -> Result<Vec<u64>> {
+        let mut v = self.read_vis_slots()?;
+        if let SceneGeom::Instanced(_) = &self.r.res.geom {
+            for k in &mut v {
+                if *k != crate::gpu::VIS_EMPTY {
+                    let e = self.r.res.geom.expanded_id(*k as u32).ok_or_else(|| {
+                        Error::Internal(format!("slot {} names no sphere", *k as u32))
+                    })?;
+                    *k = (*k & !0xFFFF_FFFF) | e;
+                }
+            }
+        }
+        Ok(v)
+    }
+
+    /// The visibility buffer as the GPU holds it (instanced scenes: slot ids).
+    pub fn read_vis_slots(&self) -> Result<Vec<u64>> {
         self.r
             .res
             .targets
@@ -128,7 +178,9 @@ impl<'r> Inspect<'r, '_> {
                 if k == crate::gpu::VIS_EMPTY {
                     return [0.0, 0.0, 0.0, -1.0];
                 }
-                let s = self.r.res.geom[(k & 0xFFFF_FFFF) as usize];
+                let Some(s) = self.r.res.geom.sphere(k & 0xFFFF_FFFF) else {
+                    return [0.0, 0.0, 0.0, -1.0];
+                };
                 let win = self.r.settings.window();
                 let (x, y) = (i as u32 % win.width + win.x, i as u32 / win.width + win.y);
                 let c = glam::DVec3::new(s[0] as f64, s[1] as f64, s[2] as f64);

@@ -14,7 +14,8 @@ pub mod tiles;
 
 use crate::camera::Camera;
 use crate::error::{Error, Result};
-use crate::gpu::{Globals, GpuSphere, SphereAttr};
+use crate::gpu::Globals;
+use crate::passes::scene::{SceneBuffers, SceneGeom};
 use crate::scene::Scene;
 use crate::semantic;
 use crate::settings::{RasterMode, RenderSettings, SsdoMode};
@@ -45,9 +46,10 @@ pub struct Renderer<'c> {
 
 /// Everything on the GPU except the frame slots.
 pub(crate) struct Resources {
-    sphere_count: u32,
     /// CPU copy of the geometry: light views are fitted to it.
-    geom: Vec<GpuSphere>,
+    geom: SceneGeom,
+    /// The scene is an instanced model expanded (`Scene::expanded`).
+    expanded: bool,
     /// Bounding sphere of the sphere centres (camera depth offsets, zoom).
     bounds: (DVec3, f64),
     /// Typical sphere radius (screen-space effect radii).
@@ -55,45 +57,25 @@ pub(crate) struct Resources {
     globals: Globals,
     /// Write the colour buffer as BGRA (for BGRA swapchains).
     bgra: bool,
-    spheres: Buffer,
-    attrs: Buffer,
-    /// One RGBA8 word per sphere (the colour of `attrs`, compact).
-    colors: Buffer,
+    /// The scene's buffers (plain spheres or instanced molecules).
+    scene: SceneBuffers,
     targets: Targets,
     stages: graph::Stages,
     /// Kept host-visible buffer for `set_positions`.
     staging: Option<Buffer>,
 }
 
-/// Typical sphere radius (median of a sample) to scale screen-space effects.
+/// Typical sphere radius (median of a sample of the represented spheres)
+/// to scale screen-space effects.
 fn typical_radius(scene: &Scene) -> f32 {
-    let step = (scene.spheres.len() / 4096).max(1);
-    let mut r: Vec<f32> = scene
-        .spheres
-        .iter()
-        .step_by(step)
-        .map(|s| s.radius)
+    let n = scene.represented();
+    let step = (n / 4096).max(1);
+    let mut r: Vec<f32> = (0..n)
+        .step_by(step as usize)
+        .filter_map(|i| scene.sphere(i).map(|s| s.radius))
         .collect();
     r.sort_by(|a, b| a.total_cmp(b));
     r.get(r.len() / 2).copied().unwrap_or(1.0)
-}
-
-/// As `Scene::bounding_sphere`, from the GPU geometry.
-fn bounding_sphere(geom: &[GpuSphere]) -> (DVec3, f64) {
-    let Some(first) = geom.first() else {
-        return (DVec3::ZERO, 0.0);
-    };
-    let c0 = glam::Vec3::new(first[0], first[1], first[2]);
-    let (lo, hi) = geom.iter().fold((c0, c0), |(lo, hi), g| {
-        let c = glam::Vec3::new(g[0], g[1], g[2]);
-        (lo.min(c), hi.max(c))
-    });
-    let c = (lo + hi) * 0.5;
-    let r = geom
-        .iter()
-        .map(|g| glam::Vec3::new(g[0], g[1], g[2]).distance(c) + g[3])
-        .fold(0.0f32, f32::max);
-    (c.as_dvec3(), r as f64)
 }
 
 fn normalized(v: DVec3) -> [f32; 4] {
@@ -163,9 +145,10 @@ impl Resources {
         self.globals.shadow_u = plain.params.u;
         self.stages.shade.prepare(ctx, shade.mode, &plain)?;
         if settings.ssdo_on() {
+            let counts = (self.scene.slots, self.targets.pixels);
             self.stages
                 .ssdo
-                .prepare(ctx, &p, ssdo_modes(settings), &plain, self.sphere_count)?;
+                .prepare(ctx, &p, ssdo_modes(settings), &plain, counts)?;
         }
         Ok(FrameParams { ssdo: p, shade })
     }
@@ -189,13 +172,13 @@ fn ssdo_modes(settings: &RenderSettings) -> SsdoModes {
 
 impl<'c> Renderer<'c> {
     pub fn new(ctx: &'c Context, scene: &Scene, settings: RenderSettings) -> Result<Self> {
-        if scene.spheres.is_empty() {
+        if scene.spheres.is_empty() || scene.represented() == 0 {
             return Err(Error::Input(format!(
                 "{}: no spheres to render",
                 scene.source
             )));
         }
-        if scene.spheres.len() > crate::scene::MAX_SPHERES {
+        if scene.instancing.is_none() && scene.spheres.len() > crate::scene::MAX_SPHERES {
             return Err(Error::Input(format!(
                 "{} spheres: at most {} are supported (sphere ids are 24-bit in the id AOV)",
                 scene.spheres.len(),
@@ -203,38 +186,10 @@ impl<'c> Renderer<'c> {
             )));
         }
         let cam = settings.camera;
-        let geom: Vec<GpuSphere> = scene
-            .spheres
-            .iter()
-            .map(|s| [s.center[0], s.center[1], s.center[2], s.radius])
-            .collect();
-        let attrs: Vec<SphereAttr> = scene
-            .spheres
-            .iter()
-            .map(|s| SphereAttr { region: s.region })
-            .collect();
-
         // Each object is guarded until the renderer owns it: an error part
         // way (a buffer over the device limit) destroys what was made.
-        let spheres = ctx.guard(Buffer::storage(ctx, "spheres", (geom.len() * 16) as u64)?);
-        spheres.upload(ctx, 0, bytemuck::cast_slice(&geom))?;
-        let attr_buf = ctx.guard(Buffer::storage(
-            ctx,
-            "sphere attributes",
-            std::mem::size_of_val(attrs.as_slice()).max(16) as u64,
-        )?);
-        attr_buf.upload(ctx, 0, bytemuck::cast_slice(&attrs))?;
-        let colors: Vec<u32> = scene
-            .spheres
-            .iter()
-            .map(|s| u32::from_le_bytes(s.color))
-            .collect();
-        let color_buf = ctx.guard(Buffer::storage(
-            ctx,
-            "sphere colours",
-            (colors.len().max(1) * 4) as u64,
-        )?);
-        color_buf.upload(ctx, 0, bytemuck::cast_slice(&colors))?;
+        let (scene_buffers, geom) = SceneBuffers::new(ctx, scene)?;
+        let scene_buffers = ctx.guard(scene_buffers);
         let win = checked_window(&cam, settings.window, settings.raster)?;
         let targets = ctx.guard(Targets::new(
             ctx,
@@ -261,25 +216,30 @@ impl<'c> Renderer<'c> {
         // Without a hierarchy every sphere is its own region (semantic SSDO
         // then equals plain SSDO).
         let no_levels = levels.is_empty() as u32;
-        let stages = ctx.guard(graph::Stages::new(ctx, &settings, levels, thresholds)?);
+        let stages = ctx.guard(graph::Stages::new(
+            ctx,
+            &settings,
+            levels,
+            thresholds,
+            scene_buffers.kind,
+        )?);
         let mut res = Resources {
-            sphere_count: geom.len() as u32,
             geom,
+            expanded: scene.expanded,
             bounds: (bs_center.as_dvec3(), bs_radius as f64),
             typical_radius: typical_radius(scene) as f64,
             globals: Globals {
                 background: background_word(settings.look.background),
+                scene: crate::passes::scene::levels_word(scene),
                 ..Default::default()
             },
             bgra: false,
-            spheres: spheres.keep(),
-            attrs: attr_buf.keep(),
-            colors: color_buf.keep(),
+            scene: scene_buffers.keep(),
             targets: targets.keep(),
             stages: stages.keep(),
             staging: None,
         };
-        res.globals.counts = [res.sphere_count, 0, 0, no_levels];
+        res.globals.counts = [res.scene.slots, 0, 0, no_levels];
         res.globals.cam = cam.to_gpu_window(res.depth_offset(&cam), settings.window);
         res.globals.params = [0.0, 0.0, win.width as f32, win.height as f32];
         let mut r = Renderer {
@@ -391,10 +351,16 @@ impl Resources {
     /// The light or the spheres changed: every technique refits (the
     /// caller then puts the new light view in the globals).
     fn light_changed(&mut self, ctx: &Context, settings: &RenderSettings) -> Result<()> {
-        let Resources { geom, stages, .. } = self;
+        let Resources {
+            geom,
+            stages,
+            scene,
+            ..
+        } = self;
         stages.shadows.light_changed(&ShadowSetup {
             ctx,
-            spheres: geom,
+            geom,
+            scene: scene.kind,
             light_dir: settings.light,
             settings,
         })
@@ -404,12 +370,18 @@ impl Resources {
 impl<'c> Renderer<'c> {
     /// Chooses the shadow technique; it is created the first time and kept.
     fn set_shadows(&mut self, mode: crate::settings::ShadowMode) -> Result<()> {
-        let Resources { geom, stages, .. } = &mut self.res;
+        let Resources {
+            geom,
+            stages,
+            scene,
+            ..
+        } = &mut self.res;
         stages.shadows.choose(
             mode,
             &ShadowSetup {
                 ctx: self.ctx,
-                spheres: geom,
+                geom,
+                scene: scene.kind,
                 light_dir: self.settings.light,
                 settings: &self.settings,
             },
@@ -478,11 +450,16 @@ impl<'c> Renderer<'c> {
     /// bounds follow them and every light-space structure is rebuilt by
     /// the next frame, since the spheres moved.
     pub fn set_positions(&mut self, positions: &[[f32; 3]]) -> Result<()> {
-        if positions.len() != self.res.geom.len() {
+        let SceneGeom::Plain(plain) = &self.res.geom else {
+            return Err(Error::Input(
+                "an instanced scene's spheres cannot be moved one by one (no trajectories)".into(),
+            ));
+        };
+        if positions.len() != plain.len() {
             return Err(Error::Input(format!(
                 "{} positions for {} spheres",
                 positions.len(),
-                self.res.geom.len()
+                plain.len()
             )));
         }
         let limit = crate::scene::MAX_COORDINATE;
@@ -497,19 +474,26 @@ impl<'c> Renderer<'c> {
         }
         // Frames in flight read the sphere buffer.
         self.wait_idle()?;
-        for (g, p) in self.res.geom.iter_mut().zip(positions) {
-            g[0] = p[0];
-            g[1] = p[1];
-            g[2] = p[2];
-        }
         let Resources {
-            spheres,
+            scene,
             geom,
             staging,
             ..
         } = &mut self.res;
-        spheres.upload_with(self.ctx, bytemuck::cast_slice(geom.as_slice()), staging)?;
-        self.res.bounds = bounding_sphere(&self.res.geom);
+        let SceneGeom::Plain(plain) = geom else {
+            return Err(Error::Internal(
+                "set_positions on an instanced scene".into(),
+            ));
+        };
+        for (g, p) in plain.iter_mut().zip(positions) {
+            g[0] = p[0];
+            g[1] = p[1];
+            g[2] = p[2];
+        }
+        scene
+            .spheres
+            .upload_with(self.ctx, bytemuck::cast_slice(plain.as_slice()), staging)?;
+        self.res.bounds = self.res.geom.bounding_sphere();
         self.res.stages.raster.compute.spheres_moved();
         self.res.light_changed(self.ctx, &self.settings)?;
         let cam = self.settings.camera;
@@ -606,9 +590,7 @@ impl Drop for Renderer<'_> {
         let r = &mut self.res;
         r.stages.destroy(ctx);
         r.targets.destroy(ctx);
-        r.spheres.destroy(ctx);
-        r.attrs.destroy(ctx);
-        r.colors.destroy(ctx);
+        r.scene.destroy(ctx);
         r.staging.destroy_with(ctx);
     }
 }

@@ -37,6 +37,8 @@ pub struct Image {
     pub aov: Option<Vec<u32>>,
     /// Tiles rendered (1 = untiled).
     pub tiles: usize,
+    /// Spheres the scene represents (the id AOV's encoding depends on it).
+    pub spheres: u64,
 }
 
 /// The most pixels one window may have on this device: the visibility
@@ -173,7 +175,7 @@ impl<'a> Renderer<'a> {
         if p.taps.per_sphere() {
             // per-sphere receivers march from a sphere's surface point
             // facing each direction: up to a diameter from the pixel
-            let r = self.res.geom.iter().map(|g| g[3]).fold(0.0f32, f32::max);
+            let r = self.res.geom.radii().fold(0.0f32, f32::max);
             reach += 2.0 * r as f64;
         }
         let mut ppu = cam.pixels_per_unit();
@@ -184,10 +186,10 @@ impl<'a> Renderer<'a> {
             let near = self
                 .res
                 .geom
-                .iter()
-                .map(|g| {
+                .spheres()
+                .map(|(g, r)| {
                     let c = glam::DVec3::new(g[0] as f64, g[1] as f64, g[2] as f64);
-                    (c - eye).dot(dir) - g[3] as f64
+                    (c - eye).dot(dir) - r as f64
                 })
                 .fold(f64::MAX, f64::min);
             ppu *= dist / near.max(1e-3 * dist);
@@ -252,6 +254,7 @@ impl<'a> Renderer<'a> {
                     None
                 },
                 tiles: 1,
+                spheres: self.inspect().represented(),
             };
             return Ok((Some(image), times));
         }
@@ -264,6 +267,7 @@ impl<'a> Renderer<'a> {
             vis: vec![crate::gpu::VIS_EMPTY; n],
             aov: aovs.then(|| vec![0; n]),
             tiles: tiles.len(),
+            spheres: self.inspect().represented(),
         };
         let mut sum = PassTimes::default();
         let cache = self.res.stages.shadows.cache();

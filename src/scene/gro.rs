@@ -3,7 +3,7 @@
 //! in nm), box line. Several frames in one file are models.
 
 use super::elements;
-use super::molecule::{MolBuilder, key64};
+use super::molecule::{AtomKeys, MolBuilder, key64};
 use super::text::{LineSource, parse_f32, show, split_ws};
 use super::{
     LoadOptions, MAX_SPHERES, ModelSelect, Scene, SceneError, check_coordinate, parse_error,
@@ -93,7 +93,17 @@ pub(crate) fn parse(
             if builder.len() >= MAX_SPHERES {
                 return Err(too_many(name, line_no));
             }
-            builder.push(center, element, level0, 0, u128::from(residue), b"");
+            builder.push(
+                center,
+                element,
+                AtomKeys {
+                    level0,
+                    chain: 0,
+                    residue: u128::from(residue),
+                    asm_chain: b"",
+                    entity: b"",
+                },
+            );
         }
         // Box line (absent in some hand-written files): three or nine
         // numbers. An atom line here means the count was too small.

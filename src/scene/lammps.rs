@@ -262,5 +262,7 @@ pub(crate) fn frame_scene(f: &DumpFrame, name: &str) -> Scene {
         spheres,
         level_names: vec!["type".into(), "atom".into()],
         source: name.to_string(),
+        instancing: None,
+        expanded: false,
     }
 }

@@ -113,6 +113,8 @@ pub(crate) struct MolBuilder {
     asm_chain: Option<Vec<u32>>,
     asm_names: Vec<Vec<u8>>,
     last_asm: Option<u32>,
+    /// Per assembly chain name (by index): the entity its first atom named.
+    asm_entity: Vec<Vec<u8>>,
 }
 
 impl MolBuilder {
@@ -126,6 +128,15 @@ impl MolBuilder {
             asm_chain: track_assembly.then(Vec::new),
             asm_names: Vec::new(),
             last_asm: None,
+            asm_entity: Vec::new(),
+        }
+    }
+
+    /// Starts recording each atom's assembly chain name (instanced
+    /// scenes: molecule types are made of chains), if not yet.
+    pub(crate) fn track_assembly(&mut self) {
+        if self.asm_chain.is_none() && self.spheres.is_empty() {
+            self.asm_chain = Some(Vec::new());
         }
     }
 
@@ -134,18 +145,16 @@ impl MolBuilder {
         self.spheres.len()
     }
 
-    /// Adds one atom. `chain` and `residue` are opaque keys; `asm_chain` is
-    /// the chain name assembly lists refer to (ignored unless tracking).
+    /// Adds one atom.
     #[inline]
-    pub(crate) fn push(
-        &mut self,
-        center: [f32; 3],
-        element: Element,
-        level0: u32,
-        chain: u64,
-        residue: u128,
-        asm_chain: &[u8],
-    ) {
+    pub(crate) fn push(&mut self, center: [f32; 3], element: Element, keys: AtomKeys) {
+        let AtomKeys {
+            level0,
+            chain,
+            residue,
+            asm_chain,
+            entity,
+        } = keys;
         let chain_id = match self.last_chain {
             Some((l0, key, id)) if l0 == level0 && key == chain => id,
             _ => {
@@ -172,6 +181,7 @@ impl MolBuilder {
                     Some(i) => i as u32,
                     None => {
                         self.asm_names.push(asm_chain.to_vec());
+                        self.asm_entity.push(entity.to_vec());
                         self.asm_names.len() as u32 - 1
                     }
                 }
@@ -222,7 +232,190 @@ impl MolBuilder {
             spheres,
             level_names: LEVEL_NAMES.iter().map(|s| s.to_string()).collect(),
             source: source.to_string(),
+            instancing: None,
+            expanded: false,
         })
+    }
+}
+
+/// What places an atom in the hierarchy: `chain` and `residue` are opaque
+/// keys; `asm_chain` is the chain name assembly lists refer to and `entity`
+/// its entity id (both ignored unless tracking assemblies).
+pub(crate) struct AtomKeys<'a> {
+    pub level0: u32,
+    pub chain: u64,
+    pub residue: u128,
+    pub asm_chain: &'a [u8],
+    pub entity: &'a [u8],
+}
+
+/// How an instanced scene's molecule types and instances come out of the
+/// atoms read.
+pub(crate) enum InstancedFrom<'a> {
+    /// PetWorld: each model is a molecule type; each generator row
+    /// instantiates one model (by index among the models read) with its
+    /// operators. `names[i]`: the label of model index i.
+    Models {
+        rows: Vec<(u32, Vec<[[f32; 4]; 3]>)>,
+        names: Vec<String>,
+    },
+    /// An assembly: each generator row's chains are a molecule type, its
+    /// operators the instances. `paths`: the hierarchy path of an entity
+    /// (cellPACK's dot-separated `pdbx_description`), by entity id.
+    Assembly {
+        asm: &'a Assembly,
+        paths: HashMap<Vec<u8>, Vec<String>>,
+        depth_names: Vec<String>,
+    },
+}
+
+impl MolBuilder {
+    /// The atoms read as an instanced scene (molecule types, instances, the
+    /// hierarchy); the builder must have tracked assembly chains.
+    pub(crate) fn finish_instanced(
+        mut self,
+        source: &str,
+        color_by: ColorBy,
+        from: InstancedFrom,
+    ) -> Result<Scene, SceneError> {
+        use super::instanced::InstancedBuilder;
+        let per_atom = self.asm_chain.take().unwrap_or_default();
+        if color_by == ColorBy::Chain {
+            for s in &mut self.spheres {
+                s.color = palette_color(s.region[1]);
+            }
+        }
+        // A molecule's atoms with chain indices dense within it.
+        let molecule = |pick: &dyn Fn(usize) -> bool| -> Vec<Sphere> {
+            let mut chains: Vec<u32> = Vec::new();
+            self.spheres
+                .iter()
+                .enumerate()
+                .filter(|&(i, _)| pick(i))
+                .map(|(_, s)| {
+                    let c = match chains.iter().position(|&c| c == s.region[1]) {
+                        Some(c) => c,
+                        None => {
+                            chains.push(s.region[1]);
+                            chains.len() - 1
+                        }
+                    };
+                    Sphere {
+                        region: [c as u32, 0, 0, 0],
+                        ..*s
+                    }
+                })
+                .collect()
+        };
+        let op64 = |m: &[[f32; 4]; 3]| m.map(|r| r.map(f64::from));
+        let mut b = InstancedBuilder::default();
+        match from {
+            InstancedFrom::Models { rows, names } => {
+                let models = self
+                    .spheres
+                    .iter()
+                    .map(|s| s.region[0] + 1)
+                    .max()
+                    .unwrap_or(0);
+                // PetWorld's membrane entities have label_asym_ids MEM...
+                let membrane: Vec<bool> = (0..models)
+                    .map(|m| {
+                        let mut atoms = self
+                            .spheres
+                            .iter()
+                            .zip(&per_atom)
+                            .filter(|(s, _)| s.region[0] == m)
+                            .peekable();
+                        atoms.peek().is_some()
+                            && atoms.all(|(_, &a)| self.asm_names[a as usize].starts_with(b"MEM"))
+                    })
+                    .collect();
+                let grouped = membrane.iter().any(|&m| m);
+                b.depth_names = if grouped {
+                    vec!["group".into(), "type".into()]
+                } else {
+                    vec!["type".into()]
+                };
+                let mut types: HashMap<u32, u32> = HashMap::new();
+                for (model, ops) in rows {
+                    if model >= models {
+                        continue;
+                    }
+                    let m = match types.get(&model) {
+                        Some(&m) => m,
+                        None => {
+                            let label = names
+                                .get(model as usize)
+                                .cloned()
+                                .unwrap_or_else(|| format!("model {}", model + 1));
+                            let node = if membrane[model as usize] {
+                                b.node(&["membrane", &label])
+                            } else {
+                                b.node(&[&label])
+                            };
+                            let atoms = molecule(&|i| self.spheres[i].region[0] == model);
+                            let m = b.molecule(&label, node, atoms);
+                            types.insert(model, m);
+                            m
+                        }
+                    };
+                    for op in &ops {
+                        b.instance_matrix(source, m, op64(op))?;
+                    }
+                }
+            }
+            InstancedFrom::Assembly {
+                asm,
+                paths,
+                depth_names,
+            } => {
+                b.depth_names = depth_names;
+                let mut types: Vec<(Vec<Vec<u8>>, u32)> = Vec::new();
+                for (g, group) in asm.groups.iter().enumerate() {
+                    let m = match types.iter().find(|(c, _)| *c == group.chains) {
+                        Some(&(_, m)) => m,
+                        None => {
+                            let wanted: Vec<bool> = self
+                                .asm_names
+                                .iter()
+                                .map(|n| group.chains.is_empty() || group.chains.contains(n))
+                                .collect();
+                            // the hierarchy path of the group's first chain's entity
+                            let path = self
+                                .asm_names
+                                .iter()
+                                .enumerate()
+                                .find(|(i, _)| wanted[*i])
+                                .and_then(|(i, _)| paths.get(&self.asm_entity[i]))
+                                .cloned()
+                                .unwrap_or_default();
+                            let label = path.last().cloned().unwrap_or_else(|| {
+                                let chains: Vec<String> = group
+                                    .chains
+                                    .iter()
+                                    .map(|c| String::from_utf8_lossy(c).into_owned())
+                                    .collect();
+                                if chains.is_empty() {
+                                    format!("assembly {} group {}", asm.id, g + 1)
+                                } else {
+                                    chains.join(",")
+                                }
+                            });
+                            let refs: Vec<&str> = path.iter().map(String::as_str).collect();
+                            let node = b.node(&refs);
+                            let atoms = molecule(&|i| wanted[per_atom[i] as usize]);
+                            let m = b.molecule(&label, node, atoms);
+                            types.push((group.chains.clone(), m));
+                            m
+                        }
+                    };
+                    for op in &group.ops {
+                        b.instance_matrix(source, m, op64(op))?;
+                    }
+                }
+            }
+        }
+        b.finish(source)
     }
 }
 
@@ -313,15 +506,25 @@ mod tests {
         assert_ne!(key64(&[b"LONGCHAINNAME"]), key64(&[b"LONGCHAINNAMF"]));
     }
 
+    fn keys(level0: u32, chain: u64, residue: u128, asm_chain: &[u8]) -> AtomKeys<'_> {
+        AtomKeys {
+            level0,
+            chain,
+            residue,
+            asm_chain,
+            entity: b"",
+        }
+    }
+
     #[test]
     fn builder_regions() {
         let mut b = MolBuilder::new(0, true);
         let p = [0.0; 3];
-        b.push(p, Element::C, 0, 1, 10, b"A");
-        b.push(p, Element::C, 0, 1, 10, b"A");
-        b.push(p, Element::C, 0, 1, 11, b"A");
-        b.push(p, Element::O, 0, 2, 11, b"B");
-        b.push(p, Element::O, 0, 1, 10, b"A"); // chain A again: same chain id
+        b.push(p, Element::C, keys(0, 1, 10, b"A"));
+        b.push(p, Element::C, keys(0, 1, 10, b"A"));
+        b.push(p, Element::C, keys(0, 1, 11, b"A"));
+        b.push(p, Element::O, keys(0, 2, 11, b"B"));
+        b.push(p, Element::O, keys(0, 1, 10, b"A")); // chain A again: same chain id
         let s = b.finish("t", ColorBy::Element, None).unwrap();
         let r: Vec<_> = s.spheres.iter().map(|s| s.region).collect();
         assert_eq!(
@@ -340,9 +543,9 @@ mod tests {
     #[test]
     fn assembly_copies() {
         let mut b = MolBuilder::new(0, true);
-        b.push([1.0, 0.0, 0.0], Element::C, 0, 1, 1, b"A");
-        b.push([2.0, 0.0, 0.0], Element::C, 0, 2, 2, b"B");
-        b.push([3.0, 0.0, 0.0], Element::C, 0, 3, 3, b"C");
+        b.push([1.0, 0.0, 0.0], Element::C, keys(0, 1, 1, b"A"));
+        b.push([2.0, 0.0, 0.0], Element::C, keys(0, 2, 2, b"B"));
+        b.push([3.0, 0.0, 0.0], Element::C, keys(0, 3, 3, b"C"));
         let ident = [
             [1.0, 0.0, 0.0, 0.0],
             [0.0, 1.0, 0.0, 0.0],

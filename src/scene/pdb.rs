@@ -7,7 +7,7 @@
 //! residue numbers that wrap, MODEL/ENDMDL and REMARK 350 assemblies.
 
 use super::elements::{self, Element, trim};
-use super::molecule::{AsmGroup, Assembly, MolBuilder, find_assembly};
+use super::molecule::{AsmGroup, Assembly, AtomKeys, MolBuilder, find_assembly};
 use super::text::{LineSource, parse_f32, show};
 use super::{
     LoadOptions, MAX_SPHERES, ModelSelect, Scene, SceneError, check_coordinate, parse_error,
@@ -206,7 +206,17 @@ fn atom(
         .and_then(Element::from_symbol)
         .unwrap_or_else(|| elements::guess_pdb(&line[12..16], res_name));
 
-    builder.push(center, element, level0, chain_key, residue, trim(chain));
+    builder.push(
+        center,
+        element,
+        AtomKeys {
+            level0,
+            chain: chain_key,
+            residue,
+            asm_chain: trim(chain),
+            entity: b"",
+        },
+    );
     Ok(())
 }
 

@@ -35,6 +35,8 @@ pub fn procedural(name: &str, atoms: usize, seed: u64) -> Result<Scene, SceneErr
         spheres,
         level_names: levels.iter().map(|s| s.to_string()).collect(),
         source: format!("scene:{}", name.to_ascii_lowercase()),
+        instancing: None,
+        expanded: false,
     })
 }
 

@@ -108,6 +108,8 @@ pub(crate) fn parse_xyz(
         spheres,
         level_names: vec!["model".into(), "atom".into()],
         source: name.to_string(),
+        instancing: None,
+        expanded: false,
     })
 }
 
@@ -229,6 +231,8 @@ pub(crate) fn xyzr_scene(mut spheres: Vec<Sphere>, levels: usize, name: &str) ->
         spheres,
         level_names: (0..levels).map(|i| format!("level{i}")).collect(),
         source: name.to_string(),
+        instancing: None,
+        expanded: false,
     }
 }
 

@@ -12,7 +12,7 @@ use crate::error::Result;
 pub use crate::gpu::blocks::ShadePush;
 use crate::gpu::blocks::ShadeSpec;
 use crate::passes::LOCAL_SIZE;
-use crate::passes::screen::{SURFACE_BINDINGS, ScreenInputs};
+use crate::passes::screen::{ScreenInputs, surface_bindings};
 use crate::passes::tiles::{TILE_BINDING, Tiles};
 use crate::passes::variants::{TiledDispatch, Variants};
 use crate::settings::RenderSettings;
@@ -22,6 +22,8 @@ use ash::vk::Format;
 
 pub struct ShadePass {
     variants: Variants,
+    /// The scene's kind (SCENE_KIND of the pipelines).
+    scene: u32,
 }
 
 /// The stage's screen targets: colour (RGBA8 or BGRA8; RGBA16 in two
@@ -154,25 +156,29 @@ impl ShadeMode {
     }
 }
 
-const SHADE_OUTPUTS: [Binding; 5] = [
+const SHADE_OUTPUTS: [Binding; 7] = [
     texel("aoTex", Format::R32_UINT),
     texel("recordTex", Format::R32G32B32A32_UINT),
     wo("Color"),
     wo("Aov"),
     texel("sphereAoTex", Format::R32G32B32A32_UINT),
+    texel("flagTex", Format::R32_UINT),
+    texel("wordBaseTex", Format::R32_UINT),
 ];
 
 impl ShadePass {
     pub const NAME: &'static str = "shade";
 
-    pub fn new() -> Self {
+    /// The pass for a scene of kind `scene` (passes::scene).
+    pub fn new(scene: u32) -> Self {
         ShadePass {
             variants: Variants::default(),
+            scene,
         }
     }
 
     fn bindings(lookup: &Lookup) -> Vec<Binding> {
-        let mut b: Vec<Binding> = SURFACE_BINDINGS.to_vec();
+        let mut b: Vec<Binding> = surface_bindings();
         b.extend_from_slice(&SHADE_OUTPUTS);
         b.push(TILE_BINDING);
         b.extend_from_slice(lookup.bindings);
@@ -190,6 +196,7 @@ impl ShadePass {
                 push_size: std::mem::size_of::<ShadePush>() as u32,
                 local_size: LOCAL_SIZE,
                 constants: &mode.constants(),
+                scene: self.scene,
             },
             mode.lists,
         )
@@ -214,7 +221,16 @@ impl ShadePass {
             ("recordTex", io.ssdo.records),
             ("Color", &targets.color),
             ("Aov", &targets.aov),
-            ("sphereAoTex", io.ssdo.sphere_ao.unwrap_or(io.ssdo.records)),
+        ]);
+        // (bound and unread without per-sphere receivers)
+        let spheres = io.ssdo.sphere_ao;
+        bufs.extend([
+            ("sphereAoTex", spheres.map_or(io.ssdo.records, |s| &s.ao)),
+            ("flagTex", spheres.map_or(io.ssdo.records, |s| &s.flags)),
+            (
+                "wordBaseTex",
+                spheres.map_or(io.ssdo.records, |s| &s.word_base),
+            ),
         ]);
         bufs.extend(io.lookup.buffers.iter().copied());
         rec.pass(Self::NAME, |p| {
@@ -239,9 +255,4 @@ impl ShadePass {
     }
 }
 
-impl Default for ShadePass {
-    fn default() -> Self {
-        Self::new()
-    }
-}
 crate::impl_destroy!(ShadePass);

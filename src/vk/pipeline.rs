@@ -14,7 +14,7 @@ use super::grid::Grid;
 use super::reflect::{self, Access};
 use super::{Buffer, Context};
 use crate::error::{Error, Result, VkContext};
-use crate::gpu::consts::MAX_GROUPS_X;
+use crate::gpu::consts::{MAX_GROUPS_X, SCENE_KIND_ID};
 use ash::vk;
 
 /// A shader embedded by build.rs.
@@ -82,6 +82,9 @@ pub struct PipelineDesc<'a> {
     pub local_size: u32,
     /// Further specialization constants, ids 1, 2, ... in order.
     pub constants: &'a [u32],
+    /// The scene's kind, specialization constant SCENE_KIND_ID of shaders
+    /// that include glsl/scene.glsl (src/passes/scene.rs; 0 = plain).
+    pub scene: u32,
 }
 
 pub struct ComputePipeline {
@@ -263,13 +266,26 @@ impl ComputePipeline {
         ctx.name(module, desc.name);
         let mut values = vec![desc.local_size];
         values.extend_from_slice(desc.constants);
-        let entries: Vec<_> = (0..values.len())
+        let mut entries: Vec<_> = (0..values.len())
             .map(|i| vk::SpecializationMapEntry {
                 constant_id: i as u32,
                 offset: 4 * i as u32,
                 size: 4,
             })
             .collect();
+        if found.spec_ids.contains(&SCENE_KIND_ID) {
+            entries.push(vk::SpecializationMapEntry {
+                constant_id: SCENE_KIND_ID,
+                offset: 4 * values.len() as u32,
+                size: 4,
+            });
+            values.push(desc.scene);
+        } else if desc.scene != 0 {
+            return Err(Error::Internal(format!(
+                "shader {}: pipeline '{}' is given a scene kind, but the shader does not read the scene",
+                desc.shader.file, desc.name
+            )));
+        }
         let spec = vk::SpecializationInfo::default()
             .map_entries(&entries)
             .data(bytemuck::cast_slice(&values));

@@ -70,6 +70,8 @@ pub fn scene_of(spheres: Vec<Sphere>, name: &str) -> Scene {
         spheres,
         level_names: vec![],
         source: name.to_string(),
+        instancing: None,
+        expanded: false,
     }
 }
 

@@ -26,29 +26,7 @@ pub(super) fn assemblies(
         return Ok(Vec::new());
     };
     let bad = |msg: String| SceneError::Invalid(format!("{name}: {msg}"));
-    // Operators by id.
-    let id_col = ops_cat
-        .col("_pdbx_struct_oper_list.id")
-        .ok_or_else(|| bad("_pdbx_struct_oper_list has no id".into()))?;
-    let mut ops: HashMap<String, Op> = HashMap::new();
-    for r in &ops_cat.rows {
-        let mut m = [[0.0f32; 4]; 3];
-        for (i, mrow) in m.iter_mut().enumerate() {
-            for (j, slot) in mrow.iter_mut().enumerate() {
-                let item = if j < 3 {
-                    format!("_pdbx_struct_oper_list.matrix[{}][{}]", i + 1, j + 1)
-                } else {
-                    format!("_pdbx_struct_oper_list.vector[{}]", i + 1)
-                };
-                *slot = ops_cat
-                    .col(&item)
-                    .and_then(|c| r.get(c))
-                    .and_then(|v| parse_f32(v.as_bytes()))
-                    .ok_or_else(|| bad(format!("bad or missing {item}")))?;
-            }
-        }
-        ops.insert(r[id_col].clone(), m);
-    }
+    let ops = operators(name, ops_cat)?;
     let cols = [
         "_pdbx_struct_assembly_gen.assembly_id",
         "_pdbx_struct_assembly_gen.oper_expression",
@@ -87,6 +65,49 @@ pub(super) fn assemblies(
         }
     }
     Ok(list)
+}
+
+/// `_pdbx_struct_oper_list`: the 3x4 operators by id.
+pub(super) fn operators(name: &str, ops_cat: &Category) -> Result<HashMap<String, Op>, SceneError> {
+    let bad = |msg: String| SceneError::Invalid(format!("{name}: {msg}"));
+    let id_col = ops_cat
+        .col("_pdbx_struct_oper_list.id")
+        .ok_or_else(|| bad("_pdbx_struct_oper_list has no id".into()))?;
+    // the 12 columns, found once (oper lists of cellPACK models have 10^4-10^5 rows)
+    let mut cols = [[0usize; 4]; 3];
+    for (i, row) in cols.iter_mut().enumerate() {
+        for (j, slot) in row.iter_mut().enumerate() {
+            let item = if j < 3 {
+                format!("_pdbx_struct_oper_list.matrix[{}][{}]", i + 1, j + 1)
+            } else {
+                format!("_pdbx_struct_oper_list.vector[{}]", i + 1)
+            };
+            *slot = ops_cat
+                .col(&item)
+                .ok_or_else(|| bad(format!("bad or missing {item}")))?;
+        }
+    }
+    let mut ops: HashMap<String, Op> = HashMap::with_capacity(ops_cat.rows.len());
+    for r in &ops_cat.rows {
+        let mut m = [[0.0f32; 4]; 3];
+        for (i, mrow) in m.iter_mut().enumerate() {
+            for (j, slot) in mrow.iter_mut().enumerate() {
+                let c = cols[i][j];
+                *slot = r
+                    .get(c)
+                    .and_then(|v| parse_f32(v.as_bytes()))
+                    .ok_or_else(|| {
+                        bad(format!(
+                            "operator {}: bad {}",
+                            r.get(id_col).map_or("?", |s| s.as_str()),
+                            ops_cat.items[c]
+                        ))
+                    })?;
+            }
+        }
+        ops.insert(r[id_col].clone(), m);
+    }
+    Ok(ops)
 }
 
 /// Expands `1`, `1,2`, `(1-60)`, `(1-5)(6,7)` (a product: the right factor

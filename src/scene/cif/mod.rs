@@ -5,13 +5,17 @@
 use std::collections::HashMap;
 
 mod assembly;
+mod binary;
+mod instanced;
 
 use assembly::assemblies;
 #[cfg(test)]
 use assembly::{IDENTITY, oper_expression};
+pub(crate) use binary::parse_bcif;
+use instanced::{atom_model, finish_instanced, instanced_kind};
 
 use super::elements::{self, Element};
-use super::molecule::{MolBuilder, find_assembly, key64};
+use super::molecule::{AtomKeys, MolBuilder, find_assembly, key64};
 use super::text::{LineSource, parse_f32, show};
 use super::{
     LoadOptions, MAX_SPHERES, ModelSelect, Scene, SceneError, check_coordinate, parse_error,
@@ -91,9 +95,35 @@ struct Columns {
     ins_code: Option<usize>,
     model: Option<usize>,
     alt: Option<usize>,
+    entity: Option<usize>,
 }
 
 impl Columns {
+    /// The item indices the reader looks at.
+    fn used(&self) -> Vec<usize> {
+        [
+            self.x,
+            self.y,
+            self.z,
+            self.type_symbol,
+            self.label_atom,
+            self.auth_atom,
+            self.auth_asym,
+            self.label_asym,
+            self.label_seq,
+            self.auth_seq,
+            self.label_comp,
+            self.auth_comp,
+            self.ins_code,
+            self.model,
+            self.alt,
+            self.entity,
+        ]
+        .into_iter()
+        .flatten()
+        .collect()
+    }
+
     fn new(items: &[String]) -> Self {
         let mut c = Columns::default();
         for (i, item) in items.iter().enumerate() {
@@ -113,6 +143,7 @@ impl Columns {
                 "pdbx_PDB_ins_code" => &mut c.ins_code,
                 "pdbx_PDB_model_num" => &mut c.model,
                 "label_alt_id" => &mut c.alt,
+                "label_entity_id" => &mut c.entity,
                 _ => continue,
             };
             *slot = Some(i);
@@ -134,8 +165,14 @@ impl Category {
     }
 }
 
-/// Categories read for assemblies.
-const KEPT: [&str; 2] = ["_pdbx_struct_assembly_gen", "_pdbx_struct_oper_list"];
+/// Categories read for assemblies and instanced models (PetWorld's model
+/// names, cellPACK's hierarchy paths in the entity descriptions).
+const KEPT: [&str; 4] = [
+    "_pdbx_struct_assembly_gen",
+    "_pdbx_struct_oper_list",
+    "_pdbx_model",
+    "_entity",
+];
 
 fn category_of(item: &str) -> &str {
     item.split('.').next().unwrap_or(item)
@@ -152,9 +189,31 @@ enum State {
     AtomRows,
 }
 
+/// One `_atom_site` row, from text tokens or a BinaryCIF row.
+pub(crate) trait AtomRow {
+    /// The value of item i: None for `?`, `.` (or masked in BinaryCIF).
+    fn value(&self, i: usize) -> Option<&[u8]>;
+    /// Item i as a coordinate, or the text to show in the error.
+    fn coordinate(&self, i: Option<usize>) -> Result<f32, String>;
+}
+
+/// A text row: its tokens.
+struct TextRow<'a, 'b>(&'a [&'b [u8]]);
+
+impl AtomRow for TextRow<'_, '_> {
+    fn value(&self, i: usize) -> Option<&[u8]> {
+        value(self.0[i])
+    }
+
+    fn coordinate(&self, i: Option<usize>) -> Result<f32, String> {
+        let tok = i.map_or(&b"?"[..], |i| self.0[i]);
+        parse_f32(tok).ok_or_else(|| show(tok))
+    }
+}
+
 /// Selection and bookkeeping while reading `_atom_site` rows.
-struct AtomReader<'o> {
-    opts: &'o LoadOptions,
+pub(crate) struct AtomReader {
+    model: ModelSelect,
     cols: Columns,
     n_items: usize,
     models: Vec<i64>,
@@ -163,8 +222,21 @@ struct AtomReader<'o> {
     first_alt: Option<Vec<u8>>,
 }
 
-impl AtomReader<'_> {
-    fn row(
+impl AtomReader {
+    fn new(model: ModelSelect, cols: Columns, n_items: usize) -> Self {
+        AtomReader {
+            model,
+            cols,
+            n_items,
+            models: Vec::new(),
+            last_model: None,
+            selected_found: false,
+            first_alt: None,
+        }
+    }
+
+    /// A text row: its token count checked first.
+    fn text_row(
         &mut self,
         toks: &[&[u8]],
         line_no: usize,
@@ -182,7 +254,17 @@ impl AtomReader<'_> {
                 ),
             ));
         }
-        let get = |c: Option<usize>| c.and_then(|i| value(toks[i]));
+        self.row(&TextRow(toks), line_no, name, builder)
+    }
+
+    fn row(
+        &mut self,
+        row: &dyn AtomRow,
+        line_no: usize,
+        name: &str,
+        builder: &mut MolBuilder,
+    ) -> Result<(), SceneError> {
+        let get = |c: Option<usize>| c.and_then(|i| row.value(i));
 
         // Model selection; rows of one model are contiguous, so cache it.
         let model_num = match get(self.cols.model) {
@@ -204,7 +286,7 @@ impl AtomReader<'_> {
                         self.models.len() - 1
                     }
                 };
-                let (acc, l0) = match self.opts.model {
+                let (acc, l0) = match self.model {
                     ModelSelect::First => (index == 0, 0),
                     ModelSelect::Index(n) => (model_num == i64::from(n), 0),
                     ModelSelect::All => (true, index as u32),
@@ -230,10 +312,9 @@ impl AtomReader<'_> {
             (self.cols.y, "Cartn_y"),
             (self.cols.z, "Cartn_z"),
         ]) {
-            let tok = col.map_or(&b"?"[..], |i| toks[i]);
-            let v = parse_f32(tok).ok_or_else(|| {
-                parse_error(name, line_no, format!("bad {axis} value '{}'", show(tok)))
-            })?;
+            let v = row
+                .coordinate(col)
+                .map_err(|tok| parse_error(name, line_no, format!("bad {axis} value '{tok}'")))?;
             *slot = check_coordinate(v, axis, name, line_no)?;
         }
         if builder.len() >= MAX_SPHERES {
@@ -261,10 +342,13 @@ impl AtomReader<'_> {
         builder.push(
             center,
             element,
-            level0,
-            key64(&[chain]),
-            u128::from(residue),
-            label_asym.unwrap_or(chain),
+            AtomKeys {
+                level0,
+                chain: key64(&[chain]),
+                residue: u128::from(residue),
+                asm_chain: label_asym.unwrap_or(chain),
+                entity: get(self.cols.entity).unwrap_or(b""),
+            },
         );
         Ok(())
     }
@@ -289,6 +373,8 @@ pub(crate) fn parse(
     let mut row: Vec<String> = Vec::new();
     let mut pending_key: Option<String> = None;
     let mut in_text_field = false;
+    // The first data block's name (cellPACK exports: CELLPACK_MODEL).
+    let mut header: Option<String> = None;
 
     while let Some((line_no, line, cut)) = src.next()? {
         // (tokens borrow this line only)
@@ -315,7 +401,7 @@ pub(crate) fn parse(
                             return Err(truncated(name, line_no));
                         }
                         if let Some(reader) = atoms.as_mut() {
-                            reader.row(&toks, line_no, name, &mut builder)?;
+                            reader.text_row(&toks, line_no, name, &mut builder)?;
                         }
                         continue;
                     }
@@ -336,7 +422,10 @@ pub(crate) fn parse(
             if tok.starts_with(b"data_") {
                 if atom_loop_done {
                     // Only the first data block is read.
-                    return finish(builder, name, opts, atoms, &kept);
+                    return finish(builder, name, opts, atoms, &kept, header.as_deref());
+                }
+                if header.is_none() {
+                    header = Some(String::from_utf8_lossy(&tok[5..]).into_owned());
                 }
                 state = State::Outside;
                 pending_key = None;
@@ -367,22 +456,21 @@ pub(crate) fn parse(
                                 "the _atom_site loop lacks Cartn_x, Cartn_y or Cartn_z",
                             ));
                         }
-                        atoms = Some(AtomReader {
-                            opts,
-                            cols,
-                            n_items: items.len(),
-                            models: Vec::new(),
-                            last_model: None,
-                            selected_found: false,
-                            first_alt: None,
-                        });
+                        // (what an instanced model needs is known by now:
+                        // its categories come before the atoms)
+                        let kind = instanced_kind(opts, &kept, header.as_deref());
+                        let model = atom_model(name, opts, kind)?;
+                        if opts.assembly.is_some() || kind.is_some() {
+                            builder.track_assembly();
+                        }
+                        atoms = Some(AtomReader::new(model, cols, items.len()));
                         state = State::AtomRows;
                         // This whole line is the first row.
                         if cut {
                             return Err(truncated(name, line_no));
                         }
                         if let Some(reader) = atoms.as_mut() {
-                            reader.row(&toks, line_no, name, &mut builder)?;
+                            reader.text_row(&toks, line_no, name, &mut builder)?;
                         }
                         break;
                     }
@@ -405,7 +493,7 @@ pub(crate) fn parse(
             }
         }
     }
-    finish(builder, name, opts, atoms, &kept)
+    finish(builder, name, opts, atoms, &kept, header.as_deref())
 }
 
 /// Rows kept per category (assembly generators and operators): far above
@@ -458,11 +546,19 @@ fn finish(
     opts: &LoadOptions,
     atoms: Option<AtomReader>,
     kept: &HashMap<&'static str, Category>,
+    header: Option<&str>,
 ) -> Result<Scene, SceneError> {
     if let ModelSelect::Index(n) = opts.model
         && atoms.as_ref().is_some_and(|a| !a.selected_found)
     {
         return Err(SceneError::Invalid(format!("{name}: model {n} not found")));
+    }
+    let kind = instanced_kind(opts, kept, header);
+    if let Some(kind) = kind {
+        // (an empty file has no atoms to instance: the usual error)
+        if atoms.is_some() {
+            return finish_instanced(builder, name, opts, atoms, kept, kind);
+        }
     }
     let assemblies = match opts.assembly {
         Some(want) => assemblies(name, kept, want)?,
@@ -602,10 +698,16 @@ _pdbx_struct_assembly_gen.asym_id_list      A,B
             ..LoadOptions::default()
         };
         let s = load(CIF, &o).unwrap();
-        // label_asym A (3 atoms after altlocs) and B (1 atom), operators 1, 2.
-        assert_eq!(s.spheres.len(), 8);
-        assert_eq!(s.spheres[4].center[0], 101.0);
-        assert_eq!(s.spheres[4].region[0], 1);
+        // label_asym A (3 atoms after altlocs) and B (1 atom), operators 1,
+        // 2: instanced, the 4 atoms stored once, 8 represented.
+        let inst = s.instancing.as_ref().unwrap();
+        assert_eq!((s.spheres.len(), inst.instances()), (4, 2));
+        assert_eq!(s.represented(), 8);
+        let e = s.expand().unwrap();
+        assert_eq!(e.spheres[4].center[0], 101.0);
+        // levels: the copy (the atoms are all of auth chain A: no chain level)
+        assert_eq!(s.level_names, ["molecule"]);
+        assert_eq!((e.spheres[3].region[0], e.spheres[4].region[0]), (0, 1));
         let o = LoadOptions {
             assembly: Some(2),
             ..LoadOptions::default()

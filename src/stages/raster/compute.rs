@@ -2,10 +2,10 @@
 //! visibility buffer (camera view or key-light view, same code).
 
 use crate::error::Result;
-use crate::gpu::GpuSphere;
 use crate::gpu::blocks::RasterPush;
 use crate::gpu::consts::{R_ARGS, R_BANDS_REQ, R_BANDS_RUN};
 use crate::passes::bands::{BandArgs, BandCounters, BandJob, BandPipelines};
+use crate::passes::scene::{SCENE_GEOMETRY, SceneBuffers, SceneGeom};
 use crate::passes::{LOCAL_SIZE, spirv};
 use crate::vk::guard::Destroy;
 use crate::vk::pipeline::{PipelineDesc, rw, texel, uniform};
@@ -43,13 +43,12 @@ pub enum ViewIndex {
     Light = 1,
 }
 
-/// What one rasterization reads and writes: the spheres, and the
+/// What one rasterization reads and writes: the scene, and the
 /// depth|id target (the camera's visibility buffer or a light map).
 #[derive(Clone, Copy)]
 pub struct RasterIo<'b> {
     pub globals: &'b Buffer,
-    pub spheres: &'b Buffer,
-    pub sphere_count: u32,
+    pub scene: &'b SceneBuffers,
     pub target: &'b Buffer,
     /// Texels of `target` (cleared first).
     pub texels: u64,
@@ -67,8 +66,9 @@ pub struct RasterPass {
     orders: [ViewOrder; 2],
 }
 
-/// One view's sphere order, one u32 per sphere, and the direction it was
-/// sorted for (none: never sorted, or the spheres moved since).
+/// One view's sphere order, one u32 per sphere (instanced scenes: per
+/// batch), and the direction it was sorted for (none: never sorted, or the
+/// spheres moved since).
 struct ViewOrder {
     name: &'static str,
     buf: Buffer,
@@ -96,7 +96,7 @@ impl ViewOrder {
         })
     }
 
-    fn set(&mut self, ctx: &Context, geom: &[GpuSphere], dir: DVec3) -> Result<()> {
+    fn set(&mut self, ctx: &Context, geom: &SceneGeom, dir: DVec3) -> Result<()> {
         let order = view_order(geom, dir);
         let bytes = (order.len().max(1) * 4) as u64;
         if self.buf.size != bytes {
@@ -122,7 +122,8 @@ pub const ORDER_STALE_DEG: f64 = 30.0;
 
 /// The order in which a view looking along `dir` visits the spheres: runs
 /// of [`ORDER_RUN`] consecutive input spheres (neighbours in space for
-/// molecules, grids and procedural scenes), split by their mean centre
+/// molecules, grids and procedural scenes; an instanced scene's batches,
+/// listed as batches, not spheres), split by their mean centre
 /// across the view into two halves of equal run count (one side of the
 /// image, then the other), each sorted front to back. On lavapipe each of
 /// the two worker threads takes a fixed half of a dispatch's workgroups:
@@ -141,32 +142,27 @@ pub const ORDER_STALE_DEG: f64 = 30.0;
 /// capsid's camera view does not change (144 vs 148 ms): the gain is the
 /// halves'. Runs stay contiguous, so a vector's spheres still lie side by
 /// side.
-pub fn view_order(geom: &[GpuSphere], dir: DVec3) -> Vec<u32> {
+pub fn view_order(geom: &SceneGeom, dir: DVec3) -> Vec<u32> {
     let d = dir.normalize_or_zero();
     let across = d.any_orthonormal_vector();
     // (across, depth, run) of each run's mean centre.
-    let mut runs: Vec<(f64, f64, usize)> = geom
-        .chunks(ORDER_RUN)
+    let all = geom.runs();
+    let mut runs: Vec<(f64, f64, usize)> = all
+        .iter()
         .enumerate()
-        .map(|(k, run)| {
-            let n = run.len() as f64;
-            let (x, z) = run.iter().fold((0.0, 0.0), |(x, z), s| {
-                let c = DVec3::new(s[0] as f64, s[1] as f64, s[2] as f64);
-                (x + c.dot(across), z + c.dot(d))
-            });
-            (x / n, z / n, k)
-        })
+        .map(|(k, (c, _))| (c.dot(across), c.dot(d), k))
         .collect();
     runs.sort_by(|a, b| a.0.total_cmp(&b.0));
     let half = runs.len().div_ceil(2);
     let (first, second) = runs.split_at_mut(half);
     first.sort_by(|a, b| a.1.total_cmp(&b.1));
     second.sort_by(|a, b| a.1.total_cmp(&b.1));
-    let mut order = Vec::with_capacity(geom.len());
+    if geom.orders_batches() {
+        return runs.iter().map(|&(_, _, k)| k as u32).collect();
+    }
+    let mut order = Vec::with_capacity(geom.len() as usize);
     for &(_, _, k) in runs.iter() {
-        let first = k * ORDER_RUN;
-        let end = (first + ORDER_RUN).min(geom.len());
-        order.extend(first as u32..end as u32);
+        order.extend(all[k].1.clone());
     }
     order
 }
@@ -183,22 +179,28 @@ pub fn vis_buffer(ctx: &Context, name: &str, pixels: u64) -> Result<Buffer> {
 impl RasterPass {
     pub const NAME: &'static str = "raster";
 
-    pub fn new(ctx: &Context) -> Result<Self> {
-        let desc = PipelineDesc {
-            name: "raster spheres",
-            shader: spirv::RASTER_COMP,
-            bindings: &[
+    /// The rasterizer for a scene of this kind (passes::scene).
+    pub fn new(ctx: &Context, scene: u32) -> Result<Self> {
+        let bindings = [
+            &[
                 uniform("GlobalsBlock"),
                 rw("Vis"),
                 rw("Jobs"),
                 rw("Counters"),
                 texel("visWordTex", ash::vk::Format::R32_UINT),
                 texel("orderTex", ash::vk::Format::R32_UINT),
-                texel("sphereTex", ash::vk::Format::R32G32B32A32_SFLOAT),
-            ],
+            ][..],
+            &SCENE_GEOMETRY,
+        ]
+        .concat();
+        let desc = PipelineDesc {
+            name: "raster spheres",
+            shader: spirv::RASTER_COMP,
+            bindings: &bindings,
             push_size: std::mem::size_of::<RasterPush>() as u32,
             local_size: LOCAL_SIZE,
             constants: &[],
+            scene,
         };
         let ortho = ctx.guard(BandPipelines::new(ctx, &desc, &[0])?);
         let persp = ctx.guard(BandPipelines::new(ctx, &desc, &[1])?);
@@ -230,7 +232,8 @@ impl RasterPass {
         self.jobs.size + self.counters.size
     }
 
-    /// The view orders, 4 bytes per sphere each (with the scene).
+    /// The view orders, 4 bytes per sphere (instanced: per batch) each
+    /// (with the scene).
     pub fn order_bytes(&self) -> u64 {
         self.orders.iter().map(|o| o.buf.size).sum()
     }
@@ -259,7 +262,7 @@ impl RasterPass {
         &mut self,
         ctx: &Context,
         view: ViewIndex,
-        geom: &[GpuSphere],
+        geom: &SceneGeom,
         dir: DVec3,
     ) -> Result<()> {
         self.orders[view as usize].set(ctx, geom, dir)
@@ -276,11 +279,11 @@ impl RasterPass {
     ) -> Result<()> {
         let RasterIo {
             globals,
-            spheres,
-            sphere_count,
+            scene,
             target: vis,
             texels: pixels,
         } = *io;
+        let sphere_count = scene.slots;
         let order = &self.orders[view as usize];
         if !self.order_ready(view) {
             return Err(crate::error::Error::Internal(format!(
@@ -297,20 +300,21 @@ impl RasterPass {
             sphere_count,
         };
         let pipe = &self.pipes[(view == ViewIndex::Camera && perspective) as usize];
+        let mut bindings = vec![
+            ("GlobalsBlock", globals),
+            ("Vis", vis),
+            ("Jobs", &self.jobs),
+            ("Counters", &self.counters),
+            ("visWordTex", vis),
+            ("orderTex", &order.buf),
+        ];
+        bindings.extend(scene.geometry());
         self.args.steps(
             p,
             &BandJob {
                 pipes: pipe,
                 push: &push,
-                bindings: &[
-                    ("GlobalsBlock", globals),
-                    ("Vis", vis),
-                    ("Jobs", &self.jobs),
-                    ("Counters", &self.counters),
-                    ("visWordTex", vis),
-                    ("orderTex", &order.buf),
-                    ("sphereTex", spheres),
-                ],
+                bindings: &bindings,
                 sphere_count,
                 counters: &self.counters,
                 layout: &RASTER_COUNTERS,
@@ -346,6 +350,7 @@ impl RasterPass {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::gpu::GpuSphere;
 
     /// The order is a permutation of whole runs, and each half of it (what
     /// one lavapipe thread takes) goes front to back along the view.
@@ -360,7 +365,7 @@ mod tests {
             geom.push([t, t + 0.5, t - 0.5, 1.0]);
         }
         let dir = DVec3::new(-1.0, -1.0, -1.0);
-        let order = view_order(&geom, dir);
+        let order = view_order(&SceneGeom::Plain(geom.clone()), dir);
         let mut seen = order.clone();
         seen.sort_unstable();
         assert_eq!(seen, (0..1000).collect::<Vec<u32>>(), "not a permutation");
@@ -418,7 +423,7 @@ mod tests {
                 geom.push([c.x as f32, c.y as f32, c.z as f32, 1.0]);
             }
         }
-        let order = view_order(&geom, dir);
+        let order = view_order(&SceneGeom::Plain(geom.clone()), dir);
         let at = |r: usize| {
             let s = geom[order[r * ORDER_RUN] as usize];
             let c = DVec3::new(s[0] as f64, s[1] as f64, s[2] as f64);
@@ -440,7 +445,7 @@ mod tests {
 
     #[test]
     fn an_empty_scene_has_an_empty_order() {
-        assert!(view_order(&[], DVec3::Z).is_empty());
+        assert!(view_order(&SceneGeom::Plain(Vec::new()), DVec3::Z).is_empty());
     }
 }
 crate::impl_destroy!(RasterPass);

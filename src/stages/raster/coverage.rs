@@ -42,6 +42,7 @@ impl CoveragePass {
                     push_size: 0,
                     local_size,
                     constants: &[args],
+                    scene: 0,
                 },
             )
         };

@@ -139,11 +139,13 @@ impl GraphicsRasterPass {
     pub fn steps<'b>(&'b self, p: &mut PassBuilder<'b>, io: &RasterIo<'b>, (w, h): (u32, u32)) {
         let RasterIo {
             globals,
-            spheres,
-            sphere_count,
+            scene,
             target: vis,
             ..
         } = *io;
+        // (plain scenes only: the renderer refuses instanced ones with
+        // --raster graphics)
+        let (spheres, sphere_count) = (&scene.spheres, scene.slots);
         p.fill(vis, w as u64 * h as u64 * 8, u32::MAX);
         let uses = vec![
             Use {

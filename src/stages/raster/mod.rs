@@ -8,7 +8,8 @@ pub mod compute;
 pub mod coverage;
 pub mod graphics;
 
-use crate::error::Result;
+use crate::error::{Error, Result};
+use crate::passes::scene::SceneBuffers;
 use crate::passes::tiles::{Tiles, lists_buffer};
 use crate::vk::guard::Destroy;
 use crate::vk::{Buffer, Context, Recorder};
@@ -46,11 +47,10 @@ impl RasterTargets {
 
 crate::impl_destroy!(RasterTargets);
 
-/// What the stage draws: the spheres, seen by the camera (`globals`).
+/// What the stage draws: the scene, seen by the camera (`globals`).
 pub struct RasterInputs<'a> {
     pub globals: &'a Buffer,
-    pub spheres: &'a Buffer,
-    pub sphere_count: u32,
+    pub scene: &'a SceneBuffers,
     pub perspective: bool,
     /// The image (graphics baseline) and the frame's buffers (compute:
     /// the window) in pixels.
@@ -67,13 +67,20 @@ pub struct RasterStage {
 }
 
 impl RasterStage {
-    pub fn new(ctx: &Context, graphics: bool) -> Result<Self> {
+    /// The stage for a scene of kind `scene` (passes::scene).
+    pub fn new(ctx: &Context, graphics: bool, scene: u32) -> Result<Self> {
+        if graphics && scene != crate::gpu::consts::SCENE_PLAIN {
+            return Err(Error::Input(
+                "--raster graphics draws plain scenes only: an instanced scene needs --raster compute"
+                    .into(),
+            ));
+        }
         let graphics = ctx.guard(if graphics {
             Some(GraphicsRasterPass::new(ctx)?)
         } else {
             None
         });
-        let compute = ctx.guard(RasterPass::new(ctx)?);
+        let compute = ctx.guard(RasterPass::new(ctx, scene)?);
         let coverage = CoveragePass::new(ctx)?;
         Ok(RasterStage {
             compute: compute.keep(),
@@ -87,8 +94,7 @@ impl RasterStage {
         let (w, h) = io.size;
         let target = RasterIo {
             globals: io.globals,
-            spheres: io.spheres,
-            sphere_count: io.sphere_count,
+            scene: io.scene,
             target: &t.vis,
             texels: w as u64 * h as u64,
         };

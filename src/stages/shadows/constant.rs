@@ -97,6 +97,8 @@ mod tests {
             }],
             level_names: vec![],
             source: "one".into(),
+            instancing: None,
+            expanded: false,
         };
         let axes = Axes {
             width: 16,

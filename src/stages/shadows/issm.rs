@@ -9,6 +9,7 @@ use super::{Lookup, LookupKind, ShadowParams, ShadowSetup, ShadowTechnique};
 use crate::camera::Camera;
 use crate::error::Result;
 use crate::gpu::blocks::ResolvePush;
+use crate::passes::scene::SCENE_GEOMETRY;
 use crate::passes::{LOCAL_SIZE, spirv};
 use crate::settings::{IssmParams, ShadowMode};
 use crate::stages::raster::compute as raster;
@@ -67,10 +68,9 @@ const RESOLVED_TEXEL: u64 = 16;
 /// The lookup's binding: the resolved map.
 const LOOKUP: [Binding; 1] = [texel("issmResolvedTex", Format::R32G32B32A32_SFLOAT)];
 
-const RESOLVE_BINDINGS: [Binding; 4] = [
+const RESOLVE_BINDINGS: [Binding; 3] = [
     uniform("GlobalsBlock"),
     texel("issmTex", Format::R32_UINT),
-    texel("sphereTex", Format::R32G32B32A32_SFLOAT),
     wo("Resolved"),
 ];
 
@@ -94,10 +94,11 @@ impl Issm {
             &PipelineDesc {
                 name: "issm resolve",
                 shader: spirv::ISSM_RESOLVE_COMP,
-                bindings: &RESOLVE_BINDINGS,
+                bindings: &[&RESOLVE_BINDINGS[..], &SCENE_GEOMETRY].concat(),
                 push_size: std::mem::size_of::<ResolvePush>() as u32,
                 local_size: LOCAL_SIZE,
                 constants: &[],
+                scene: setup.scene,
             },
         )?);
         let mut issm = Issm {
@@ -176,6 +177,12 @@ impl ShadowTechnique for Issm {
             Self::RASTER_NAME,
             &f.light_map(&self.map, self.texels()),
         )?;
+        let mut bindings = vec![
+            ("GlobalsBlock", f.globals),
+            ("issmTex", &self.map),
+            ("Resolved", &self.resolved),
+        ];
+        bindings.extend(f.scene.geometry());
         rec.pass(Self::RESOLVE_NAME, |p| {
             p.dispatch(
                 &self.resolve,
@@ -183,12 +190,7 @@ impl ShadowTechnique for Issm {
                     texels: self.texels() as u32,
                 },
                 Grid::Invocations(self.texels()),
-                &[
-                    ("GlobalsBlock", f.globals),
-                    ("issmTex", &self.map),
-                    ("sphereTex", f.spheres),
-                    ("Resolved", &self.resolved),
-                ],
+                &bindings,
             );
             Ok(())
         })

@@ -19,7 +19,7 @@ pub use stage::ShadowStage;
 
 use crate::camera::Camera;
 use crate::error::Result;
-use crate::gpu::GpuSphere;
+use crate::passes::scene::{SceneBuffers, SceneGeom};
 use crate::settings::{RenderSettings, ShadowMode};
 use crate::vk::pipeline::Binding;
 use crate::vk::{Buffer, Context, Recorder};
@@ -30,12 +30,11 @@ use std::any::Any;
 /// scene, the camera's visibility buffer (for per-pixel passes of its own).
 pub struct ShadowInputs<'a> {
     pub globals: &'a Buffer,
-    pub spheres: &'a Buffer,
+    pub scene: &'a SceneBuffers,
     pub vis: &'a Buffer,
     /// Sphere opacity for the translucent techniques (1 = opaque).
     pub opacity: f32,
     pub pixels: u64,
-    pub sphere_count: u32,
     /// The compute rasterizer (light-space maps are rasterized with it).
     pub raster: &'a crate::stages::raster::compute::RasterPass,
 }
@@ -49,19 +48,20 @@ impl<'a> ShadowInputs<'a> {
     ) -> crate::stages::raster::compute::RasterIo<'a> {
         crate::stages::raster::compute::RasterIo {
             globals: self.globals,
-            spheres: self.spheres,
-            sphere_count: self.sphere_count,
+            scene: self.scene,
             target: map,
             texels,
         }
     }
 }
 
-/// What a technique needs to (re)fit itself: the spheres (CPU copy), the
-/// key-light direction and the settings.
+/// What a technique needs to (re)fit itself: the spheres (CPU copy) and
+/// the scene's kind (its pipelines' SCENE_KIND), the key-light direction
+/// and the settings.
 pub struct ShadowSetup<'a> {
     pub ctx: &'a Context,
-    pub spheres: &'a [GpuSphere],
+    pub geom: &'a SceneGeom,
+    pub scene: u32,
     pub light_dir: DVec3,
     pub settings: &'a RenderSettings,
 }
@@ -69,15 +69,12 @@ pub struct ShadowSetup<'a> {
 impl ShadowSetup<'_> {
     /// The orthographic light view fitted to the spheres at `size`² texels.
     pub fn fit(&self, size: u32) -> Result<Camera> {
-        crate::camera::light_view(
-            self.spheres.iter().map(|s| ([s[0], s[1], s[2]], s[3])),
-            self.light_dir,
-            size,
-        )
+        crate::camera::light_view(self.geom.spheres(), self.light_dir, size)
     }
 
+    /// Every represented sphere's radius.
     pub fn radii(&self) -> impl Iterator<Item = f32> + '_ {
-        self.spheres.iter().map(|s| s[3])
+        self.geom.radii()
     }
 }
 

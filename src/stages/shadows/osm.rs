@@ -33,10 +33,11 @@ use crate::camera::Camera;
 use crate::error::{Error, Result};
 use crate::gpu::blocks::{OsmRasterPush as RasterPush, PrefixPush};
 use crate::passes::bands::{BandArgs, BandCounters, BandJob, BandPipelines};
+use crate::passes::scene::SCENE_GEOMETRY;
 use crate::passes::{LOCAL_SIZE, spirv};
 use crate::settings::ShadowMode;
 use crate::stages::raster::compute::RASTER_COUNTERS;
-use crate::vk::pipeline::{Binding, PipelineDesc, ro, rw, texel, uniform};
+use crate::vk::pipeline::{Binding, PipelineDesc, rw, texel, uniform};
 use crate::vk::{Buffer, ComputePipeline, Context, Grid, Recorder};
 use std::any::Any;
 
@@ -137,15 +138,19 @@ impl OpacityShadows {
                 name: "osm raster",
                 shader: spirv::OSM_RASTER_COMP,
                 bindings: &[
-                    uniform("GlobalsBlock"),
-                    ro("Spheres"),
-                    rw("Opacity"),
-                    rw("Jobs"),
-                    rw("Counters"),
-                ],
+                    &[
+                        uniform("GlobalsBlock"),
+                        rw("Opacity"),
+                        rw("Jobs"),
+                        rw("Counters"),
+                    ][..],
+                    &SCENE_GEOMETRY,
+                ]
+                .concat(),
                 push_size: std::mem::size_of::<RasterPush>() as u32,
                 local_size: LOCAL_SIZE,
                 constants: &[],
+                scene: setup.scene,
             },
             &[],
         )?);
@@ -158,6 +163,7 @@ impl OpacityShadows {
                 push_size: std::mem::size_of::<PrefixPush>() as u32,
                 local_size: LOCAL_SIZE,
                 constants: &[],
+                scene: 0,
             },
         )?);
         let map = ctx.guard(Buffer::storage(
@@ -176,7 +182,7 @@ impl OpacityShadows {
         let o = OpacityShadows {
             light,
             slices,
-            sphere_count: setup.spheres.len() as u32,
+            sphere_count: setup.geom.slots(),
             z_min,
             z_max,
             opacity_map: map.keep(),
@@ -191,7 +197,7 @@ impl OpacityShadows {
     }
 
     fn centres<'a>(setup: &'a ShadowSetup) -> impl Iterator<Item = ([f32; 3], f32)> + 'a {
-        setup.spheres.iter().map(|s| ([s[0], s[1], s[2]], s[3]))
+        setup.geom.spheres()
     }
 
     fn log(&self) {
@@ -273,18 +279,19 @@ impl ShadowTechnique for OpacityShadows {
                 inv_dz: self.inv_dz(),
                 pad: 0,
             };
+            let mut bindings = vec![
+                ("GlobalsBlock", f.globals),
+                ("Opacity", &self.opacity_map),
+                ("Jobs", &self.jobs),
+                ("Counters", &self.counters),
+            ];
+            bindings.extend(f.scene.geometry());
             self.args.steps(
                 p,
                 &BandJob {
                     pipes: &self.raster,
                     push: &push,
-                    bindings: &[
-                        ("GlobalsBlock", f.globals),
-                        ("Spheres", f.spheres),
-                        ("Opacity", &self.opacity_map),
-                        ("Jobs", &self.jobs),
-                        ("Counters", &self.counters),
-                    ],
+                    bindings: &bindings,
                     sphere_count: self.sphere_count,
                     counters: &self.counters,
                     layout: &OSM_COUNTERS,
@@ -324,7 +331,7 @@ impl ShadowTechnique for OpacityShadows {
     fn refit(&mut self, setup: &ShadowSetup) -> Result<()> {
         self.light = setup.fit(self.light.width)?;
         (self.z_min, self.z_max) = depth_range(&self.light, Self::centres(setup));
-        self.sphere_count = setup.spheres.len() as u32;
+        self.sphere_count = setup.geom.slots();
         self.log();
         Ok(())
     }

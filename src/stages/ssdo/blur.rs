@@ -100,6 +100,7 @@ impl BlurPass {
                             push_size: std::mem::size_of::<BlurPush>() as u32,
                             local_size: LOCAL_SIZE,
                             constants: &Self::constants(axis, semantic, radius, half),
+                            scene: 0,
                         },
                         lists,
                     )?;

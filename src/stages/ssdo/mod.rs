@@ -219,8 +219,9 @@ pub struct SsdoOutputs<'a> {
     /// Per receiver (pixel or block) result, blurred.
     pub ao: &'a Buffer,
     pub records: &'a Buffer,
-    /// Per visible sphere result, with per-sphere receivers.
-    pub sphere_ao: Option<&'a Buffer>,
+    /// Per visible sphere results (with the flags and word bases that
+    /// find a sphere's entry), with per-sphere receivers.
+    pub sphere_ao: Option<&'a SphereBuffers>,
 }
 
 /// Pipelines (made when SSDO is first chosen) and the per-sphere
@@ -245,14 +246,17 @@ pub struct SsdoStage {
     /// its own region), and the zoom thresholds between them.
     levels: Vec<u32>,
     thresholds: Vec<f64>,
+    /// The scene's kind (SCENE_KIND of the pipelines reading it).
+    scene: u32,
 }
 
 impl SsdoStage {
-    pub fn new(levels: Vec<u32>, thresholds: Vec<f64>) -> Self {
+    pub fn new(levels: Vec<u32>, thresholds: Vec<f64>, scene: u32) -> Self {
         SsdoStage {
             state: None,
             levels,
             thresholds,
+            scene,
         }
     }
 
@@ -260,7 +264,7 @@ impl SsdoStage {
     pub fn enable(&mut self, ctx: &Context) -> Result<()> {
         if self.state.is_none() {
             self.state = Some(SsdoState {
-                pass: SsdoPass::new(ctx)?,
+                pass: SsdoPass::new(ctx, self.scene)?,
                 blur: BlurPass::new(),
                 spheres: None,
             });
@@ -341,25 +345,28 @@ impl SsdoStage {
     }
 
     /// Makes the pipelines this frame's modes need (the first time) and,
-    /// with per-sphere receivers, buffers for `sphere_count` spheres.
+    /// with per-sphere receivers, buffers for `sphere_count` spheres (ids)
+    /// seen in at most `pixels`.
     pub fn prepare(
         &mut self,
         ctx: &Context,
         p: &SsdoParams,
         modes: SsdoModes,
         lookup: &Lookup,
-        sphere_count: u32,
+        (sphere_count, pixels): (u32, u64),
     ) -> Result<()> {
         let Some(st) = &mut self.state else {
             return Ok(());
         };
         st.pass
             .prepare(ctx, lookup, modes.semantic, p.taps, modes.lists)?;
-        if p.taps.per_sphere() && st.spheres.as_ref().map(|b| b.spheres) != Some(sphere_count) {
+        let capacity = (sphere_count.max(1) as u64).min(pixels.max(1)) as u32;
+        let fits = |b: &SphereBuffers| b.spheres == sphere_count && b.capacity == capacity;
+        if p.taps.per_sphere() && !st.spheres.as_ref().is_some_and(fits) {
             if let Some(mut old) = st.spheres.take() {
                 old.destroy(ctx);
             }
-            st.spheres = Some(SphereBuffers::new(ctx, sphere_count)?);
+            st.spheres = Some(SphereBuffers::new(ctx, sphere_count, pixels)?);
         }
         st.blur.prepare(ctx, modes.semantic, modes.lists)
     }
@@ -423,7 +430,7 @@ impl SsdoStage {
             return Ok(SsdoOutputs {
                 ao: &t.ao,
                 records: &t.records,
-                sphere_ao: Some(&sb.ao),
+                sphere_ao: Some(sb),
             });
         }
         // receivers: the blocks, or every pixel

@@ -12,7 +12,8 @@ use crate::gpu::blocks::{ListPush, PrepSpec, SphereSpec, SsdoSpec};
 pub use crate::gpu::blocks::{PrepPush, SsdoPush};
 use crate::gpu::consts::{S_ARGS, S_GROUPS, S_RUN};
 use crate::passes::bands::{BandArgs, BandCounters, counters_buffer};
-use crate::passes::screen::{SURFACE_BINDINGS, ScreenInputs};
+use crate::passes::scene::{SCENE_ATTRIBUTES, SCENE_GEOMETRY};
+use crate::passes::screen::{ScreenInputs, surface_bindings};
 use crate::passes::tiles::{TILE_BINDING, Tiles};
 use crate::passes::variants::{TiledDispatch, Variants};
 use crate::passes::{LOCAL_SIZE, spirv};
@@ -119,47 +120,57 @@ pub struct SsdoPass {
     list: Option<ComputePipeline>,
     args: Option<BandArgs>,
     sphere: Variants,
+    /// The scene's kind (SCENE_KIND of the pipelines reading it).
+    scene: u32,
 }
 
-/// The per-sphere SSDO's buffers, for one sphere count: the flags
-/// ssdo_prep sets, the list of flagged spheres, its counters (words S_*)
-/// and the result, 16 bytes per sphere (ssdo_common.glsl).
+/// The per-sphere SSDO's buffers, for one sphere count and buffer size:
+/// the flags ssdo_prep sets (a bit per sphere), the list of flagged
+/// spheres with each flag word's first entry, its counters (words S_*)
+/// and the results, 16 bytes per listed sphere (ssdo_common.glsl). A
+/// sphere seen is seen in a pixel, so the list holds at most the
+/// buffer's pixels.
 pub struct SphereBuffers {
     pub spheres: u32,
+    /// Entries the list and the results hold.
+    pub capacity: u32,
     pub flags: Buffer,
     pub list: Buffer,
+    pub word_base: Buffer,
     pub counters: Buffer,
     pub ao: Buffer,
 }
 
 impl SphereBuffers {
-    pub fn new(ctx: &Context, spheres: u32) -> Result<Self> {
+    pub fn new(ctx: &Context, spheres: u32, pixels: u64) -> Result<Self> {
         let n = spheres.max(1) as u64;
-        let flags = ctx.guard(Buffer::storage(
-            ctx,
-            "ssdo sphere flags",
-            flag_words(n) * 4,
-        )?);
-        let list = ctx.guard(Buffer::storage(ctx, "ssdo sphere list", n * 4)?);
+        let capacity = n.min(pixels.max(1));
+        let words = flag_words(n);
+        let flags = ctx.guard(Buffer::storage(ctx, "ssdo sphere flags", words * 4)?);
+        let list = ctx.guard(Buffer::storage(ctx, "ssdo sphere list", capacity * 4)?);
+        let word_base = ctx.guard(Buffer::storage(ctx, "ssdo sphere word bases", words * 4)?);
         let counters = ctx.guard(counters_buffer(ctx, "ssdo sphere counters", 32)?);
-        let ao = Buffer::storage(ctx, "ssdo sphere ao", n * 16)?;
+        let ao = Buffer::storage(ctx, "ssdo sphere ao", capacity * 16)?;
         Ok(SphereBuffers {
             spheres,
+            capacity: capacity as u32,
             flags: flags.keep(),
             list: list.keep(),
+            word_base: word_base.keep(),
             counters: counters.keep(),
             ao,
         })
     }
 
     pub fn bytes(&self) -> u64 {
-        self.flags.size + self.list.size + self.counters.size + self.ao.size
+        self.flags.size + self.list.size + self.word_base.size + self.counters.size + self.ao.size
     }
 
     pub fn destroy(&mut self, ctx: &Context) {
         for b in [
             &mut self.flags,
             &mut self.list,
+            &mut self.word_base,
             &mut self.counters,
             &mut self.ao,
         ] {
@@ -185,36 +196,38 @@ const LIST_COUNTERS: BandCounters = BandCounters {
 };
 
 const PREP_OUTPUTS: [Binding; 3] = [wo("Records"), rw("Flags"), wo("TapDepth")];
-const LIST_BINDINGS: [Binding; 3] = [ro("Flags"), wo("List"), rw("Counters")];
-const SPHERE_BINDINGS: [Binding; 9] = [
+const LIST_BINDINGS: [Binding; 4] = [ro("Flags"), wo("List"), rw("Counters"), wo("WordBase")];
+const SPHERE_BINDINGS: [Binding; 7] = [
     uniform("GlobalsBlock"),
     texel("recordTex", Format::R32G32B32A32_UINT),
     wo("SphereAo"),
     ro("List"),
     ro("Counters"),
-    texel("sphereTex", Format::R32G32B32A32_SFLOAT),
-    texel("attrTex", Format::R32_UINT),
     texel("visWordTex", Format::R32_UINT),
     texel("tapDepthTex", Format::R32_UINT),
 ];
-const SSDO_BINDINGS: [Binding; 10] = [
+const SSDO_BINDINGS: [Binding; 8] = [
     uniform("GlobalsBlock"),
     texel("recordTex", Format::R32G32B32A32_UINT),
     uniform("SampleTable"),
     wo("Ao"),
     texel("visTex", Format::R32G32_UINT),
-    texel("sphereTex", Format::R32G32B32A32_SFLOAT),
-    texel("attrTex", Format::R32_UINT),
     texel("visWordTex", Format::R32_UINT),
     wo("Keys"),
     TILE_BINDING,
 ];
 
+/// A pass's own bindings and the scene's (geometry and attributes).
+fn with_scene(own: &[Binding]) -> Vec<Binding> {
+    [own, &SCENE_GEOMETRY, &SCENE_ATTRIBUTES].concat()
+}
+
 impl SsdoPass {
     pub const PREP_NAME: &'static str = "ssdo_prep";
     pub const NAME: &'static str = "ssdo";
 
-    pub fn new(ctx: &Context) -> Result<Self> {
+    /// The passes for a scene of kind `scene` (passes::scene).
+    pub fn new(ctx: &Context, scene: u32) -> Result<Self> {
         let table = Buffer::new(
             ctx,
             "ssdo sample table",
@@ -231,6 +244,7 @@ impl SsdoPass {
             list: None,
             args: None,
             sphere: Variants::default(),
+            scene,
         })
     }
 
@@ -239,7 +253,7 @@ impl SsdoPass {
     }
 
     fn prep_bindings(lookup: &Lookup) -> Vec<Binding> {
-        let mut b = SURFACE_BINDINGS.to_vec();
+        let mut b = surface_bindings();
         b.extend_from_slice(&PREP_OUTPUTS);
         b.push(TILE_BINDING);
         b.extend_from_slice(lookup.bindings);
@@ -267,6 +281,7 @@ impl SsdoPass {
                 push_size: std::mem::size_of::<PrepPush>() as u32,
                 local_size: LOCAL_SIZE,
                 constants: &Self::prep_constants(lookup, taps),
+                scene: self.scene,
             },
             lists,
         )?;
@@ -281,6 +296,7 @@ impl SsdoPass {
                         push_size: std::mem::size_of::<ListPush>() as u32,
                         local_size: LOCAL_SIZE,
                         constants: &[],
+                        scene: 0,
                     },
                 )?);
             }
@@ -292,10 +308,11 @@ impl SsdoPass {
                 &PipelineDesc {
                     name: Self::NAME,
                     shader: spirv::SSDO_SPHERE_COMP,
-                    bindings: &SPHERE_BINDINGS,
+                    bindings: &with_scene(&SPHERE_BINDINGS),
                     push_size: std::mem::size_of::<SsdoPush>() as u32,
                     local_size: LOCAL_SIZE,
                     constants: &taps.sphere_constants(semantic),
+                    scene: self.scene,
                 },
             );
         }
@@ -304,10 +321,11 @@ impl SsdoPass {
             &PipelineDesc {
                 name: Self::NAME,
                 shader: spirv::SSDO_COMP,
-                bindings: &SSDO_BINDINGS,
+                bindings: &with_scene(&SSDO_BINDINGS),
                 push_size: std::mem::size_of::<SsdoPush>() as u32,
                 local_size: LOCAL_SIZE,
                 constants: &taps.constants(semantic),
+                scene: self.scene,
             },
             lists,
         )
@@ -392,7 +410,8 @@ impl SsdoPass {
         let lp = ListPush {
             words: words as u32,
             group_shift: LOCAL_SIZE.trailing_zeros(),
-            pad: [0; 2],
+            capacity: sb.capacity,
+            pad: 0,
         };
         rec.pass(Self::NAME, |p| {
             p.fill(&sb.counters, sb.counters.size, 0);
@@ -404,24 +423,26 @@ impl SsdoPass {
                     ("Flags", &sb.flags),
                     ("List", &sb.list),
                     ("Counters", &sb.counters),
+                    ("WordBase", &sb.word_base),
                 ],
             );
             args.step(p, &sb.counters, &LIST_COUNTERS);
+            let mut bufs = vec![
+                ("GlobalsBlock", io_.globals),
+                ("recordTex", io.records),
+                ("SphereAo", &sb.ao),
+                ("List", &sb.list),
+                ("Counters", &sb.counters),
+                ("visWordTex", io_.vis),
+                ("tapDepthTex", io.tap_depth),
+            ];
+            bufs.extend(io_.scene.geometry());
+            bufs.extend(io_.scene.attributes());
             p.dispatch(
                 pipe,
                 push,
                 Grid::Indirect(&sb.counters, LIST_COUNTERS.args_offset()),
-                &[
-                    ("GlobalsBlock", io_.globals),
-                    ("recordTex", io.records),
-                    ("SphereAo", &sb.ao),
-                    ("List", &sb.list),
-                    ("Counters", &sb.counters),
-                    ("sphereTex", io_.spheres),
-                    ("attrTex", io_.attrs),
-                    ("visWordTex", io_.vis),
-                    ("tapDepthTex", io.tap_depth),
-                ],
+                &bufs,
             );
             Ok(())
         })
@@ -439,6 +460,17 @@ impl SsdoPass {
         shape: &Shape,
     ) -> Result<()> {
         let taps = shape.taps;
+        let mut bufs = vec![
+            ("GlobalsBlock", screen.globals),
+            ("recordTex", io.records),
+            ("SampleTable", &self.table),
+            ("Ao", io.ao),
+            ("visTex", screen.vis),
+            ("visWordTex", screen.vis),
+            ("Keys", io.keys),
+        ];
+        bufs.extend(screen.scene.geometry());
+        bufs.extend(screen.scene.attributes());
         rec.pass(Self::NAME, |p| {
             self.ssdo.dispatch_tiled(
                 p,
@@ -450,17 +482,7 @@ impl SsdoPass {
                     tiles: shape.tiles,
                     size: shape.grid,
                     half: taps.per_block(),
-                    bufs: &[
-                        ("GlobalsBlock", screen.globals),
-                        ("recordTex", io.records),
-                        ("SampleTable", &self.table),
-                        ("Ao", io.ao),
-                        ("visTex", screen.vis),
-                        ("sphereTex", screen.spheres),
-                        ("attrTex", screen.attrs),
-                        ("visWordTex", screen.vis),
-                        ("Keys", io.keys),
-                    ],
+                    bufs: &bufs,
                 },
             )
         })

@@ -52,6 +52,7 @@ use crate::error::{Error, Result};
 use crate::gpu::blocks::{AllocPush, SortPush, SplatPush};
 use crate::gpu::consts;
 use crate::passes::bands::{BandArgs, BandCounters, BandJob, BandPipelines};
+use crate::passes::scene::SCENE_GEOMETRY;
 use crate::passes::{LOCAL_SIZE, spirv};
 use crate::settings::ShadowMode;
 use crate::vk::pipeline::{Binding, PipelineDesc, ro, rw, uniform, wo};
@@ -193,11 +194,10 @@ pub struct DeepShadows {
 /// by a texel square: pi R^2 + 4R + 1), 25% headroom and one partly used
 /// chunk per tile. Spheres outside the light view count too (harmless).
 /// Pool growth on overflow fixes any underestimate.
-pub fn estimate_pool_chunks(light: &Camera, radii: &[f32]) -> u32 {
+pub fn estimate_pool_chunks(light: &Camera, radii: impl Iterator<Item = f32>) -> u32 {
     let texel = light.view_height / light.width.max(1) as f64;
     let entries: f64 = radii
-        .iter()
-        .map(|&r| {
+        .map(|r| {
             let r = r as f64 / texel + 0.01;
             std::f64::consts::PI * r * r + 4.0 * r + 1.0
         })
@@ -220,9 +220,8 @@ impl DeepShadows {
     pub fn new(setup: &ShadowSetup) -> Result<Self> {
         let ctx = setup.ctx;
         let light = setup.fit(setup.settings.issm.size)?;
-        let radii: Vec<f32> = setup.radii().collect();
         let pool_chunks = setup.settings.deep.pool_chunks;
-        let sphere_count = radii.len() as u32;
+        let sphere_count = setup.geom.slots();
         if light.fov_deg.is_some() {
             return Err(Error::Internal(
                 "deep shadow lists need an orthographic light view".into(),
@@ -233,7 +232,7 @@ impl DeepShadows {
                 return Err(Error::Input("--deep-pool-chunks must be at least 1".into()));
             }
             Some(c) => c,
-            None => estimate_pool_chunks(&light, &radii),
+            None => estimate_pool_chunks(&light, setup.radii()),
         };
         let capacity = Self::check_capacity(ctx, capacity as u64, pool_chunks.is_none())?;
         let texel_count = light.width as u64 * light.height as u64;
@@ -259,6 +258,7 @@ impl DeepShadows {
                     push_size: push as u32,
                     local_size: local,
                     constants: &[],
+                    scene: 0,
                 },
             )
         };
@@ -292,20 +292,24 @@ impl DeepShadows {
                     name,
                     shader: spirv::DEEP_SPLAT_COMP,
                     bindings: &[
-                        uniform("GlobalsBlock"),
-                        ro("Spheres"),
-                        rw("Texels"),
-                        ro("Tiles"),
-                        wo("Depth"),
-                        wo("Alpha"),
-                        wo("Ids"),
-                        rw("Counters"),
-                        rw("Jobs"),
-                        rw("Inline"),
-                    ],
+                        &[
+                            uniform("GlobalsBlock"),
+                            rw("Texels"),
+                            ro("Tiles"),
+                            wo("Depth"),
+                            wo("Alpha"),
+                            wo("Ids"),
+                            rw("Counters"),
+                            rw("Jobs"),
+                            rw("Inline"),
+                        ][..],
+                        &SCENE_GEOMETRY,
+                    ]
+                    .concat(),
                     push_size: std::mem::size_of::<SplatPush>() as u32,
                     local_size: LOCAL_SIZE,
                     constants: &[],
+                    scene: setup.scene,
                 },
                 &[mode],
             )
@@ -422,9 +426,8 @@ impl DeepShadows {
     /// `deep_count`, `deep_alloc`, `deep_fill`, `deep_sort`.
     fn record_lists<'b>(&'b self, rec: &mut Recorder, f: &ShadowInputs<'b>) -> Result<()> {
         let l = &self.lists;
-        let splat_bufs = [
+        let mut splat_bufs = vec![
             ("GlobalsBlock", f.globals),
-            ("Spheres", f.spheres),
             ("Texels", &self.texels),
             ("Tiles", &self.tiles),
             ("Depth", &l.depth),
@@ -434,6 +437,7 @@ impl DeepShadows {
             ("Jobs", &self.jobs),
             ("Inline", &self.inline_bits),
         ];
+        splat_bufs.extend(f.scene.geometry());
         let job_capacity = self.job_limit.load(Ordering::Relaxed);
         let splat = SplatPush {
             sphere_count: self.sphere_count,
@@ -641,7 +645,7 @@ impl ShadowTechnique for DeepShadows {
     /// the pool grows when the new view needs more.
     fn refit(&mut self, setup: &ShadowSetup) -> Result<()> {
         self.light = setup.fit(self.light.width)?;
-        if setup.spheres.len() as u32 != self.sphere_count {
+        if setup.geom.slots() != self.sphere_count {
             return Err(Error::Internal(
                 "deep lists: the sphere count changed; make a new technique".into(),
             ));

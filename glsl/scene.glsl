@@ -1,0 +1,107 @@
+// The scene's spheres by id, for every pass that reads them: plain (one
+// texel per sphere, id = index) or instanced (molecule atoms stored once,
+// id = slot: batch id >> BATCH_SHIFT, atom id & (BATCH_ATOMS - 1) of the
+// batch's run of one instance's molecule), chosen by the specialization
+// constant SCENE_KIND (src/passes/scene.rs sets it for every pipeline of a
+// renderer; lavapipe runs both sides of a branch on data, so the plain
+// scene does not pay for the instanced path). Slots are ordered as the
+// expanded spheres, so depth ties resolve alike in both.
+//
+// Needs `Globals g` before inclusion (scene_region reads g.scene). Define
+// SCENE_ATTRIBUTES first for colours and regions. Bindings 24-29 are the
+// scene's (by name in Rust: SCENE_GEOMETRY, SCENE_ATTRIBUTES).
+#ifndef SCENE_GLSL
+#define SCENE_GLSL
+#include "shared.glsl"
+
+layout(constant_id = 30) const uint SCENE_KIND = 0u; // = SCENE_KIND_ID, checked in Rust
+
+// Plain: centre, radius per sphere. Instanced: the molecules' atoms, each in
+// its molecule's frame.
+layout(set = 0, binding = 24) uniform samplerBuffer sphereTex;
+// Instanced: per batch (RGBA32UI) the instance, its first atom, the
+// expanded index of that atom, the atom count | molecule type << 8.
+layout(set = 0, binding = 25) uniform usamplerBuffer batchTex;
+// Instanced: 2 texels (rigid: quaternion xyzw, translation) or 3 (affine:
+// the rows m_i0 m_i1 m_i2 v_i) per instance.
+layout(set = 0, binding = 26) uniform samplerBuffer instanceTex;
+#ifdef SCENE_ATTRIBUTES
+// Plain: 4 region words per sphere (R32UI). Instanced: the atom's chain
+// within its molecule.
+layout(set = 0, binding = 27) uniform usamplerBuffer attrTex;
+// RGBA8 per sphere (plain) or atom (instanced).
+layout(set = 0, binding = 28) uniform usamplerBuffer colorTex;
+// Instanced: 4 region words per molecule type (its tree levels).
+layout(set = 0, binding = 29) uniform usamplerBuffer moleculeTex;
+#endif
+
+bool scene_instanced() { return SCENE_KIND != SCENE_PLAIN; }
+
+uvec4 scene_batch(uint id) { return texelFetch(batchTex, int(id >> BATCH_SHIFT)); }
+uint scene_lane(uint id) { return id & (BATCH_ATOMS - 1u); }
+
+// Instance k's transform applied to a point of its molecule: the
+// operations of src/scene/instanced.rs (apply_rigid, apply_affine) in the
+// same order, each rounded to f32 (`precise`: no fused multiply-add), so
+// an instanced render and the render of its expanded spheres are the same
+// bits.
+vec3 instance_apply(uint k, vec3 x) {
+    if (SCENE_KIND == SCENE_AFFINE) {
+        vec4 r0 = texelFetch(instanceTex, int(3u * k));
+        vec4 r1 = texelFetch(instanceTex, int(3u * k + 1u));
+        vec4 r2 = texelFetch(instanceTex, int(3u * k + 2u));
+        precise float px = ((r0.x * x.x + r0.y * x.y) + r0.z * x.z) + r0.w;
+        precise float py = ((r1.x * x.x + r1.y * x.y) + r1.z * x.z) + r1.w;
+        precise float pz = ((r2.x * x.x + r2.y * x.y) + r2.z * x.z) + r2.w;
+        return vec3(px, py, pz);
+    }
+    vec4 q = texelFetch(instanceTex, int(2u * k));
+    vec4 t = texelFetch(instanceTex, int(2u * k + 1u));
+    precise vec3 c = vec3(q.y * x.z - q.z * x.y, q.z * x.x - q.x * x.z, q.x * x.y - q.y * x.x);
+    precise vec3 u = 2.0 * c;
+    precise vec3 d = vec3(q.y * u.z - q.z * u.y, q.z * u.x - q.x * u.z, q.x * u.y - q.y * u.x);
+    precise vec3 p = ((x + q.w * u) + d) + t.xyz;
+    return p;
+}
+
+// Centre (world) and radius of sphere `id`; a radius below 0 means no
+// sphere (a slot past its batch's atoms).
+vec4 scene_sphere(uint id) {
+    if (!scene_instanced()) return texelFetch(sphereTex, int(id));
+    uvec4 b = scene_batch(id);
+    uint lane = scene_lane(id), count = b.w & 0xFFu;
+    // (a slot past the batch's atoms reads its last atom: no fetch past
+    // the molecule table's end)
+    vec4 a = texelFetch(sphereTex, int(b.y + min(lane, count - 1u)));
+    return vec4(instance_apply(b.x, a.xyz), lane < count ? a.w : -1.0);
+}
+
+// The index of sphere `id` in input (expanded) order: what the id AOV
+// names, and what per-sphere noise is seeded with.
+uint scene_index(uint id) {
+    if (!scene_instanced()) return id;
+    return scene_batch(id).z + scene_lane(id);
+}
+
+#ifdef SCENE_ATTRIBUTES
+// The sphere's colour word (RGBA8).
+uint scene_color(uint id) {
+    if (!scene_instanced()) return texelFetch(colorTex, int(id)).x;
+    return texelFetch(colorTex, int(scene_batch(id).y + scene_lane(id))).x;
+}
+
+// Region id of sphere `id` at hierarchy `level`: plain, from its 4 words
+// (one 4-byte gather: a 16-byte texel and a dynamic pick of one word cost
+// ssdo_prep ~4 ms of its ~28 on the 1M capsid at 1080p on lavapipe).
+// Instanced: the tree levels' from the molecule table, the instance at
+// the molecule level, instance * stride + chain at the chain level (as
+// src/scene/instanced.rs `Instancing::regions`).
+uint scene_region(uint id, uint level) {
+    if (!scene_instanced()) return texelFetch(attrTex, int(4u * id + level)).x;
+    uvec4 b = scene_batch(id);
+    uint tree = texelFetch(moleculeTex, int(4u * (b.w >> 8) + min(level, 3u))).x;
+    uint chain = texelFetch(attrTex, int(b.y + scene_lane(id))).x;
+    return level < g.scene.x ? tree : (level == g.scene.z ? b.x : b.x * g.scene.y + chain);
+}
+#endif
+#endif

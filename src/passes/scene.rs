@@ -1,0 +1,443 @@
+//! The scene on the GPU (glsl/scene.glsl): plain spheres, or an instanced
+//! scene's molecule atoms (stored once), instance transforms and the
+//! batches that name a sphere by slot; and the CPU copy of its geometry
+//! that light views and view orders are fitted to ([`SceneGeom`]).
+//!
+//! Every pipeline whose shader includes scene.glsl gets the scene's kind
+//! as its specialization constant SCENE_KIND and its buffers by name
+//! ([`SCENE_GEOMETRY`], [`SCENE_ATTRIBUTES`]).
+
+use crate::error::{Error, Result};
+use crate::gpu::consts::{
+    BATCH_ATOMS, BATCH_SHIFT, NO_LEVEL, SCENE_AFFINE, SCENE_PLAIN, SCENE_RIGID,
+};
+use crate::gpu::{GpuBatch, GpuSphere, SphereAttr};
+use crate::scene::Scene;
+use crate::scene::instanced::{LevelKind, Transforms};
+use crate::vk::pipeline::{Binding, texel};
+use crate::vk::{Buffer, Context};
+use ash::vk::Format;
+use glam::DVec3;
+
+/// What scene.glsl reads for geometry: `scene_sphere`, `scene_index`.
+pub const SCENE_GEOMETRY: [Binding; 3] = [
+    texel("sphereTex", Format::R32G32B32A32_SFLOAT),
+    texel("batchTex", Format::R32G32B32A32_UINT),
+    texel("instanceTex", Format::R32G32B32A32_SFLOAT),
+];
+
+/// What scene.glsl reads for colours and regions (SCENE_ATTRIBUTES).
+pub const SCENE_ATTRIBUTES: [Binding; 3] = [
+    texel("attrTex", Format::R32_UINT),
+    texel("colorTex", Format::R32_UINT),
+    texel("moleculeTex", Format::R32_UINT),
+];
+
+/// Most slots an instanced scene may have: ids are 32-bit and ~0 means
+/// "no sphere".
+pub const MAX_SLOTS: u64 = u32::MAX as u64 - BATCH_ATOMS as u64;
+
+/// The scene's buffers on the device.
+pub struct SceneBuffers {
+    /// SCENE_PLAIN, SCENE_RIGID or SCENE_AFFINE (the SCENE_KIND constant).
+    pub kind: u32,
+    /// Plain: centre and radius per sphere. Instanced: the molecule atoms.
+    pub spheres: Buffer,
+    /// Plain: 4 region words per sphere. Instanced: the chain of each atom.
+    pub attrs: Buffer,
+    /// One RGBA8 word per sphere / atom.
+    pub colors: Buffer,
+    /// Instanced: the batches (16 B per BATCH_ATOMS slots).
+    pub batches: Buffer,
+    /// Instanced: the transforms (32 B rigid, 48 B affine per instance).
+    pub instances: Buffer,
+    /// Instanced: the tree regions of each molecule type (16 B each).
+    pub molecules: Buffer,
+    /// Ids a per-sphere dispatch covers: the spheres, or every slot of the
+    /// batches.
+    pub slots: u32,
+}
+
+impl SceneBuffers {
+    /// The geometry buffers, by the names of [`SCENE_GEOMETRY`].
+    pub fn geometry(&self) -> [(&'static str, &Buffer); 3] {
+        [
+            ("sphereTex", &self.spheres),
+            ("batchTex", &self.batches),
+            ("instanceTex", &self.instances),
+        ]
+    }
+
+    /// The attribute buffers, by the names of [`SCENE_ATTRIBUTES`].
+    pub fn attributes(&self) -> [(&'static str, &Buffer); 3] {
+        [
+            ("attrTex", &self.attrs),
+            ("colorTex", &self.colors),
+            ("moleculeTex", &self.molecules),
+        ]
+    }
+
+    /// Device memory by class: plain `scene`; instanced `molecules` (the
+    /// atoms and their attributes), `instances`, and `scene` (batches).
+    pub fn memory(&self) -> Vec<(&'static str, u64)> {
+        let atoms = self.spheres.size + self.attrs.size + self.colors.size;
+        if self.kind == SCENE_PLAIN {
+            return vec![("scene", atoms)];
+        }
+        vec![
+            ("molecules", atoms + self.molecules.size),
+            ("instances", self.instances.size),
+            ("scene", self.batches.size),
+        ]
+    }
+
+    /// Uploads `scene`: its buffers and the CPU copy of its geometry.
+    pub fn new(ctx: &Context, scene: &Scene) -> Result<(Self, SceneGeom)> {
+        let upload = |name: &str, bytes: &[u8]| -> Result<Buffer> {
+            let b = ctx.guard(Buffer::storage(ctx, name, bytes.len().max(16) as u64)?);
+            if !bytes.is_empty() {
+                b.upload(ctx, 0, bytes)?;
+            }
+            Ok(b.keep())
+        };
+        let geom: Vec<GpuSphere> = scene
+            .spheres
+            .iter()
+            .map(|s| [s.center[0], s.center[1], s.center[2], s.radius])
+            .collect();
+        let colors: Vec<u32> = scene
+            .spheres
+            .iter()
+            .map(|s| u32::from_le_bytes(s.color))
+            .collect();
+        let Some(inst) = &scene.instancing else {
+            let attrs: Vec<SphereAttr> = scene
+                .spheres
+                .iter()
+                .map(|s| SphereAttr { region: s.region })
+                .collect();
+            let mut made = ctx.guard(Vec::new());
+            made.push(upload("spheres", bytemuck::cast_slice(&geom))?);
+            made.push(upload("sphere attributes", bytemuck::cast_slice(&attrs))?);
+            made.push(upload("sphere colours", bytemuck::cast_slice(&colors))?);
+            // (bound, never read by the plain scene's pipelines)
+            for name in [
+                "scene batches (unused)",
+                "scene instances (unused)",
+                "scene molecules (unused)",
+            ] {
+                made.push(upload(name, &[])?);
+            }
+            let mut b = made.keep().into_iter();
+            let mut next = || {
+                b.next()
+                    .ok_or_else(|| Error::Internal("scene buffers".into()))
+            };
+            let buffers = SceneBuffers {
+                kind: SCENE_PLAIN,
+                spheres: next()?,
+                attrs: next()?,
+                colors: next()?,
+                batches: next()?,
+                instances: next()?,
+                molecules: next()?,
+                slots: geom.len() as u32,
+            };
+            return Ok((buffers, SceneGeom::Plain(geom)));
+        };
+        let batches = batches_of(scene)?;
+        let slots = batches.len() as u64 * BATCH_ATOMS as u64;
+        let chains: Vec<u32> = scene.spheres.iter().map(|s| s.region[0]).collect();
+        let tree: Vec<u32> = inst.tree_regions.iter().flatten().copied().collect();
+        let (kind, transform_bytes): (u32, &[u8]) = match &inst.transforms {
+            Transforms::Rigid(v) => (SCENE_RIGID, bytemuck::cast_slice(v)),
+            Transforms::Affine(v) => (SCENE_AFFINE, bytemuck::cast_slice(v)),
+        };
+        let mut made = ctx.guard(Vec::new());
+        made.push(upload("molecule atoms", bytemuck::cast_slice(&geom))?);
+        made.push(upload("atom chains", bytemuck::cast_slice(&chains))?);
+        made.push(upload("atom colours", bytemuck::cast_slice(&colors))?);
+        made.push(upload("scene batches", bytemuck::cast_slice(&batches))?);
+        made.push(upload("instances", transform_bytes)?);
+        made.push(upload("molecule regions", bytemuck::cast_slice(&tree))?);
+        let mut b = made.keep().into_iter();
+        let mut next = || {
+            b.next()
+                .ok_or_else(|| Error::Internal("scene buffers".into()))
+        };
+        let buffers = SceneBuffers {
+            kind,
+            spheres: next()?,
+            attrs: next()?,
+            colors: next()?,
+            batches: next()?,
+            instances: next()?,
+            molecules: next()?,
+            slots: slots as u32,
+        };
+        let geom = SceneGeom::Instanced(Box::new(InstancedGeom {
+            atoms: geom,
+            transforms: inst.transforms.clone(),
+            instance_molecule: inst.instance_molecule.clone(),
+            molecules: inst.molecules.iter().map(|m| (m.first, m.atoms)).collect(),
+            first: inst.first.clone(),
+            batches,
+        }));
+        Ok((buffers, geom))
+    }
+
+    pub fn destroy(&mut self, ctx: &Context) {
+        for b in [
+            &mut self.spheres,
+            &mut self.attrs,
+            &mut self.colors,
+            &mut self.batches,
+            &mut self.instances,
+            &mut self.molecules,
+        ] {
+            b.destroy(ctx);
+        }
+    }
+}
+
+crate::impl_destroy!(SceneBuffers);
+
+/// The scene's `Globals.scene` word: tree levels, chain stride, the
+/// molecule and chain levels' indices.
+pub fn levels_word(scene: &Scene) -> [u32; 4] {
+    let Some(inst) = &scene.instancing else {
+        return [0, 0, NO_LEVEL, NO_LEVEL];
+    };
+    [
+        inst.tree_levels(),
+        inst.chain_stride,
+        inst.level_of(LevelKind::Molecule).unwrap_or(NO_LEVEL),
+        inst.level_of(LevelKind::Chain).unwrap_or(NO_LEVEL),
+    ]
+}
+
+/// The batches of an instanced scene: each instance's atoms in runs of
+/// BATCH_ATOMS, in expanded order (slot order is expanded order).
+fn batches_of(scene: &Scene) -> Result<Vec<GpuBatch>> {
+    let Some(inst) = &scene.instancing else {
+        return Ok(Vec::new());
+    };
+    let per = BATCH_ATOMS as u64;
+    let count: u64 = inst
+        .instance_molecule
+        .iter()
+        .map(|&m| (inst.molecules[m as usize].atoms as u64).div_ceil(per))
+        .sum();
+    if count * per > MAX_SLOTS || inst.represented() > u32::MAX as u64 - 1 {
+        return Err(Error::Input(format!(
+            "{}: {} spheres in {count} batches of {per}: more than the 2^32 sphere ids \
+             sphereshade has",
+            scene.source,
+            inst.represented()
+        )));
+    }
+    if inst.molecules.len() >= 1 << 24 {
+        return Err(Error::Input(format!(
+            "{}: {} molecule types, more than 2^24",
+            scene.source,
+            inst.molecules.len()
+        )));
+    }
+    let mut out = Vec::with_capacity(count as usize);
+    for (k, &m) in inst.instance_molecule.iter().enumerate() {
+        let mol = &inst.molecules[m as usize];
+        let mut a = 0u32;
+        while a < mol.atoms {
+            let n = (mol.atoms - a).min(BATCH_ATOMS);
+            out.push([
+                k as u32,
+                mol.first + a,
+                (inst.first[k] + a as u64) as u32,
+                n | (m << 8),
+            ]);
+            a += n;
+        }
+    }
+    Ok(out)
+}
+
+/// The CPU copy of the scene's geometry.
+pub enum SceneGeom {
+    Plain(Vec<GpuSphere>),
+    Instanced(Box<InstancedGeom>),
+}
+
+pub struct InstancedGeom {
+    /// The molecule atoms (their frames).
+    pub atoms: Vec<GpuSphere>,
+    pub transforms: Transforms,
+    pub instance_molecule: Vec<u32>,
+    /// Per molecule type: first atom, atom count.
+    pub molecules: Vec<(u32, u32)>,
+    /// Expanded index of each instance's first atom (+ the total).
+    pub first: Vec<u64>,
+    pub batches: Vec<GpuBatch>,
+}
+
+impl InstancedGeom {
+    fn instance_atoms(&self, k: usize) -> &[GpuSphere] {
+        let (f, n) = self.molecules[self.instance_molecule[k] as usize];
+        &self.atoms[f as usize..(f + n) as usize]
+    }
+}
+
+impl SceneGeom {
+    /// Represented spheres.
+    pub fn len(&self) -> u64 {
+        match self {
+            SceneGeom::Plain(g) => g.len() as u64,
+            SceneGeom::Instanced(i) => i.first.last().copied().unwrap_or(0),
+        }
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Ids a per-sphere dispatch covers (as `SceneBuffers::slots`).
+    pub fn slots(&self) -> u32 {
+        match self {
+            SceneGeom::Plain(g) => g.len() as u32,
+            SceneGeom::Instanced(i) => i.batches.len() as u32 * BATCH_ATOMS,
+        }
+    }
+
+    /// Every represented sphere: world centre and radius (instanced: the
+    /// transform applied as the GPU applies it).
+    pub fn spheres(&self) -> Box<dyn Iterator<Item = ([f32; 3], f32)> + '_> {
+        match self {
+            SceneGeom::Plain(g) => Box::new(g.iter().map(|s| ([s[0], s[1], s[2]], s[3]))),
+            SceneGeom::Instanced(i) => {
+                Box::new((0..i.instance_molecule.len()).flat_map(move |k| {
+                    i.instance_atoms(k)
+                        .iter()
+                        .map(move |a| (i.transforms.apply(k, [a[0], a[1], a[2]]), a[3]))
+                }))
+            }
+        }
+    }
+
+    /// Every represented sphere's radius.
+    pub fn radii(&self) -> Box<dyn Iterator<Item = f32> + '_> {
+        match self {
+            SceneGeom::Plain(g) => Box::new(g.iter().map(|s| s[3])),
+            SceneGeom::Instanced(i) => Box::new(
+                (0..i.instance_molecule.len())
+                    .flat_map(move |k| i.instance_atoms(k).iter().map(|a| a[3])),
+            ),
+        }
+    }
+
+    /// The represented sphere of expanded index `e` (centre, radius).
+    pub fn sphere(&self, e: u64) -> Option<GpuSphere> {
+        match self {
+            SceneGeom::Plain(g) => g.get(usize::try_from(e).ok()?).copied(),
+            SceneGeom::Instanced(i) => {
+                if e >= *i.first.last()? {
+                    return None;
+                }
+                let k = i.first.partition_point(|&f| f <= e) - 1;
+                let a = i.instance_atoms(k)[(e - i.first[k]) as usize];
+                let c = i.transforms.apply(k, [a[0], a[1], a[2]]);
+                Some([c[0], c[1], c[2], a[3]])
+            }
+        }
+    }
+
+    /// The expanded index of sphere id `id` (a slot of an instanced scene).
+    pub fn expanded_id(&self, id: u32) -> Option<u64> {
+        match self {
+            SceneGeom::Plain(g) => ((id as usize) < g.len()).then_some(id as u64),
+            SceneGeom::Instanced(i) => {
+                let b = i.batches.get((id >> BATCH_SHIFT) as usize)?;
+                let lane = id & (BATCH_ATOMS - 1);
+                (lane < (b[3] & 0xFF)).then_some(b[2] as u64 + lane as u64)
+            }
+        }
+    }
+
+    /// Centres of the runs a view order permutes (runs of ORDER_RUN plain
+    /// spheres, or the batches) and each run's ids.
+    pub fn runs(&self) -> Vec<(DVec3, std::ops::Range<u32>)> {
+        let mean = |it: &mut dyn Iterator<Item = [f32; 3]>| {
+            let (mut s, mut n) = (DVec3::ZERO, 0.0);
+            for c in it {
+                s += DVec3::new(c[0] as f64, c[1] as f64, c[2] as f64);
+                n += 1.0;
+            }
+            s / f64::max(n, 1.0)
+        };
+        match self {
+            SceneGeom::Plain(g) => g
+                .chunks(BATCH_ATOMS as usize)
+                .enumerate()
+                .map(|(k, run)| {
+                    let first = k as u32 * BATCH_ATOMS;
+                    (
+                        mean(&mut run.iter().map(|s| [s[0], s[1], s[2]])),
+                        first..first + run.len() as u32,
+                    )
+                })
+                .collect(),
+            SceneGeom::Instanced(i) => {
+                // the runs' centres in their molecules' frames, then placed
+                let mut local: Vec<Vec<[f32; 3]>> = Vec::with_capacity(i.molecules.len());
+                for &(f, n) in &i.molecules {
+                    let atoms = &i.atoms[f as usize..(f + n) as usize];
+                    local.push(
+                        atoms
+                            .chunks(BATCH_ATOMS as usize)
+                            .map(|run| {
+                                let c = mean(&mut run.iter().map(|s| [s[0], s[1], s[2]]));
+                                [c.x as f32, c.y as f32, c.z as f32]
+                            })
+                            .collect(),
+                    );
+                }
+                i.batches
+                    .iter()
+                    .enumerate()
+                    .map(|(b, batch)| {
+                        let (k, m) = (batch[0] as usize, (batch[3] >> 8) as usize);
+                        let run = ((batch[1] - i.molecules[m].0) / BATCH_ATOMS) as usize;
+                        let c = i.transforms.apply(k, local[m][run]);
+                        let first = b as u32 * BATCH_ATOMS;
+                        (
+                            DVec3::new(c[0] as f64, c[1] as f64, c[2] as f64),
+                            first..first + BATCH_ATOMS,
+                        )
+                    })
+                    .collect()
+            }
+        }
+    }
+
+    /// Whether view orders hold batches (instanced) rather than spheres.
+    pub fn orders_batches(&self) -> bool {
+        matches!(self, SceneGeom::Instanced(_))
+    }
+
+    /// Bounding sphere of the sphere centres' box centre and the farthest
+    /// surface (as `Scene::bounding_sphere`).
+    pub fn bounding_sphere(&self) -> (DVec3, f64) {
+        let mut b: Option<(glam::Vec3, glam::Vec3)> = None;
+        for (c, _) in self.spheres() {
+            let c = glam::Vec3::from(c);
+            b = Some(b.map_or((c, c), |(lo, hi)| (lo.min(c), hi.max(c))));
+        }
+        let Some((lo, hi)) = b else {
+            return (DVec3::ZERO, 0.0);
+        };
+        let c = (lo + hi) * 0.5;
+        let r = self
+            .spheres()
+            .map(|(p, r)| glam::Vec3::from(p).distance(c) + r)
+            .fold(0.0f32, f32::max);
+        (c.as_dvec3(), r as f64)
+    }
+}
