@@ -24,7 +24,7 @@ layout(set = 0, binding = 5) uniform usamplerBuffer visWordTex;
 // early-depth test turns more of the later visits away before their
 // atomics, and the halves take alike work on different cache lines
 // (glsl/bands.glsl's SPHERE_AT; src/stages/raster/compute.rs `view_order`).
-// (instanced scenes: the order is over batches of BATCH_ATOMS slots)
+// (instanced scenes: the order is over batches of 2^BATCH_SHIFT slots)
 layout(set = 0, binding = 6) uniform usamplerBuffer orderTex;
 // The spheres as texels (scene.glsl): in a view's order a sphere's address
 // is not the invocation's, and a storage load at per-lane addresses is a

@@ -1,11 +1,13 @@
 // The scene's spheres by id, for every pass that reads them: plain (one
 // texel per sphere, id = index) or instanced (molecule atoms stored once,
-// id = slot: batch id >> BATCH_SHIFT, atom id & (BATCH_ATOMS - 1) of the
-// batch's run of one instance's molecule), chosen by the specialization
-// constant SCENE_KIND (src/passes/scene.rs sets it for every pipeline of a
+// id = slot: batch id >> BATCH_SHIFT, atom id & BATCH_MASK of the batch's
+// run of one instance's molecule), chosen by the specialization constant
+// SCENE_SPEC (src/passes/scene.rs sets it for every pipeline of a
 // renderer; lavapipe runs both sides of a branch on data, so the plain
 // scene does not pay for the instanced path). Slots are ordered as the
-// expanded spheres, so depth ties resolve alike in both.
+// expanded spheres, so depth ties resolve alike in both. The batch shift
+// is the scene's: 3 (8 slots) for molecules of a few beads, where 64-slot
+// batches would leave most lanes idle, up to 6.
 //
 // Needs `Globals g` before inclusion (scene_region reads g.scene). Define
 // SCENE_ATTRIBUTES first for colours and regions. Bindings 24-29 are the
@@ -14,7 +16,10 @@
 #define SCENE_GLSL
 #include "shared.glsl"
 
-layout(constant_id = 30) const uint SCENE_KIND = 0u; // = SCENE_KIND_ID, checked in Rust
+layout(constant_id = 30) const uint SCENE_SPEC = 0u; // = SCENE_KIND_ID, checked in Rust
+const uint SCENE_KIND = SCENE_SPEC & 0xFFu;
+const uint BATCH_SHIFT = SCENE_SPEC >> 8u;
+const uint BATCH_MASK = (1u << BATCH_SHIFT) - 1u;
 
 // Plain: centre, radius per sphere. Instanced: the molecules' atoms, each in
 // its molecule's frame.
@@ -38,7 +43,7 @@ layout(set = 0, binding = 29) uniform usamplerBuffer moleculeTex;
 bool scene_instanced() { return SCENE_KIND != SCENE_PLAIN; }
 
 uvec4 scene_batch(uint id) { return texelFetch(batchTex, int(id >> BATCH_SHIFT)); }
-uint scene_lane(uint id) { return id & (BATCH_ATOMS - 1u); }
+uint scene_lane(uint id) { return id & BATCH_MASK; }
 
 // Instance k's transform applied to a point of its molecule: the
 // operations of src/scene/instanced.rs (apply_rigid, apply_affine) in the

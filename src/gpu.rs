@@ -66,7 +66,7 @@ pub type GpuSphere = [f32; 4];
 
 /// A batch of an instanced scene (glsl/scene.glsl): x the instance, y its
 /// first atom (index into the molecule atoms), z the expanded index of
-/// that atom, w the atom count (1..=BATCH_ATOMS) | molecule type << 8.
+/// that atom, w the atom count (1..=2^shift) | molecule type << 8.
 pub type GpuBatch = [u32; 4];
 
 /// Visibility-buffer value of a pixel no sphere covers.

@@ -79,18 +79,19 @@ gpu_constants! {
     /// ISSM resolved map (issm_resolve.comp): the light-space x and y of an
     /// empty texel, so far from every point that no test hits it.
     ISSM_EMPTY_XY: f32 = 1e30;
-    /// Instanced scenes (glsl/scene.glsl): a sphere id is a slot, batch
-    /// `id >> BATCH_SHIFT`, atom `id & (BATCH_ATOMS - 1)` of the batch's
-    /// run of one instance's molecule.
-    BATCH_SHIFT: u32 = 6;
-    BATCH_ATOMS: u32 = 64;
-    /// Scene kinds (specialization constant SCENE_KIND, id SCENE_KIND_ID):
-    /// plain spheres; instances with rigid (quaternion) transforms; with
-    /// affine (3x4 as stored) transforms.
+    /// Scene kinds (the low byte of specialization constant SCENE_SPEC,
+    /// id SCENE_KIND_ID): plain spheres; instances with rigid (quaternion)
+    /// transforms; with affine (3x4 as stored) transforms. Its next byte is
+    /// an instanced scene's batch shift: a sphere id is a slot, batch
+    /// `id >> shift`, atom `id & (2^shift - 1)` of the batch's run of one
+    /// instance's molecule (glsl/scene.glsl).
     SCENE_PLAIN: u32 = 0;
     SCENE_RIGID: u32 = 1;
     SCENE_AFFINE: u32 = 2;
     SCENE_KIND_ID: u32 = 30;
+    /// Batch shifts an instanced scene may use (8 to 64 slots a batch).
+    MIN_BATCH_SHIFT: u32 = 3;
+    MAX_BATCH_SHIFT: u32 = 6;
     /// Globals.scene.zw: no molecule / chain level.
     NO_LEVEL: u32 = 0xFFFF_FFFF;
 }

@@ -95,6 +95,10 @@ fn real_models_load_instanced_with_their_counts() {
         // the expanded order's bookkeeping: each instance's first atom
         assert_eq!(inst.first.len(), insts + 1);
         assert_eq!(*inst.first.last().unwrap(), represented);
+        // batches: 64 slots for molecules of thousands of atoms, 8 for beads
+        let shift = sphereshade::passes::scene::batch_shift(&s);
+        let want = if atoms / mols > 1000 { 6 } else { 3 };
+        assert_eq!(shift, want, "{file}: batch shift");
     }
 }
 
@@ -606,10 +610,12 @@ fn instanced_capsid_renders_as_its_expansion() {
     modes.push((ShadowMode::IssmSoft, SsdoMode::Plain));
     modes.push((ShadowMode::Deep, SsdoMode::Off));
     same_as_expanded(&ctx, "1f2n-60mer", &s, &modes, (96, 72));
-    // close up: spheres wide enough for per-pixel SSDO receivers
+    // close up: spheres wide enough for per-pixel SSDO receivers; region
+    // outlines (shade reads each neighbour's region)
     let mut st = settings(camera(&s, 96, 72, None), ShadowMode::IssmSoft);
     st.camera.view_height *= 0.08;
     st.ssdo = SsdoMode::Semantic;
+    st.look.outline = 1.5;
     let e = s.expand().unwrap();
     let (a, b) = (frame(&ctx, &s, st.clone()), frame(&ctx, &e, st));
     assert!(
@@ -651,6 +657,83 @@ fn real_models_render_as_their_expansion() {
         &both,
         (64, 48),
     );
+}
+
+/// A scene of more than 2^24 spheres (262,145 instances of a 64-atom
+/// molecule, 16,777,280 represented): the id AOV is RGBA16 (DESIGN.md),
+/// index + 1 in R, G, B, and names expanded indices past 2^24.
+#[test]
+fn ids_past_2_pow_24_are_rgba16() {
+    use sphereshade::scene::instanced::InstancedBuilder;
+    let ctx = validated_context();
+    let mut b = InstancedBuilder::default();
+    let atoms: Vec<scene::Sphere> = (0..64)
+        .map(|k| sphere([(k % 8) as f32 * 1.2, (k / 8) as f32 * 1.2, 0.0], 0.7))
+        .collect();
+    let m = b.molecule("block", 0, atoms);
+    let n = (1 << 24) / 64 + 1;
+    for k in 0..n {
+        // a wall of blocks 512 wide, later ones nearer the viewer
+        let (x, y) = ((k % 512) as f64 * 10.0, (k / 512) as f64 * 10.0);
+        b.instance_quat("wall", m, DQuat::IDENTITY, [x, y, k as f64 * 1e-4])
+            .unwrap();
+    }
+    let s = b.finish("wall").unwrap();
+    assert_eq!(s.represented(), 16_777_280);
+    let mut st = settings(camera(&s, 64, 48, None), ShadowMode::None);
+    // the last block (instance 262,144 at (0, 5120)): ids past 2^24, and
+    // its neighbours below
+    st.camera.view_height = 20.0;
+    st.camera.center = DVec3::new(4.2, 5120.0, 0.0);
+    let mut r = Renderer::new(&ctx, &s, st).expect("renderer");
+    r.render_frame().expect("frame");
+    let vis = r.inspect().read_vis().unwrap();
+    let img = sphereshade::run::aov_image(&r, sphereshade::settings::Aov::Id).unwrap();
+    drop(r);
+    assert_no_validation_messages(&ctx);
+    let sphereshade::output::AovImage::Rgba16(img) = img else {
+        panic!("the id AOV of 2^24+ spheres is not RGBA16");
+    };
+    let mut past = 0;
+    for (p, &k) in img.pixels().zip(&vis) {
+        let v = p.0[0] as u64 | (p.0[1] as u64) << 16 | (p.0[2] as u64) << 32;
+        assert_eq!(p.0[3], 65535);
+        if k == sphereshade::gpu::VIS_EMPTY {
+            assert_eq!(v, 0);
+            continue;
+        }
+        assert_eq!(v, (k & 0xFFFF_FFFF) + 1);
+        past += (v > 1 << 24) as usize;
+    }
+    assert!(past > 100, "{past} pixels show a sphere past 2^24");
+}
+
+/// The EXR layers of an instanced scene add `instance` and `atom` (index
+/// within the molecule), agreeing with the `id` layer.
+#[test]
+fn exr_layers_name_instance_and_atom() {
+    let ctx = validated_context();
+    let s = meso("HIV-1_0.1.6-8_mixed_radii_pdb.json");
+    let inst = s.instancing.as_ref().unwrap();
+    let st = settings(camera(&s, 48, 36, None), ShadowMode::Issm);
+    let (layers, stats) = sphereshade::run::render_layers(&ctx, &s, "hiv", st, 0.0).unwrap();
+    assert_no_validation_messages(&ctx);
+    assert_eq!(stats.instances, Some(11_681));
+    assert_eq!(stats.spheres, 91_956);
+    let get = |n: &str| &layers.iter().find(|l| l.0 == n).unwrap().1;
+    let (id, instance, atom) = (get("id"), get("instance"), get("atom"));
+    let mut seen = 0;
+    for i in 0..id.len() {
+        if id[i] == 0.0 {
+            assert_eq!((instance[i], atom[i]), (-1.0, -1.0));
+            continue;
+        }
+        let e = id[i] as u64 - 1;
+        let (k, a) = inst.locate(e).unwrap();
+        assert_eq!((instance[i], atom[i]), (k as f32, a as f32));
+        seen += 1;
+    }
+    assert!(seen > 500, "{seen}");
 }
 
 /// ISSM hard shadows of an instanced scene against exact shadow rays

@@ -3,13 +3,14 @@
 //! batches that name a sphere by slot; and the CPU copy of its geometry
 //! that light views and view orders are fitted to ([`SceneGeom`]).
 //!
-//! Every pipeline whose shader includes scene.glsl gets the scene's kind
-//! as its specialization constant SCENE_KIND and its buffers by name
-//! ([`SCENE_GEOMETRY`], [`SCENE_ATTRIBUTES`]).
+//! Every pipeline whose shader includes scene.glsl gets the scene's
+//! [`SceneBuffers::spec`] as its specialization constant SCENE_SPEC (kind
+//! and batch shift) and its buffers by name ([`SCENE_GEOMETRY`],
+//! [`SCENE_ATTRIBUTES`]).
 
 use crate::error::{Error, Result};
 use crate::gpu::consts::{
-    BATCH_ATOMS, BATCH_SHIFT, NO_LEVEL, SCENE_AFFINE, SCENE_PLAIN, SCENE_RIGID,
+    MAX_BATCH_SHIFT, MIN_BATCH_SHIFT, NO_LEVEL, SCENE_AFFINE, SCENE_PLAIN, SCENE_RIGID,
 };
 use crate::gpu::{GpuBatch, GpuSphere, SphereAttr};
 use crate::scene::Scene;
@@ -35,19 +36,20 @@ pub const SCENE_ATTRIBUTES: [Binding; 3] = [
 
 /// Most slots an instanced scene may have: ids are 32-bit and ~0 means
 /// "no sphere".
-pub const MAX_SLOTS: u64 = u32::MAX as u64 - BATCH_ATOMS as u64;
+pub const MAX_SLOTS: u64 = u32::MAX as u64 - (1 << MAX_BATCH_SHIFT);
 
 /// The scene's buffers on the device.
 pub struct SceneBuffers {
-    /// SCENE_PLAIN, SCENE_RIGID or SCENE_AFFINE (the SCENE_KIND constant).
-    pub kind: u32,
+    /// SCENE_PLAIN, SCENE_RIGID or SCENE_AFFINE in the low byte, the batch
+    /// shift in the next (the SCENE_SPEC constant of the scene's pipelines).
+    pub spec: u32,
     /// Plain: centre and radius per sphere. Instanced: the molecule atoms.
     pub spheres: Buffer,
     /// Plain: 4 region words per sphere. Instanced: the chain of each atom.
     pub attrs: Buffer,
     /// One RGBA8 word per sphere / atom.
     pub colors: Buffer,
-    /// Instanced: the batches (16 B per BATCH_ATOMS slots).
+    /// Instanced: the batches (16 B per 2^shift slots).
     pub batches: Buffer,
     /// Instanced: the transforms (32 B rigid, 48 B affine per instance).
     pub instances: Buffer,
@@ -77,11 +79,16 @@ impl SceneBuffers {
         ]
     }
 
+    /// SCENE_PLAIN, SCENE_RIGID or SCENE_AFFINE.
+    pub fn kind(&self) -> u32 {
+        self.spec & 0xFF
+    }
+
     /// Device memory by class: plain `scene`; instanced `molecules` (the
     /// atoms and their attributes), `instances`, and `scene` (batches).
     pub fn memory(&self) -> Vec<(&'static str, u64)> {
         let atoms = self.spheres.size + self.attrs.size + self.colors.size;
-        if self.kind == SCENE_PLAIN {
+        if self.kind() == SCENE_PLAIN {
             return vec![("scene", atoms)];
         }
         vec![
@@ -134,7 +141,7 @@ impl SceneBuffers {
                     .ok_or_else(|| Error::Internal("scene buffers".into()))
             };
             let buffers = SceneBuffers {
-                kind: SCENE_PLAIN,
+                spec: SCENE_PLAIN,
                 spheres: next()?,
                 attrs: next()?,
                 colors: next()?,
@@ -145,8 +152,9 @@ impl SceneBuffers {
             };
             return Ok((buffers, SceneGeom::Plain(geom)));
         };
-        let batches = batches_of(scene)?;
-        let slots = batches.len() as u64 * BATCH_ATOMS as u64;
+        let shift = batch_shift(scene);
+        let batches = batches_of(scene, shift)?;
+        let slots = (batches.len() as u64) << shift;
         let chains: Vec<u32> = scene.spheres.iter().map(|s| s.region[0]).collect();
         let tree: Vec<u32> = inst.tree_regions.iter().flatten().copied().collect();
         let (kind, transform_bytes): (u32, &[u8]) = match &inst.transforms {
@@ -166,7 +174,7 @@ impl SceneBuffers {
                 .ok_or_else(|| Error::Internal("scene buffers".into()))
         };
         let buffers = SceneBuffers {
-            kind,
+            spec: kind | (shift << 8),
             spheres: next()?,
             attrs: next()?,
             colors: next()?,
@@ -182,6 +190,7 @@ impl SceneBuffers {
             molecules: inst.molecules.iter().map(|m| (m.first, m.atoms)).collect(),
             first: inst.first.clone(),
             batches,
+            shift,
         }));
         Ok((buffers, geom))
     }
@@ -216,13 +225,38 @@ pub fn levels_word(scene: &Scene) -> [u32; 4] {
     ]
 }
 
+/// The batch shift for an instanced scene: the one that makes the fewest
+/// lanes (slots) plus four per batch (its 16-byte record and its view
+/// orders' words weigh about as much as four idle lanes): 64-slot batches
+/// for molecules of thousands of atoms, 8-slot ones for beads (the
+/// Mycoplasma model's 19 beads an instance would leave 70 % of 64-slot
+/// batches idle).
+pub fn batch_shift(scene: &Scene) -> u32 {
+    let Some(inst) = &scene.instancing else {
+        return MAX_BATCH_SHIFT;
+    };
+    let cost = |shift: u32| -> u64 {
+        let per = 1u64 << shift;
+        inst.instance_molecule
+            .iter()
+            .map(|&m| {
+                let batches = (inst.molecules[m as usize].atoms as u64).div_ceil(per);
+                batches * per + 4 * batches
+            })
+            .sum()
+    };
+    (MIN_BATCH_SHIFT..=MAX_BATCH_SHIFT)
+        .min_by_key(|&s| (cost(s), std::cmp::Reverse(s)))
+        .unwrap_or(MAX_BATCH_SHIFT)
+}
+
 /// The batches of an instanced scene: each instance's atoms in runs of
-/// BATCH_ATOMS, in expanded order (slot order is expanded order).
-fn batches_of(scene: &Scene) -> Result<Vec<GpuBatch>> {
+/// 2^shift, in expanded order (slot order is expanded order).
+fn batches_of(scene: &Scene, shift: u32) -> Result<Vec<GpuBatch>> {
     let Some(inst) = &scene.instancing else {
         return Ok(Vec::new());
     };
-    let per = BATCH_ATOMS as u64;
+    let per = 1u64 << shift;
     let count: u64 = inst
         .instance_molecule
         .iter()
@@ -248,7 +282,7 @@ fn batches_of(scene: &Scene) -> Result<Vec<GpuBatch>> {
         let mol = &inst.molecules[m as usize];
         let mut a = 0u32;
         while a < mol.atoms {
-            let n = (mol.atoms - a).min(BATCH_ATOMS);
+            let n = (mol.atoms - a).min(per as u32);
             out.push([
                 k as u32,
                 mol.first + a,
@@ -277,6 +311,8 @@ pub struct InstancedGeom {
     /// Expanded index of each instance's first atom (+ the total).
     pub first: Vec<u64>,
     pub batches: Vec<GpuBatch>,
+    /// Slots a batch: 2^shift.
+    pub shift: u32,
 }
 
 impl InstancedGeom {
@@ -303,7 +339,7 @@ impl SceneGeom {
     pub fn slots(&self) -> u32 {
         match self {
             SceneGeom::Plain(g) => g.len() as u32,
-            SceneGeom::Instanced(i) => i.batches.len() as u32 * BATCH_ATOMS,
+            SceneGeom::Instanced(i) => (i.batches.len() as u32) << i.shift,
         }
     }
 
@@ -354,16 +390,16 @@ impl SceneGeom {
         match self {
             SceneGeom::Plain(g) => ((id as usize) < g.len()).then_some(id as u64),
             SceneGeom::Instanced(i) => {
-                let b = i.batches.get((id >> BATCH_SHIFT) as usize)?;
-                let lane = id & (BATCH_ATOMS - 1);
+                let b = i.batches.get((id >> i.shift) as usize)?;
+                let lane = id & ((1 << i.shift) - 1);
                 (lane < (b[3] & 0xFF)).then_some(b[2] as u64 + lane as u64)
             }
         }
     }
 
-    /// Centres of the runs a view order permutes (runs of ORDER_RUN plain
-    /// spheres, or the batches) and each run's ids.
-    pub fn runs(&self) -> Vec<(DVec3, std::ops::Range<u32>)> {
+    /// Centres of the runs a view order permutes (runs of `plain_run`
+    /// plain spheres, or the batches) and each run's ids.
+    pub fn runs(&self, plain_run: usize) -> Vec<(DVec3, std::ops::Range<u32>)> {
         let mean = |it: &mut dyn Iterator<Item = [f32; 3]>| {
             let (mut s, mut n) = (DVec3::ZERO, 0.0);
             for c in it {
@@ -374,10 +410,10 @@ impl SceneGeom {
         };
         match self {
             SceneGeom::Plain(g) => g
-                .chunks(BATCH_ATOMS as usize)
+                .chunks(plain_run)
                 .enumerate()
                 .map(|(k, run)| {
-                    let first = k as u32 * BATCH_ATOMS;
+                    let first = (k * plain_run) as u32;
                     (
                         mean(&mut run.iter().map(|s| [s[0], s[1], s[2]])),
                         first..first + run.len() as u32,
@@ -386,12 +422,13 @@ impl SceneGeom {
                 .collect(),
             SceneGeom::Instanced(i) => {
                 // the runs' centres in their molecules' frames, then placed
+                let per = 1usize << i.shift;
                 let mut local: Vec<Vec<[f32; 3]>> = Vec::with_capacity(i.molecules.len());
                 for &(f, n) in &i.molecules {
                     let atoms = &i.atoms[f as usize..(f + n) as usize];
                     local.push(
                         atoms
-                            .chunks(BATCH_ATOMS as usize)
+                            .chunks(per)
                             .map(|run| {
                                 let c = mean(&mut run.iter().map(|s| [s[0], s[1], s[2]]));
                                 [c.x as f32, c.y as f32, c.z as f32]
@@ -404,12 +441,12 @@ impl SceneGeom {
                     .enumerate()
                     .map(|(b, batch)| {
                         let (k, m) = (batch[0] as usize, (batch[3] >> 8) as usize);
-                        let run = ((batch[1] - i.molecules[m].0) / BATCH_ATOMS) as usize;
+                        let run = (batch[1] - i.molecules[m].0) as usize / per;
                         let c = i.transforms.apply(k, local[m][run]);
-                        let first = b as u32 * BATCH_ATOMS;
+                        let first = (b << i.shift) as u32;
                         (
                             DVec3::new(c[0] as f64, c[1] as f64, c[2] as f64),
-                            first..first + BATCH_ATOMS,
+                            first..first + per as u32,
                         )
                     })
                     .collect()

@@ -221,7 +221,7 @@ impl<'c> Renderer<'c> {
             &settings,
             levels,
             thresholds,
-            scene_buffers.kind,
+            scene_buffers.spec,
         )?);
         let mut res = Resources {
             geom,
@@ -360,7 +360,7 @@ impl Resources {
         stages.shadows.light_changed(&ShadowSetup {
             ctx,
             geom,
-            scene: scene.kind,
+            scene: scene.spec,
             light_dir: settings.light,
             settings,
         })
@@ -381,7 +381,7 @@ impl<'c> Renderer<'c> {
             &ShadowSetup {
                 ctx: self.ctx,
                 geom,
-                scene: scene.kind,
+                scene: scene.spec,
                 light_dir: self.settings.light,
                 settings: &self.settings,
             },

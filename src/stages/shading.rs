@@ -22,7 +22,7 @@ use ash::vk::Format;
 
 pub struct ShadePass {
     variants: Variants,
-    /// The scene's kind (SCENE_KIND of the pipelines).
+    /// The scene's SCENE_SPEC (kind and batch shift) for the pipelines.
     scene: u32,
 }
 
@@ -169,7 +169,7 @@ const SHADE_OUTPUTS: [Binding; 7] = [
 impl ShadePass {
     pub const NAME: &'static str = "shade";
 
-    /// The pass for a scene of kind `scene` (passes::scene).
+    /// The pass for a scene of this SCENE_SPEC (passes::scene).
     pub fn new(scene: u32) -> Self {
         ShadePass {
             variants: Variants::default(),

@@ -82,7 +82,7 @@ pub struct PipelineDesc<'a> {
     pub local_size: u32,
     /// Further specialization constants, ids 1, 2, ... in order.
     pub constants: &'a [u32],
-    /// The scene's kind, specialization constant SCENE_KIND_ID of shaders
+    /// The scene's SCENE_SPEC (kind and batch shift), specialization constant SCENE_KIND_ID of shaders
     /// that include glsl/scene.glsl (src/passes/scene.rs; 0 = plain).
     pub scene: u32,
 }

@@ -146,7 +146,7 @@ pub fn view_order(geom: &SceneGeom, dir: DVec3) -> Vec<u32> {
     let d = dir.normalize_or_zero();
     let across = d.any_orthonormal_vector();
     // (across, depth, run) of each run's mean centre.
-    let all = geom.runs();
+    let all = geom.runs(ORDER_RUN);
     let mut runs: Vec<(f64, f64, usize)> = all
         .iter()
         .enumerate()
@@ -179,7 +179,7 @@ pub fn vis_buffer(ctx: &Context, name: &str, pixels: u64) -> Result<Buffer> {
 impl RasterPass {
     pub const NAME: &'static str = "raster";
 
-    /// The rasterizer for a scene of this kind (passes::scene).
+    /// The rasterizer for a scene of this SCENE_SPEC (passes::scene).
     pub fn new(ctx: &Context, scene: u32) -> Result<Self> {
         let bindings = [
             &[

@@ -67,9 +67,9 @@ pub struct RasterStage {
 }
 
 impl RasterStage {
-    /// The stage for a scene of kind `scene` (passes::scene).
+    /// The stage for a scene of this SCENE_SPEC (passes::scene).
     pub fn new(ctx: &Context, graphics: bool, scene: u32) -> Result<Self> {
-        if graphics && scene != crate::gpu::consts::SCENE_PLAIN {
+        if graphics && scene & 0xFF != crate::gpu::consts::SCENE_PLAIN {
             return Err(Error::Input(
                 "--raster graphics draws plain scenes only: an instanced scene needs --raster compute"
                     .into(),

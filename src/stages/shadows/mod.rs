@@ -56,7 +56,7 @@ impl<'a> ShadowInputs<'a> {
 }
 
 /// What a technique needs to (re)fit itself: the spheres (CPU copy) and
-/// the scene's kind (its pipelines' SCENE_KIND), the key-light direction
+/// the scene's SCENE_SPEC (its pipelines' kind and batch shift), the key-light direction
 /// and the settings.
 pub struct ShadowSetup<'a> {
     pub ctx: &'a Context,

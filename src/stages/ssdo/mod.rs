@@ -246,7 +246,7 @@ pub struct SsdoStage {
     /// its own region), and the zoom thresholds between them.
     levels: Vec<u32>,
     thresholds: Vec<f64>,
-    /// The scene's kind (SCENE_KIND of the pipelines reading it).
+    /// The scene's SCENE_SPEC (kind and batch shift) for the pipelines reading it.
     scene: u32,
 }
 

@@ -120,7 +120,7 @@ pub struct SsdoPass {
     list: Option<ComputePipeline>,
     args: Option<BandArgs>,
     sphere: Variants,
-    /// The scene's kind (SCENE_KIND of the pipelines reading it).
+    /// The scene's SCENE_SPEC (kind and batch shift) for the pipelines reading it.
     scene: u32,
 }
 
@@ -226,7 +226,7 @@ impl SsdoPass {
     pub const PREP_NAME: &'static str = "ssdo_prep";
     pub const NAME: &'static str = "ssdo";
 
-    /// The passes for a scene of kind `scene` (passes::scene).
+    /// The passes for a scene of this SCENE_SPEC (passes::scene).
     pub fn new(ctx: &Context, scene: u32) -> Result<Self> {
         let table = Buffer::new(
             ctx,
