@@ -137,6 +137,17 @@ fn petworld_models_and_operators() {
     assert_eq!(inst.levels[0], LevelKind::Tree(1));
 }
 
+/// 1F2N's complete icosahedral assembly (`--assembly 1`): 60 copies.
+fn capsid_60mer() -> Scene {
+    load_with(
+        "1f2n.cif",
+        &LoadOptions {
+            assembly: Some(1),
+            ..Default::default()
+        },
+    )
+}
+
 /// The 60-mer of a real capsid (1F2N, `--assembly 1`, 60 operators) stays
 /// instanced; its represented spheres are the operators' x' = M x + v of
 /// the asymmetric unit's atoms to f32 precision (the rigid operators are
@@ -144,13 +155,7 @@ fn petworld_models_and_operators() {
 #[test]
 fn a_capsid_assembly_stays_instanced() {
     let asu = load_data("1f2n.cif");
-    let asm = load_with(
-        "1f2n.cif",
-        &LoadOptions {
-            assembly: Some(1),
-            ..Default::default()
-        },
-    );
+    let asm = capsid_60mer();
     let inst = asm.instancing.as_ref().expect("instanced");
     assert_eq!((inst.instances(), inst.molecules.len()), (60, 1));
     assert_eq!(asm.spheres.len(), asu.spheres.len());
@@ -589,13 +594,7 @@ fn same_as_expanded(
 #[test]
 fn instanced_capsid_renders_as_its_expansion() {
     let ctx = validated_context();
-    let s = load_with(
-        "1f2n.cif",
-        &LoadOptions {
-            assembly: Some(1),
-            ..Default::default()
-        },
-    );
+    let s = capsid_60mer();
     let mut modes = Vec::new();
     for shadows in [
         ShadowMode::Issm,
@@ -742,13 +741,7 @@ fn exr_layers_name_instance_and_atom() {
 #[test]
 fn instanced_issm_matches_exact_shadow_rays() {
     let ctx = validated_context();
-    let s = load_with(
-        "1f2n.cif",
-        &LoadOptions {
-            assembly: Some(1),
-            ..Default::default()
-        },
-    );
+    let s = capsid_60mer();
     let e = s.expand().unwrap();
     let st = settings(camera(&s, 160, 120, None), ShadowMode::Issm);
     let (cam, light) = (st.camera, st.light);

@@ -100,13 +100,6 @@ impl SceneBuffers {
 
     /// Uploads `scene`: its buffers and the CPU copy of its geometry.
     pub fn new(ctx: &Context, scene: &Scene) -> Result<(Self, SceneGeom)> {
-        let upload = |name: &str, bytes: &[u8]| -> Result<Buffer> {
-            let b = ctx.guard(Buffer::storage(ctx, name, bytes.len().max(16) as u64)?);
-            if !bytes.is_empty() {
-                b.upload(ctx, 0, bytes)?;
-            }
-            Ok(b.keep())
-        };
         let geom: Vec<GpuSphere> = scene
             .spheres
             .iter()
@@ -123,66 +116,43 @@ impl SceneBuffers {
                 .iter()
                 .map(|s| SphereAttr { region: s.region })
                 .collect();
-            let mut made = ctx.guard(Vec::new());
-            made.push(upload("spheres", bytemuck::cast_slice(&geom))?);
-            made.push(upload("sphere attributes", bytemuck::cast_slice(&attrs))?);
-            made.push(upload("sphere colours", bytemuck::cast_slice(&colors))?);
-            // (bound, never read by the plain scene's pipelines)
-            for name in [
-                "scene batches (unused)",
-                "scene instances (unused)",
-                "scene molecules (unused)",
-            ] {
-                made.push(upload(name, &[])?);
-            }
-            let mut b = made.keep().into_iter();
-            let mut next = || {
-                b.next()
-                    .ok_or_else(|| Error::Internal("scene buffers".into()))
-            };
-            let buffers = SceneBuffers {
-                spec: SCENE_PLAIN,
-                spheres: next()?,
-                attrs: next()?,
-                colors: next()?,
-                batches: next()?,
-                instances: next()?,
-                molecules: next()?,
-                slots: geom.len() as u32,
-            };
+            // (batches, instances and molecules: bound, never read)
+            let buffers = Self::upload(
+                ctx,
+                SCENE_PLAIN,
+                geom.len() as u64,
+                [
+                    ("spheres", bytemuck::cast_slice(&geom)),
+                    ("sphere attributes", bytemuck::cast_slice(&attrs)),
+                    ("sphere colours", bytemuck::cast_slice(&colors)),
+                    ("scene batches (unused)", &[]),
+                    ("scene instances (unused)", &[]),
+                    ("scene molecules (unused)", &[]),
+                ],
+            )?;
             return Ok((buffers, SceneGeom::Plain(geom)));
         };
         let shift = batch_shift(scene);
         let batches = batches_of(scene, shift)?;
-        let slots = (batches.len() as u64) << shift;
         let chains: Vec<u32> = scene.spheres.iter().map(|s| s.region[0]).collect();
         let tree: Vec<u32> = inst.tree_regions.iter().flatten().copied().collect();
         let (kind, transform_bytes): (u32, &[u8]) = match &inst.transforms {
             Transforms::Rigid(v) => (SCENE_RIGID, bytemuck::cast_slice(v)),
             Transforms::Affine(v) => (SCENE_AFFINE, bytemuck::cast_slice(v)),
         };
-        let mut made = ctx.guard(Vec::new());
-        made.push(upload("molecule atoms", bytemuck::cast_slice(&geom))?);
-        made.push(upload("atom chains", bytemuck::cast_slice(&chains))?);
-        made.push(upload("atom colours", bytemuck::cast_slice(&colors))?);
-        made.push(upload("scene batches", bytemuck::cast_slice(&batches))?);
-        made.push(upload("instances", transform_bytes)?);
-        made.push(upload("molecule regions", bytemuck::cast_slice(&tree))?);
-        let mut b = made.keep().into_iter();
-        let mut next = || {
-            b.next()
-                .ok_or_else(|| Error::Internal("scene buffers".into()))
-        };
-        let buffers = SceneBuffers {
-            spec: kind | (shift << 8),
-            spheres: next()?,
-            attrs: next()?,
-            colors: next()?,
-            batches: next()?,
-            instances: next()?,
-            molecules: next()?,
-            slots: slots as u32,
-        };
+        let buffers = Self::upload(
+            ctx,
+            kind | (shift << 8),
+            (batches.len() as u64) << shift,
+            [
+                ("molecule atoms", bytemuck::cast_slice(&geom)),
+                ("atom chains", bytemuck::cast_slice(&chains)),
+                ("atom colours", bytemuck::cast_slice(&colors)),
+                ("scene batches", bytemuck::cast_slice(&batches)),
+                ("instances", transform_bytes),
+                ("molecule regions", bytemuck::cast_slice(&tree)),
+            ],
+        )?;
         let geom = SceneGeom::Instanced(Box::new(InstancedGeom {
             atoms: geom,
             transforms: inst.transforms.clone(),
@@ -193,6 +163,33 @@ impl SceneBuffers {
             shift,
         }));
         Ok((buffers, geom))
+    }
+
+    /// The six buffers (named, with their bytes) in field order; an error
+    /// part way destroys what was made.
+    fn upload(ctx: &Context, spec: u32, slots: u64, data: [(&str, &[u8]); 6]) -> Result<Self> {
+        let mut made = ctx.guard(Vec::new());
+        for (name, bytes) in data {
+            let b = ctx.guard(Buffer::storage(ctx, name, bytes.len().max(16) as u64)?);
+            if !bytes.is_empty() {
+                b.upload(ctx, 0, bytes)?;
+            }
+            made.push(b.keep());
+        }
+        let [spheres, attrs, colors, batches, instances, molecules]: [Buffer; 6] = made
+            .keep()
+            .try_into()
+            .map_err(|_| Error::Internal("scene buffers".into()))?;
+        Ok(SceneBuffers {
+            spec,
+            spheres,
+            attrs,
+            colors,
+            batches,
+            instances,
+            molecules,
+            slots: slots as u32,
+        })
     }
 
     pub fn destroy(&mut self, ctx: &Context) {
