@@ -309,7 +309,7 @@ pub fn render_trajectory(
             }
             lap(&mut t_movie);
             if let Some(j) = json.as_mut() {
-                let stats = run::run_stats(ctx, r, input, &[times], 0.0, &image);
+                let stats = run::run_stats(ctx, r, input, &[times], 0.0, &image.sha256());
                 let line = serde_json::to_string(&FrameStats {
                     run: &stats,
                     frame: k,
@@ -372,6 +372,17 @@ pub fn render_trajectory(
     };
     if INTERRUPTED.load(Ordering::Relaxed) && result.is_ok() {
         return Err(no_movie(Error::Input("interrupted by a signal".into())));
+    }
+    // PNG frames: the ones before the error are on disk, and the line says so
+    if let Err(e) = &result
+        && movie.is_none()
+        && args.out.is_some()
+        && wrote.is_ok()
+    {
+        return Err(Error::Input(format!(
+            "{} (the {done} frames before it were rendered and written)",
+            e.to_string().trim_end_matches('.')
+        )));
     }
     result.map_err(no_movie)?;
     wrote.map_err(no_movie)?;

@@ -377,6 +377,38 @@ fn a_movie_is_whole_or_absent() {
 /// (it lost frame 1 and renumbered the rest before); a dump whose last
 /// line has no newline renders every frame, as a trajectory and as a
 /// structure.
+/// A multi-frame XYZ with a `nan` in frame 1: frame 0 rendered, one line.
+#[test]
+fn text_trajectories_stop_at_a_nan() {
+    let d = dir("xyznan");
+    let frames = [
+        "3\nf0\nC 0 0 0\nO 1.5 0 0\nN 0 1.5 0\n",
+        "3\nf1\nC 0 0 0\nO nan 0 0\nN 0 1.5 0\n",
+        "3\nf2\nC 0 0 0\nO 1.5 0 0\nN 0 1.5 0\n",
+    ];
+    let p = d.join("t.xyz");
+    std::fs::write(&p, frames.concat()).unwrap();
+    let top = d.join("top.xyz");
+    std::fs::write(&top, frames[0]).unwrap();
+    let out = d.join("x_%d.png").display().to_string();
+    let e = err(&run(
+        &traj_args(top.to_str().unwrap(), p.to_str().unwrap(), &["--out", &out]),
+        None,
+    ));
+    let at = frames[0].len();
+    assert!(
+        e.contains(&format!("t.xyz: frame 1 at byte {at}"))
+            && e.contains("the 1 frames before it were rendered and written"),
+        "{e}"
+    );
+    let pngs: Vec<String> = files(&d)
+        .into_iter()
+        .filter(|f| f.ends_with(".png"))
+        .collect();
+    assert_eq!(pngs, vec!["x_0.png"]);
+    let _ = std::fs::remove_dir_all(&d);
+}
+
 #[test]
 fn lammps_frames_are_read_whole_or_named() {
     let d = dir("lammps");
@@ -406,6 +438,39 @@ fn lammps_frames_are_read_whole_or_named() {
         .filter(|f| f.ends_with(".png"))
         .collect();
     assert_eq!(pngs, vec!["f_0.png"]);
+
+    // a `nan` coordinate in frame 1: stopped there, frame 0 kept
+    let mut nan = src.clone();
+    let line = starts[1]
+        + nan[starts[1]..]
+            .windows(11)
+            .position(|w| w == b"ITEM: ATOMS")
+            .unwrap();
+    let row = line + nan[line..].iter().position(|&b| b == b'\n').unwrap() + 1;
+    // the first number after the atom's id and type
+    let mut k = row;
+    for _ in 0..2 {
+        k += nan[k..].iter().position(|&b| b == b' ').unwrap() + 1;
+    }
+    let end = k + nan[k..].iter().position(|&b| b == b' ').unwrap();
+    nan.splice(k..end, b"nan".iter().copied());
+    let nan_path = d.join("nan.lammpstrj");
+    std::fs::write(&nan_path, &nan).unwrap();
+    let out3 = d.join("q_%d.png").display().to_string();
+    let e = err(&run(
+        &traj_args(&top, nan_path.to_str().unwrap(), &["--out", &out3]),
+        None,
+    ));
+    assert!(
+        e.contains(&format!("nan.lammpstrj: frame 1 at byte {}", starts[1]))
+            && e.contains("the 1 frames before it were rendered and written"),
+        "{e}"
+    );
+    let q: Vec<String> = files(&d)
+        .into_iter()
+        .filter(|f| f.starts_with("q_"))
+        .collect();
+    assert_eq!(q, vec!["q_0.png"]);
 
     let nonl = d.join("nonl.lammpstrj");
     std::fs::write(&nonl, src.strip_suffix(b"\n").unwrap()).unwrap();
@@ -437,7 +502,8 @@ fn lammps_frames_are_read_whole_or_named() {
     let _ = std::fs::remove_dir_all(&d);
 }
 
-/// The binary readers stop at a damaged frame with one line naming the
+/// The binary readers stop at a damaged frame (cut, bad magic, a bad
+/// record marker, a NaN coordinate or precision) with one line naming the
 /// file, the frame and its byte offset, after rendering exactly the frames
 /// before it (numbered by their index; none skipped).
 #[test]
@@ -469,7 +535,55 @@ fn binary_trajectories_stop_at_the_damage() {
     let dcd = std::fs::read(data("adk_dims.dcd")).unwrap();
     let cut = d.join("cut.dcd");
     std::fs::write(&cut, &dcd[..dcd.len() * 65 / 100]).unwrap();
-    cases.push((pdb, cut, "frame 63 at byte", 63));
+    cases.push((pdb.clone(), cut, "frame 63 at byte", 63));
+    // frame 2 located by the reader itself (the index of frame starts)
+    let start = |file: &str, k: usize| {
+        let r = sphereshade::traj::open(Path::new(&data(file))).unwrap();
+        r.offset(k) as usize
+    };
+    let write = |name: &str, bytes: &[u8]| {
+        let p = d.join(name);
+        std::fs::write(&p, bytes).unwrap();
+        p
+    };
+    // DCD: frame 2's first record marker damaged
+    let mut bad = dcd.clone();
+    let f2 = start("adk_dims.dcd", 2);
+    bad[f2..f2 + 4].copy_from_slice(&7u32.to_le_bytes());
+    let at = format!("frame 2 at byte {f2}:");
+    cases.push((pdb.clone(), write("marker.dcd", &bad), &at, 2));
+    // non-finite values: a NaN coordinate in frame 2 (DCD, TRR) and a NaN
+    // XTC precision (its coordinates decode to NaN)
+    let mut bad = dcd.clone();
+    let x = f2 + 4 + 4 * 100;
+    bad[x..x + 4].copy_from_slice(&f32::NAN.to_le_bytes());
+    let nan_dcd = format!("frame 2 at byte {f2}: atom 100 is at [NaN");
+    cases.push((pdb, write("nan.dcd", &bad), &nan_dcd, 2));
+    let xtc = std::fs::read(data("adk_oplsaa.xtc")).unwrap();
+    let x2 = start("adk_oplsaa.xtc", 2);
+    let mut bad = xtc.clone();
+    // magic, atoms, step, time, box (9 floats), atoms again, precision
+    bad[x2 + 56..x2 + 60].copy_from_slice(&f32::NAN.to_be_bytes());
+    let nan_xtc = format!("frame 2 at byte {x2}: atom 0 is at [NaN");
+    cases.push((gro.clone(), write("nan.xtc", &bad), &nan_xtc, 2));
+    let trr = std::fs::read(data("adk_oplsaa.trr")).unwrap();
+    let t2 = start("adk_oplsaa.trr", 2);
+    let be = |at: usize| i32::from_be_bytes(trr[at..at + 4].try_into().unwrap()) as usize;
+    // header: magic, 2 string lengths, the string, 13 sizes and counts,
+    // then t and lambda (doubles when the box is)
+    let text = be(t2 + 8).div_ceil(4) * 4;
+    let sizes = t2 + 12 + text;
+    let (box_size, vir, pres) = (be(sizes + 8), be(sizes + 12), be(sizes + 16));
+    let real = if box_size == 72 { 8 } else { 4 };
+    let x_at = sizes + 13 * 4 + 2 * real + box_size + vir + pres;
+    let mut bad = trr.clone();
+    bad[x_at + 30 * real..x_at + 31 * real].copy_from_slice(&if real == 8 {
+        f64::NAN.to_be_bytes().to_vec()
+    } else {
+        f32::NAN.to_be_bytes().to_vec()
+    });
+    let nan_trr = format!("frame 2 at byte {t2}: atom 10 is at [NaN");
+    cases.push((gro, write("nan.trr", &bad), &nan_trr, 2));
     for (top, traj, frag, frames) in cases {
         let name = traj
             .file_name()

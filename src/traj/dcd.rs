@@ -194,6 +194,9 @@ impl Reader for Dcd {
     fn atoms(&self) -> usize {
         self.atoms
     }
+    fn offset(&self, k: usize) -> u64 {
+        self.first + k as u64 * self.frame_size
+    }
     fn frames(&self) -> usize {
         self.frames
     }

@@ -62,6 +62,52 @@ pub trait Reader: Send {
     fn read(&mut self, k: usize, out: &mut Frame) -> Result<(), TrajError>;
     /// What stopped the index early (a cut or corrupt frame), if anything.
     fn damage(&self) -> Option<&TrajError>;
+    /// The byte where frame `k` starts (< `frames()`).
+    fn offset(&self, k: usize) -> u64;
+}
+
+/// Every reader behind [`open`]: a frame whose decoded coordinates are not
+/// finite (a NaN in a binary frame, a damaged precision, a `nan` in text)
+/// or beyond the range sphereshade renders stops the run at that frame, as
+/// a damaged frame does, naming it and its byte offset.
+struct Checked {
+    inner: Box<dyn Reader>,
+    path: String,
+}
+
+impl Reader for Checked {
+    fn atoms(&self) -> usize {
+        self.inner.atoms()
+    }
+    fn frames(&self) -> usize {
+        self.inner.frames()
+    }
+    fn damage(&self) -> Option<&TrajError> {
+        self.inner.damage()
+    }
+    fn offset(&self, k: usize) -> u64 {
+        self.inner.offset(k)
+    }
+    fn read(&mut self, k: usize, out: &mut Frame) -> Result<(), TrajError> {
+        self.inner.read(k, out)?;
+        let limit = crate::scene::MAX_COORDINATE;
+        if let Some(i) = out
+            .positions
+            .iter()
+            .position(|p| !p.iter().all(|c| c.is_finite() && c.abs() <= limit))
+        {
+            return Err(TrajError::Frame {
+                path: self.path.clone(),
+                frame: k,
+                offset: self.inner.offset(k),
+                msg: format!(
+                    "atom {i} is at {:?}: not finite or beyond ±{limit:e} (a damaged frame?)",
+                    out.positions[i]
+                ),
+            });
+        }
+        Ok(())
+    }
 }
 
 /// Trajectory formats, by extension.
@@ -105,13 +151,14 @@ pub fn open(path: &Path) -> Result<Box<dyn Reader>, TrajError> {
     if path.is_dir() {
         return Err(io(std::io::Error::other("is a directory")));
     }
-    Ok(match format {
+    let inner: Box<dyn Reader> = match format {
         TrajFormat::Xtc => Box::new(xtc::Xtc::open(path)?),
         TrajFormat::Trr => Box::new(trr::Trr::open(path)?),
         TrajFormat::Dcd => Box::new(dcd::Dcd::open(path)?),
         TrajFormat::Lammps => Box::new(models::Models::open(path, models::Kind::Lammps)?),
         TrajFormat::Models(f) => Box::new(models::Models::open(path, models::Kind::Scene(f))?),
-    })
+    };
+    Ok(Box::new(Checked { inner, path: name }))
 }
 
 /// `--frames A:B:S`: 0-based, B exclusive, any part may be empty; negative

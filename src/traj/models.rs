@@ -287,6 +287,9 @@ impl Reader for Models {
     fn atoms(&self) -> usize {
         self.atoms
     }
+    fn offset(&self, k: usize) -> u64 {
+        self.ranges[k].0
+    }
     fn frames(&self) -> usize {
         self.ranges.len()
     }

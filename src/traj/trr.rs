@@ -160,6 +160,9 @@ impl Reader for Trr {
     fn atoms(&self) -> usize {
         self.atoms
     }
+    fn offset(&self, k: usize) -> u64 {
+        self.index[k].offset
+    }
     fn frames(&self) -> usize {
         self.index.len()
     }

@@ -94,6 +94,9 @@ impl Reader for Xtc {
     fn atoms(&self) -> usize {
         self.atoms
     }
+    fn offset(&self, k: usize) -> u64 {
+        self.offsets[k]
+    }
     fn frames(&self) -> usize {
         self.offsets.len()
     }
