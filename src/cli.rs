@@ -206,11 +206,18 @@ fn render(args: RenderArgs) -> Result<Exit> {
     let ctx = run::context_for(&args.options)?;
     let input = run::input_name(&args.scene);
     if exr {
-        let (layers, mut stats) = run::render_layers(&ctx, &scene, &input, settings, load_ms)?;
+        // Band by band into the file: host memory holds one band of layers.
+        let (w, h) = (settings.camera.width, settings.camera.height);
+        let names = run::layer_names(&scene);
+        let mut stats = None;
+        output::write_exr_bands(&out, w, h, &names, &mut |sink| {
+            let s = run::render_layer_bands(&ctx, &scene, &input, settings.clone(), load_ms, sink)?;
+            stats = Some(s);
+            Ok(())
+        })?;
+        let mut stats = stats.ok_or_else(|| Error::Internal("no EXR stats".into()))?;
         let (n, _) = ctx.finish();
         stats.validation_messages = n;
-        let (w, h) = (stats.width, stats.height);
-        output::write_exr(&out, w, h, layers)?;
         if let Some(j) = &args.json {
             output::write_json(j, &stats)?;
         }
@@ -226,7 +233,8 @@ fn render(args: RenderArgs) -> Result<Exit> {
             Exit::Ok
         });
     }
-    let outcome = run::render_run(
+    let (w, h) = (settings.camera.width, settings.camera.height);
+    let mut run = run::PreparedRun::new(
         &ctx,
         &scene,
         settings,
@@ -238,11 +246,29 @@ fn render(args: RenderArgs) -> Result<Exit> {
             load_ms,
         },
     )?;
+    for _ in 1..frames {
+        run.frame(false)?;
+    }
+    // A tiled image goes to the PNG band by band (host memory holds one
+    // band); an image of one tile is encoded whole.
+    let tiled = run.renderer().tile_plan(args.options.tile_size)?.len() > 1;
+    if tiled {
+        output::write_atomic(&out, |tmp| {
+            let mut png = output::PngStream::create(tmp, w, h)?;
+            run.frame_streamed(&mut |band| png.write(band))?;
+            png.finish()
+        })?;
+    } else {
+        run.frame(true)?;
+    }
+    let outcome = run.finish(&ctx)?;
     let mut stats = outcome.stats;
     // Tear the device down first so leak reports are counted too.
     let (n, _) = ctx.finish();
     stats.validation_messages = n;
-    outcome.image.save_png(&out)?;
+    if let Some(image) = outcome.image {
+        image.save_png(&out)?;
+    }
     if let Some(j) = &args.json {
         output::write_json(j, &stats)?;
     }

@@ -23,13 +23,45 @@ impl AovImage {
     /// SHA-256 of the raw pixel bytes (format independent of PNG encoder).
     pub fn sha256(&self) -> String {
         let mut h = Sha256::new();
+        self.hash_into(&mut h);
+        format!("{:x}", h.finalize())
+    }
+
+    /// Feeds the raw pixel bytes to `h`: the bands of an image, fed in
+    /// order, hash as the whole image does.
+    pub fn hash_into(&self, h: &mut Sha256) {
         match self {
             AovImage::Rgba8(i) => h.update(i.as_raw()),
             AovImage::Rgba16(i) => h.update(bytemuck::cast_slice::<u16, u8>(i.as_raw())),
             AovImage::Gray16(i) => h.update(bytemuck::cast_slice::<u16, u8>(i.as_raw())),
             AovImage::Gray8(i) => h.update(i.as_raw()),
         }
-        format!("{:x}", h.finalize())
+    }
+
+    fn width(&self) -> u32 {
+        match self {
+            AovImage::Rgba8(i) => i.width(),
+            AovImage::Rgba16(i) => i.width(),
+            AovImage::Gray16(i) => i.width(),
+            AovImage::Gray8(i) => i.width(),
+        }
+    }
+
+    /// The PNG colour type and depth, and the rows as PNG bytes (16-bit
+    /// samples big-endian).
+    fn png_rows(&self) -> (png::ColorType, png::BitDepth, std::borrow::Cow<'_, [u8]>) {
+        use png::{BitDepth, ColorType};
+        let be = |v: &[u16]| -> Vec<u8> { v.iter().flat_map(|x| x.to_be_bytes()).collect() };
+        match self {
+            AovImage::Rgba8(i) => (ColorType::Rgba, BitDepth::Eight, i.as_raw().into()),
+            AovImage::Rgba16(i) => (ColorType::Rgba, BitDepth::Sixteen, be(i.as_raw()).into()),
+            AovImage::Gray16(i) => (
+                ColorType::Grayscale,
+                BitDepth::Sixteen,
+                be(i.as_raw()).into(),
+            ),
+            AovImage::Gray8(i) => (ColorType::Grayscale, BitDepth::Eight, i.as_raw().into()),
+        }
     }
 
     /// The PNG file's bytes (the one encoder every output goes through).
@@ -53,6 +85,93 @@ impl AovImage {
             std::fs::write(tmp, &bytes)
                 .map_err(|e| Error::Input(format!("{}: cannot write PNG: {e}", shown(path))))
         })
+    }
+}
+
+/// A PNG written band by band, rows in order, so host memory holds one
+/// band of a huge image, not the image. The encoder starts with the first
+/// band (its colour type and depth).
+pub struct PngStream {
+    file: Option<std::fs::File>,
+    writer: Option<png::StreamWriter<'static, std::fs::File>>,
+    width: u32,
+    height: u32,
+    rows: u32,
+    shown: String,
+}
+
+impl PngStream {
+    pub fn create(path: &Path, width: u32, height: u32) -> Result<Self> {
+        let file = std::fs::File::create(path)
+            .map_err(|e| Error::Input(format!("{}: cannot write PNG: {e}", shown(path))))?;
+        Ok(PngStream {
+            file: Some(file),
+            writer: None,
+            width,
+            height,
+            rows: 0,
+            shown: shown(path),
+        })
+    }
+
+    fn err(&self, e: impl std::fmt::Display) -> Error {
+        Error::Input(format!("{}: cannot write PNG: {e}", self.shown))
+    }
+
+    /// Appends the rows of `band` (the image's width, the next rows).
+    pub fn write(&mut self, band: &AovImage) -> Result<()> {
+        use std::io::Write;
+        let (color, depth, bytes) = band.png_rows();
+        if band.width() != self.width {
+            return Err(Error::Internal(format!(
+                "a band {} px wide for a {} px PNG",
+                band.width(),
+                self.width
+            )));
+        }
+        if self.writer.is_none() {
+            let file = self
+                .file
+                .take()
+                .ok_or_else(|| self.err("already finished"))?;
+            let mut enc = png::Encoder::new(file, self.width, self.height);
+            enc.set_color(color);
+            enc.set_depth(depth);
+            let w = enc.write_header().map_err(|e| self.err(e))?;
+            self.writer = Some(w.into_stream_writer().map_err(|e| self.err(e))?);
+        }
+        let row = bytes.len() / band_rows(band).max(1) as usize;
+        self.rows += band_rows(band);
+        let w = self
+            .writer
+            .as_mut()
+            .ok_or_else(|| Error::Internal("PNG writer".into()))?;
+        for r in bytes.chunks(row.max(1)) {
+            w.write_all(r)
+                .map_err(|e| Error::Input(format!("cannot write PNG: {e}")))?;
+        }
+        Ok(())
+    }
+
+    /// Ends the file (every row must have been written).
+    pub fn finish(mut self) -> Result<()> {
+        if self.rows != self.height {
+            return Err(Error::Internal(format!(
+                "{} of {} PNG rows written",
+                self.rows, self.height
+            )));
+        }
+        let w = self.writer.take().ok_or_else(|| self.err("no rows"))?;
+        w.finish().map_err(|e| self.err(e))
+    }
+}
+
+fn band_rows(img: &AovImage) -> u32 {
+    match img {
+        AovImage::Rgba8(i) => i.height(),
+        AovImage::Rgba16(i) => i.height(),
+        AovImage::Gray16(i) => i.height(),
+        AovImage::Gray8(i) => i.height(),
     }
 }
 
@@ -182,19 +301,105 @@ pub fn color_image(w: u32, h: u32, color: &[u32]) -> AovImage {
 /// Writes a single-part OpenEXR of `w` x `h` f32 channels, atomically
 /// (the layer names of DESIGN.md: `R,G,B,A`, `depth`, `id`, ...).
 pub fn write_exr(path: &Path, w: u32, h: u32, channels: Vec<(&str, Vec<f32>)>) -> Result<()> {
-    use exr::prelude::{AnyChannel, AnyChannels, FlatSamples, Image, SmallVec, WritableImage};
-    let list: Vec<AnyChannel<FlatSamples>> = channels
-        .into_iter()
-        .map(|(name, v)| AnyChannel::new(name, FlatSamples::F32(v)))
-        .collect();
-    let image = Image::from_channels(
-        (w as usize, h as usize),
-        AnyChannels::sort(SmallVec::from_vec(list)),
+    let names: Vec<&str> = channels.iter().map(|c| c.0).collect();
+    write_exr_bands(path, w, h, &names, &mut |band| band(0, &channels))
+}
+
+/// A band of EXR rows: its first row and its channels (each `w` x rows
+/// f32, in the order of the names given to `write_exr_bands`).
+pub type ExrBand<'a> = dyn FnMut(u32, &[(&str, Vec<f32>)]) -> Result<()> + 'a;
+
+/// `write_exr` with the pixels produced band by band: `produce` is called
+/// once with a sink taking bands top to bottom. Scan-line blocks of one row
+/// (RLE), so the file holds one band at a time, never the image.
+pub fn write_exr_bands(
+    path: &Path,
+    w: u32,
+    h: u32,
+    names: &[&str],
+    produce: &mut dyn FnMut(&mut ExrBand<'_>) -> Result<()>,
+) -> Result<()> {
+    use exr::block::{BlockIndex, UncompressedBlock, writer::ChunksWriter};
+    use exr::meta::BlockDescription;
+    use exr::meta::attribute::{ChannelDescription, ChannelList, SampleType};
+    use exr::meta::header::Header;
+    use exr::prelude::{Compression, LineOrder, SmallVec, Vec2};
+    let exr_err = |e: &dyn std::fmt::Display| {
+        crate::error::Error::Input(format!("{}: cannot write EXR: {e}", shown(path)))
+    };
+    // OpenEXR stores channels sorted by name; `order[k]` is the band index
+    // of the k-th stored channel.
+    let mut order: Vec<usize> = (0..names.len()).collect();
+    order.sort_by(|&a, &b| names[a].as_bytes().cmp(names[b].as_bytes()));
+    let mut list = SmallVec::new();
+    for &k in &order {
+        let name = exr::meta::attribute::Text::new_or_none(names[k])
+            .ok_or_else(|| exr_err(&format!("channel name {:?}", names[k])))?;
+        list.push(ChannelDescription::new(name, SampleType::F32, true));
+    }
+    let size = Vec2(w as usize, h as usize);
+    let mut header = Header::new(exr::meta::attribute::Text::default(), size, SmallVec::new());
+    header.channels = ChannelList::new(list);
+    let header = header.with_encoding(
+        Compression::RLE,
+        BlockDescription::ScanLines,
+        LineOrder::Increasing,
     );
+    let headers: exr::meta::Headers = SmallVec::from_vec(vec![header]);
     write_atomic(path, |tmp| {
-        image.write().to_file(tmp).map_err(|e| {
-            crate::error::Error::Input(format!("{}: cannot write EXR: {e}", shown(path)))
-        })
+        let file = std::fs::File::create(tmp).map_err(|e| exr_err(&e))?;
+        let mut failed = None;
+        let mut next = 0u32;
+        let written = exr::block::write(
+            std::io::BufWriter::new(file),
+            headers,
+            true,
+            |meta, chunks| {
+                let mut blocks = chunks.sequential_blocks_compressor(&meta);
+                let mut sink = |y0: u32, band: &[(&str, Vec<f32>)]| -> Result<()> {
+                    let rows = band.first().map_or(0, |c| c.1.len() / w.max(1) as usize);
+                    if y0 != next || band.len() != names.len() {
+                        return Err(crate::error::Error::Internal(format!(
+                            "EXR band at row {y0} (expected {next})"
+                        )));
+                    }
+                    for r in 0..rows {
+                        let mut data = Vec::with_capacity(w as usize * 4 * names.len());
+                        for &k in &order {
+                            let line = &band[k].1[r * w as usize..(r + 1) * w as usize];
+                            data.extend_from_slice(bytemuck::cast_slice(line));
+                        }
+                        let y = y0 as usize + r;
+                        let index = BlockIndex {
+                            layer: 0,
+                            pixel_position: Vec2(0, y),
+                            pixel_size: Vec2(w as usize, 1),
+                            level: Vec2(0, 0),
+                        };
+                        blocks
+                            .compress_block(y, UncompressedBlock { index, data })
+                            .map_err(|e| exr_err(&e))?;
+                    }
+                    next = y0 + rows as u32;
+                    Ok(())
+                };
+                if let Err(e) = produce(&mut sink) {
+                    failed = Some(e);
+                    return Err(exr::error::Error::Aborted);
+                }
+                Ok(())
+            },
+        );
+        if let Some(e) = failed {
+            return Err(e);
+        }
+        written.map_err(|e| exr_err(&e))?;
+        if next != h {
+            return Err(crate::error::Error::Internal(format!(
+                "EXR of {h} rows got {next}"
+            )));
+        }
+        Ok(())
     })
 }
 

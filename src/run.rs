@@ -316,6 +316,80 @@ pub fn render_supersampled(
     result
 }
 
+/// Renders the whole image band by band, each band a row of the tile plan
+/// (the whole image when it is one tile), with `n` x `n` supersampling of
+/// the colour per band, and hands each band to `on_band` in order: host
+/// memory holds one band, not the image (a 16384² image in bands of a few
+/// thousand rows). The light structure is built once; the pass times are
+/// summed over tiles and samples. The bands are the pixels of
+/// `render_supersampled`'s image.
+pub fn render_bands(
+    r: &mut Renderer,
+    n: u32,
+    tile: Option<u32>,
+    keep: crate::render::tiles::Keep,
+    progress: &mut dyn FnMut(usize, usize),
+    on_band: &mut dyn FnMut(crate::render::tiles::Band) -> Result<()>,
+) -> Result<PassTimes> {
+    let tiles = r.tile_plan(tile)?;
+    if tiles.len() == 1 {
+        let (img, t) = render_supersampled(r, n, tile, true, progress)?;
+        let image = img.ok_or_else(|| Error::Internal("no image read back".into()))?;
+        on_band(crate::render::tiles::Band { y0: 0, image })?;
+        return Ok(t);
+    }
+    let samples = (n.max(1) * n.max(1)) as usize;
+    let base = r.settings().clone();
+    let cache = r.inspect().light_cache();
+    r.set_light_cache(true);
+    let result = (|| {
+        let mut sum = PassTimes::default();
+        let rows = crate::render::tiles::tile_rows(&tiles);
+        let mut done = 0;
+        for row in rows {
+            let mut acc = None;
+            let mut last = None;
+            for k in 0..samples {
+                if n > 1 {
+                    let off = |i: usize| (i as f64 + 0.5) / n as f64 - 0.5;
+                    let (sx, sy) = (k % n as usize, k / n as usize);
+                    let cam = base.shifted(off(sx), off(sy)).camera;
+                    r.update(|s| s.camera = cam)?;
+                }
+                let (band, t) = r.render_row(&tiles[row.clone()], keep)?;
+                sum.add(&t);
+                if n > 1 {
+                    let px = band.image.width as usize * band.image.height as usize;
+                    acc.get_or_insert_with(|| output::Accumulator::new(px, base.look.color16))
+                        .add(&band.image.color);
+                }
+                done += row.len();
+                progress(done, tiles.len() * samples);
+                last = Some(band);
+            }
+            let mut band = last.ok_or_else(|| Error::Internal("no samples".into()))?;
+            if let Some(a) = acc {
+                band.image.color = a.finish();
+            }
+            on_band(band)?;
+        }
+        Ok(sum)
+    })();
+    r.set_light_cache(cache);
+    if n > 1 {
+        r.update(|s| s.camera = base.camera)?;
+    }
+    result
+}
+
+/// What an AOV image needs read back besides colour.
+fn keep_for(aov: Aov) -> crate::render::tiles::Keep {
+    crate::render::tiles::Keep {
+        vis: aov != Aov::Color,
+        aov: matches!(aov, Aov::Shadow | Aov::Ao),
+    }
+}
+
 /// Progress of a frame made of several steps (tiles x sub-pixel samples)
 /// on stderr: updated in place on a terminal, a line every 10 % in a log;
 /// silent for one-step frames.
@@ -381,17 +455,7 @@ pub fn image_aov(img: &crate::render::tiles::Image, aov: Aov) -> output::AovImag
         }
         Aov::Id => output::id_image(w, h, &img.vis, img.spheres),
         Aov::Depth => {
-            let d: Vec<f32> = img
-                .vis
-                .iter()
-                .map(|&k| {
-                    if k == crate::gpu::VIS_EMPTY {
-                        -1.0
-                    } else {
-                        f32::from_bits((k >> 32) as u32)
-                    }
-                })
-                .collect();
+            let d: Vec<f32> = img.vis.iter().map(|&k| depth_of(k)).collect();
             output::depth_image(w, h, &d)
         }
         Aov::Shadow | Aov::Ao => {
@@ -407,8 +471,29 @@ pub fn image_aov(img: &crate::render::tiles::Image, aov: Aov) -> output::AovImag
     }
 }
 
+/// The depth key of a visibility word (-1 for background).
+fn depth_of(k: u64) -> f32 {
+    if k == crate::gpu::VIS_EMPTY {
+        -1.0
+    } else {
+        f32::from_bits((k >> 32) as u32)
+    }
+}
+
 /// Named f32 channels of an image, in order.
 pub type Layers = Vec<(&'static str, Vec<f32>)>;
+
+/// The names of the OpenEXR layers `render_layer_bands` writes for
+/// `scene`, in the order of its bands' layers.
+pub fn layer_names(scene: &Scene) -> Vec<&'static str> {
+    let mut names = vec![
+        "R", "G", "B", "A", "depth", "id", "shadow", "ao", "normal.X", "normal.Y", "normal.Z",
+    ];
+    if scene.instancing.is_some() {
+        names.extend(["instance", "atom"]);
+    }
+    names
+}
 
 /// The OpenEXR layers of DESIGN.md for one image: `R,G,B,A` (linear; the
 /// colour supersampled with `settings.ssaa`), `depth` (view distance as the
@@ -423,24 +508,126 @@ pub fn render_layers(
     settings: RenderSettings,
     load_ms: f64,
 ) -> Result<(Layers, RunStats)> {
+    let mut whole: Layers = layer_names(scene)
+        .into_iter()
+        .map(|n| (n, Vec::new()))
+        .collect();
+    let stats = render_layer_bands(ctx, scene, input, settings, load_ms, &mut |_, band| {
+        for ((_, all), (_, v)) in whole.iter_mut().zip(band) {
+            all.extend_from_slice(v);
+        }
+        Ok(())
+    })?;
+    Ok((whole, stats))
+}
+
+/// `render_layers` a band of tile rows at a time: `on_band(y0, layers)`
+/// gets rows `y0..` of every layer (`layer_names` order), top to bottom, so
+/// host memory holds one band, not the image.
+pub fn render_layer_bands(
+    ctx: &Context,
+    scene: &Scene,
+    input: &str,
+    settings: RenderSettings,
+    load_ms: f64,
+    on_band: &mut output::ExrBand<'_>,
+) -> Result<RunStats> {
+    use crate::render::tiles::Keep;
     let tile = settings.tile_size;
     let mut s1 = settings.clone();
     s1.aovs = true;
     s1.look.color16 = true;
-    let mut r = Renderer::new_windowed(ctx, scene, s1.clone(), tile)?;
-    let (img, times) = r.render_image(tile)?;
     let cam = s1.camera;
-    let (w, h) = (cam.width, cam.height);
     let n = settings.ssaa_for(Aov::Color);
-    let color_words = if n > 1 {
-        render_supersampled(&mut r, n, tile, true, &mut |_, _| {})?
-            .0
-            .map(|i| i.color)
-            .unwrap_or_default()
-    } else {
-        img.color.clone()
+    let mut r = Renderer::new_windowed(ctx, scene, s1.clone(), tile)?;
+    let mut hash = <sha2::Sha256 as sha2::Digest>::new();
+    // A tile row is cut into bands of 64 rows: the f32 layers (44 B/px)
+    // would otherwise be the largest host buffer.
+    let mut emit = |y0: u32, img: &crate::render::tiles::Image, color: &[u32]| -> Result<()> {
+        let w = img.width as usize;
+        for r0 in (0..img.height).step_by(64) {
+            let rows = r0..(r0 + 64).min(img.height);
+            let words = &color[2 * w * rows.start as usize..2 * w * rows.end as usize];
+            output::color16_image(img.width, rows.len() as u32, words).hash_into(&mut hash);
+            on_band(y0 + r0, &band_layers(scene, &s1, y0, img, color, rows)?)?;
+        }
+        Ok(())
     };
-    let px = w as usize * h as usize;
+    let tiles = r.tile_plan(tile)?;
+    let times = if tiles.len() == 1 {
+        let (img, times) = r.render_image(tile)?;
+        let color = if n > 1 {
+            render_supersampled(&mut r, n, tile, true, &mut |_, _| {})?
+                .0
+                .map(|i| i.color)
+                .unwrap_or_default()
+        } else {
+            img.color.clone()
+        };
+        emit(0, &img, &color)?;
+        times
+    } else {
+        // Each band: the one-sample frame, then the colour's sub-pixel
+        // samples of the same rows (the light view is the first frame's).
+        let cache = r.inspect().light_cache();
+        r.set_light_cache(true);
+        let result = (|| -> Result<PassTimes> {
+            let mut first = PassTimes::default();
+            for row in crate::render::tiles::tile_rows(&tiles) {
+                let (band, t) = r.render_row(&tiles[row.clone()], Keep::ALL)?;
+                first.add(&t);
+                let mut color = None;
+                if n > 1 {
+                    let px = band.image.width as usize * band.image.height as usize;
+                    let mut acc = output::Accumulator::new(px, true);
+                    let off = |i: u32| (i as f64 + 0.5) / n as f64 - 0.5;
+                    for k in 0..n * n {
+                        let c = settings.shifted(off(k % n), off(k / n)).camera;
+                        r.update(|s| s.camera = c)?;
+                        let keep = Keep {
+                            vis: false,
+                            aov: false,
+                        };
+                        acc.add(&r.render_row(&tiles[row.clone()], keep)?.0.image.color);
+                    }
+                    r.update(|s| s.camera = cam)?;
+                    color = Some(acc.finish());
+                }
+                let color = color.as_deref().unwrap_or(&band.image.color);
+                emit(band.y0, &band.image, color)?;
+            }
+            Ok(first)
+        })();
+        r.set_light_cache(cache);
+        result?
+    };
+    let mut stats = run_stats(
+        ctx,
+        &r,
+        input,
+        &[times],
+        load_ms,
+        &format!("{:x}", sha2::Digest::finalize(hash)),
+    );
+    stats.width = cam.width;
+    stats.height = cam.height;
+    Ok(stats)
+}
+
+/// The layers of rows `rows` of one band (rows `y0..` of the image) from
+/// its one-sample frame `img` and its (supersampled) RGBA16 colour words.
+fn band_layers(
+    scene: &Scene,
+    s1: &RenderSettings,
+    y0: u32,
+    img: &crate::render::tiles::Image,
+    color_words: &[u32],
+    rows: std::ops::Range<u32>,
+) -> Result<Layers> {
+    let cam = s1.camera;
+    let w = img.width;
+    let px = w as usize * rows.len();
+    let first = w as usize * rows.start as usize;
     let (mut rgba, mut depth, mut id) = (
         vec![vec![0.0f32; px]; 4],
         vec![f32::INFINITY; px],
@@ -456,14 +643,20 @@ pub fn render_layers(
         (Vec::new(), Vec::new())
     };
     let words = img.aov.as_deref().unwrap_or(&[]);
+    let base = if cam.fov_deg.is_some() {
+        cam.eye()
+    } else {
+        cam.center
+    };
     for i in 0..px {
-        let (a, b) = (color_words[2 * i], color_words[2 * i + 1]);
+        let j = first + i;
+        let (a, b) = (color_words[2 * j], color_words[2 * j + 1]);
         let c = [a & 0xFFFF, a >> 16, b & 0xFFFF, b >> 16].map(|v| v as f32 / 65535.0);
         for k in 0..3 {
             rgba[k][i] = c[k].powf(2.2);
         }
         rgba[3][i] = c[3];
-        let key = img.vis[i];
+        let key = img.vis[j];
         if key == crate::gpu::VIS_EMPTY {
             continue;
         }
@@ -473,7 +666,7 @@ pub fn render_layers(
             instance[i] = k as f32;
             atom[i] = a as f32;
         }
-        if let Some(&a) = words.get(i) {
+        if let Some(&a) = words.get(j) {
             shadow[i] = (a & 0xFFFF) as f32 / 65535.0;
             ao[i] = if s1.ssdo_on() {
                 (a >> 16) as f32 / 65535.0
@@ -489,23 +682,14 @@ pub fn render_layers(
             sp.center[1] as f64,
             sp.center[2] as f64,
         );
-        let p =
-            crate::reference::visible_point(&cam, i as u32 % w, i as u32 / w, c, sp.radius as f64);
+        let (x, y) = (j as u32 % w, y0 + j as u32 / w);
+        let p = crate::reference::visible_point(&cam, x, y, c, sp.radius as f64);
         let nrm = (p - c).normalize_or_zero();
         for k in 0..3 {
             normal[k][i] = nrm[k] as f32;
         }
-        let base = if cam.fov_deg.is_some() {
-            cam.eye()
-        } else {
-            cam.center
-        };
         depth[i] = (p - base).dot(cam.dir) as f32;
     }
-    let image = output::color16_image(w, h, &color_words);
-    let mut stats = run_stats(ctx, &r, input, &[times], load_ms, &image);
-    stats.width = w;
-    stats.height = h;
     let [r_, g_, b_, a_] =
         <[Vec<f32>; 4]>::try_from(rgba).map_err(|_| Error::Internal("rgba".into()))?;
     let [nx, ny, nz] =
@@ -527,13 +711,15 @@ pub fn render_layers(
         layers.push(("instance", instance));
         layers.push(("atom", atom));
     }
-    Ok((layers, stats))
+    Ok(layers)
 }
 
 /// Everything one render run produces.
 pub struct RunOutcome {
     pub stats: RunStats,
-    pub image: output::AovImage,
+    /// The last frame's AOV image (None when it was streamed in bands:
+    /// `PreparedRun::frame_streamed`).
+    pub image: Option<output::AovImage>,
 }
 
 /// What a render run renders around its settings: the image kind, the
@@ -606,6 +792,9 @@ pub struct PreparedRun<'c> {
     times: Vec<PassTimes>,
     cached: Vec<PassTimes>,
     last: Option<crate::render::tiles::Image>,
+    /// The SHA-256 of the last frame's AOV image when it was streamed in
+    /// bands (a tiled image: never held whole).
+    streamed: Option<String>,
 }
 
 impl<'c> PreparedRun<'c> {
@@ -640,6 +829,7 @@ impl<'c> PreparedRun<'c> {
             times: Vec::new(),
             cached: Vec::new(),
             last: None,
+            streamed: None,
         };
         for _ in 0..warmup {
             let (r, p) = (&mut run.r, &mut run.progress);
@@ -672,6 +862,57 @@ impl<'c> PreparedRun<'c> {
         Ok(())
     }
 
+    /// `frame`, keeping only the image's hash when the image is tiled (it
+    /// is streamed through band by band: `bench` at 16384² holds no image).
+    pub fn frame_hashed(&mut self, read: bool) -> Result<()> {
+        if read && self.r.tile_plan(self.tile)?.len() > 1 {
+            return self.frame_streamed(&mut |_| Ok(()));
+        }
+        self.frame(read)
+    }
+
+    /// Renders one measured frame band by band ([`render_bands`]), giving
+    /// `sink` the AOV image of each band in order (the depth AOV, whose
+    /// encoding spans the image, once whole: 4 bytes a pixel meanwhile);
+    /// keeps the image's hash for the stats, not the image.
+    pub fn frame_streamed(
+        &mut self,
+        sink: &mut dyn FnMut(&output::AovImage) -> Result<()>,
+    ) -> Result<()> {
+        let aov = self.aov;
+        let mut hash = <sha2::Sha256 as sha2::Digest>::new();
+        let mut depth: Vec<f32> = Vec::new();
+        let (mut width, mut height) = (0, 0);
+        let (r, p) = (&mut self.r, &mut self.progress);
+        let t = render_bands(
+            r,
+            self.samples,
+            self.tile,
+            keep_for(aov),
+            &mut |d, n| p.tick(d, n),
+            &mut |band| {
+                width = band.image.width;
+                height += band.image.height;
+                if aov == Aov::Depth {
+                    depth.extend(band.image.vis.iter().map(|&k| depth_of(k)));
+                    return Ok(());
+                }
+                let img = image_aov(&band.image, aov);
+                img.hash_into(&mut hash);
+                sink(&img)
+            },
+        )?;
+        if aov == Aov::Depth {
+            let img = output::depth_image(width, height, &depth);
+            img.hash_into(&mut hash);
+            sink(&img)?;
+        }
+        self.times.push(t);
+        self.last = None;
+        self.streamed = Some(format!("{:x}", sha2::Digest::finalize(hash)));
+        Ok(())
+    }
+
     /// Turns the light cache on and renders the frame that builds the
     /// structure the cached frames reuse (unmeasured).
     pub fn start_cached(&mut self) -> Result<()> {
@@ -689,15 +930,19 @@ impl<'c> PreparedRun<'c> {
         Ok(())
     }
 
-    /// The stats record and the last image.
+    /// The stats record and the last image (None when it was streamed).
     pub fn finish(mut self, ctx: &Context) -> Result<RunOutcome> {
         self.r.set_light_cache(false);
-        let img = self
-            .last
-            .take()
-            .ok_or_else(|| Error::Internal("no image read back".into()))?;
-        let image = image_aov(&img, self.aov);
-        let mut stats = run_stats(ctx, &self.r, &self.input, &self.times, self.load_ms, &image);
+        let (image, sha) = match (self.last.take(), self.streamed.take()) {
+            (Some(img), _) => {
+                let image = image_aov(&img, self.aov);
+                let sha = image.sha256();
+                (Some(image), sha)
+            }
+            (None, Some(sha)) => (None, sha),
+            (None, None) => return Err(Error::Internal("no image read back".into())),
+        };
+        let mut stats = run_stats(ctx, &self.r, &self.input, &self.times, self.load_ms, &sha);
         if !self.cached.is_empty() {
             let (passes, total_ms) = output::summarize(&self.cached);
             stats.light_cached = Some(output::CachedStats {
@@ -718,7 +963,7 @@ pub fn run_stats(
     input: &str,
     times: &[PassTimes],
     load_ms: f64,
-    image: &output::AovImage,
+    image_sha256: &str,
 ) -> RunStats {
     let (passes, total_ms) = output::summarize(times);
     let gpu_memory = r.inspect().memory_by_class();
@@ -749,7 +994,7 @@ pub fn run_stats(
         gpu_memory,
         validation_messages: ctx.validation_messages(),
         deep: r.inspect().deep_stats(),
-        image_sha256: image.sha256(),
+        image_sha256: image_sha256.to_string(),
         light_cached: None,
         frame_ms: times.iter().map(|t| t.total_ms).collect(),
     }

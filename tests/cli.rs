@@ -637,6 +637,20 @@ fn negative_values_name_their_option() {
             &["render", "--scene", "random", "--issm-size", "-1"],
             "--issm-size",
         ),
+        (&["render", "--scene", "random", "--model", "-1"], "--model"),
+        (
+            &[
+                "render",
+                concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/1tii.pdb"),
+                "--trajectory",
+                concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/1tii.pdb"),
+                "--movie",
+                "m.mp4",
+                "--fps",
+                "-1",
+            ],
+            "--fps",
+        ),
         (
             &[
                 "bench", "--scene", "random", "--atoms", "-1", "--json", &json,
@@ -646,7 +660,7 @@ fn negative_values_name_their_option() {
     ] {
         let mut a = args.to_vec();
         a.extend(["--out", out]);
-        if args[0] == "bench" {
+        if args[0] == "bench" || args.contains(&"--movie") {
             a.truncate(a.len() - 2);
         }
         let o = run(&a);
@@ -729,4 +743,84 @@ fn no_vulkan_driver_is_one_clear_line() {
         "{e}"
     );
     assert!(!out.exists());
+}
+
+/// A tiled render is encoded row of tiles by row of tiles (streamed PNG,
+/// EXR scan-line blocks): the file decodes to the pixels of the untiled
+/// render, with sub-pixel samples, for colour (8 and 16 bit), ids, depth
+/// and every EXR layer; the JSON's hash is the same too.
+#[test]
+fn streamed_tiled_files_equal_the_untiled_ones() {
+    let data = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/1tii.pdb");
+    let render = |name: &str, extra: &[&str]| -> (PathBuf, serde_json::Value, String) {
+        let out = tmp(name);
+        let json = tmp(&format!("{name}.json"));
+        let mut a = vec![
+            "render",
+            data,
+            "--width",
+            "150",
+            "--height",
+            "110",
+            "--out",
+            out.to_str().unwrap(),
+            "--json",
+            json.to_str().unwrap(),
+        ];
+        a.extend(extra);
+        let o = run(&a);
+        assert_eq!(o.status.code(), Some(0), "{extra:?}: {}", stderr(&o));
+        let v = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        (out, v, stderr(&o))
+    };
+    let pixels = |p: &PathBuf| image::open(p).unwrap().into_bytes();
+    for extra in [
+        &["--ssaa", "2"][..],
+        &["--png-depth", "16"],
+        &["--aov", "id"],
+        &["--aov", "depth"],
+        &["--aov", "ao", "--shadows", "deep"],
+    ] {
+        let (whole, a, _) = render("whole.png", extra);
+        let mut t = extra.to_vec();
+        t.extend(["--tile-size", "40"]);
+        let (tiled, b, log) = render("tiled.png", &t);
+        assert!(
+            log.contains("tiles x samples"),
+            "{extra:?} not tiled: {log}"
+        );
+        assert!(pixels(&whole) == pixels(&tiled), "{extra:?}: pixels differ");
+        assert_eq!(a["image_sha256"], b["image_sha256"], "{extra:?}");
+    }
+    let layers = |p: &PathBuf| -> Vec<(String, Vec<u32>)> {
+        use exr::prelude::*;
+        let img = read()
+            .no_deep_data()
+            .largest_resolution_level()
+            .all_channels()
+            .all_layers()
+            .all_attributes()
+            .from_file(p)
+            .unwrap();
+        let l = &img.layer_data[0];
+        assert_eq!((l.size.0, l.size.1), (150, 110));
+        l.channel_data
+            .list
+            .iter()
+            .map(|c| {
+                let v = c.sample_data.values_as_f32().map(f32::to_bits).collect();
+                (c.name.to_string(), v)
+            })
+            .collect()
+    };
+    let (whole, a, _) = render("whole.exr", &["--ssaa", "2"]);
+    let (tiled, b, _) = render("tiled.exr", &["--ssaa", "2", "--tile-size", "40"]);
+    let (x, y) = (layers(&whole), layers(&tiled));
+    assert_eq!(x.len(), 11);
+    for ((n, u), (m, v)) in x.iter().zip(&y) {
+        assert_eq!(n, m);
+        let differ = u.iter().zip(v).filter(|(p, q)| p != q).count();
+        assert_eq!(differ, 0, "EXR layer {n}: {differ} pixels differ");
+    }
+    assert_eq!(a["image_sha256"], b["image_sha256"]);
 }

@@ -285,6 +285,44 @@ fn cases(d: &Path) -> Vec<Case> {
             render(procedural.clone(), &["--fov", "-40"]),
             "--fov must be between 0 and 179",
         ),
+        c(
+            "--issm-size -1",
+            render(procedural.clone(), &["--issm-size", "-1"]),
+            "for '--issm-size <ISSM_SIZE>'",
+        ),
+        c(
+            "--view-height 1e-300",
+            render(one(tii.clone()), &["--view-height", "1e-300"]),
+            "below the f32 precision of the scene",
+        ),
+        c(
+            "--fov 1e-9",
+            render(one(tii.clone()), &["--fov", "1e-9"]),
+            "beyond the f32 precision of the scene",
+        ),
+        c(
+            "--png-depth 16 with an EXR",
+            {
+                let mut a = render(procedural.clone(), &["--png-depth", "16"]);
+                let n = a.len();
+                a[n - 1] = d.join("out.exr").to_str().unwrap().into();
+                a
+            },
+            "--png-depth applies to PNG",
+        ),
+        c(
+            "a LAMMPS dump whose first frame header is damaged",
+            {
+                let traj = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/traj/image_vf.lammpstrj");
+                let body = std::fs::read_to_string(traj).unwrap();
+                let damaged = file("damaged.lammpstrj", body.replacen("ITEM: TIMESTEP", "ITEM: TIMESTEX", 1).as_bytes());
+                let mut a = render(vec![traj.to_string(), "--trajectory".into(), damaged], &[]);
+                let n = a.len();
+                a[n - 1] = d.join("out_%d.png").to_str().unwrap().into();
+                a
+            },
+            "damaged.lammpstrj: frame 0 at byte 0",
+        ),
     ]
 }
 
@@ -416,5 +454,49 @@ fn careful_edge_values_are_accepted() {
             .unwrap_or_else(|e| panic!("{name}: {e}"));
         assert_eq!(s.spheres.len(), n, "{name}");
     }
+    let _ = std::fs::remove_dir_all(&d);
+}
+
+/// A 16384x16384 render under a 4 GB address-space limit (issue 39: the
+/// read-back was one image-sized buffer, 4.65 GB peak). Takes about six
+/// minutes on lavapipe: `cargo test --release --test hardening -- --ignored`.
+#[test]
+#[ignore]
+fn a_16k_render_fits_in_4_gb() {
+    let d = dir().join("16k");
+    std::fs::create_dir_all(&d).unwrap();
+    let out = d.join("16k.png");
+    let mut c = Command::new("bash");
+    c.arg("-c")
+        .arg("ulimit -v 4000000; exec \"$0\" \"$@\"")
+        .arg(env!("CARGO_BIN_EXE_sphereshade"))
+        .args(["render", "--width", "16384", "--height", "16384", "--out"])
+        .arg(&out)
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir());
+    let o = c.output().expect("run sphereshade");
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let (w, h) = image::image_dimensions(&out).unwrap();
+    assert_eq!((w, h), (16384, 16384));
+    // Decoded row by row (the test keeps to the limit's spirit too): the
+    // capsid covers the centre, the background the corner.
+    let file = std::io::BufReader::new(std::fs::File::open(&out).unwrap());
+    let mut r = png::Decoder::new(file).read_info().unwrap();
+    let (mut y, mut centre, mut corner) = (0, Vec::new(), Vec::new());
+    while let Some(row) = r.next_row().unwrap() {
+        if y == 0 {
+            corner = row.data()[..4].to_vec();
+        }
+        if y == 8192 {
+            centre = row.data()[4 * 8192..4 * 8192 + 4].to_vec();
+        }
+        y += 1;
+    }
+    assert_eq!(y, 16384);
+    assert_ne!(centre, corner, "centre {centre:?} is background");
     let _ = std::fs::remove_dir_all(&d);
 }

@@ -59,7 +59,7 @@ fn render(scene: &Scene, settings: RenderSettings, aov: Aov) -> AovImage {
     let out =
         run::render_run(&ctx, scene, settings, &request(aov)).unwrap_or_else(|e| panic!("{e}"));
     assert_no_validation_messages(&ctx);
-    out.image
+    out.image.expect("render_run keeps the image")
 }
 
 fn rgba(img: &AovImage) -> &image::RgbaImage {
@@ -639,7 +639,7 @@ fn eight_k_in_tiles_and_4k_with_ssaa_4() {
     });
     let out = run::render_run(&ctx, &scene, s, &request(Aov::Color)).unwrap();
     assert_no_validation_messages(&ctx);
-    let img = rgba(&out.image);
+    let img = rgba(out.image.as_ref().expect("image"));
     assert_eq!(img.dimensions(), (3840, 2160));
     // silhouette pixels carry partial coverage: alpha k/16 for every k
     let mut levels = std::collections::BTreeSet::new();

@@ -660,7 +660,7 @@ fn measure_pool(
     };
     for k in 0..frames {
         for (p, err) in live.iter_mut().filter(|(_, e)| e.is_none()) {
-            *err = step(p, k, &mut |r| r.frame(k + 1 == frames)).err();
+            *err = step(p, k, &mut |r| r.frame_hashed(k + 1 == frames)).err();
         }
     }
     if live.iter().any(|(p, e)| e.is_none() && p.run.has_light()) {

@@ -122,14 +122,43 @@ pub fn plan(
     Ok(tiles)
 }
 
-/// Copies the `kept` pixels of a `window`-sized buffer into the image.
-fn place<T: Copy>(dst: &mut [T], width: u32, tile: &Tile, src: &[T]) {
+/// Copies the `kept` pixels of a `window`-sized buffer into rows `y0..` of
+/// an image (a band of it).
+fn place<T: Copy>(dst: &mut [T], width: u32, y0: u32, tile: &Tile, src: &[T]) {
     let (k, w) = (tile.kept, tile.window);
     for y in 0..k.height {
         let sy = (k.y + y - w.y) as usize * w.width as usize + (k.x - w.x) as usize;
-        let dy = (k.y + y) as usize * width as usize + k.x as usize;
+        let dy = (k.y + y - y0) as usize * width as usize + k.x as usize;
         dst[dy..dy + k.width as usize].copy_from_slice(&src[sy..sy + k.width as usize]);
     }
+}
+
+/// The rows of a plan: ranges of its tiles that keep the same image rows
+/// (a plan lists tiles row by row).
+pub fn tile_rows(tiles: &[Tile]) -> Vec<std::ops::Range<usize>> {
+    let mut rows: Vec<std::ops::Range<usize>> = Vec::new();
+    for (i, t) in tiles.iter().enumerate() {
+        match rows.last_mut() {
+            Some(r) if tiles[r.start].kept.y == t.kept.y => r.end = i + 1,
+            _ => rows.push(i..i + 1),
+        }
+    }
+    rows
+}
+
+/// What a band reads back besides colour: the visibility keys (ids,
+/// depth, coverage) and the shadow|ao words. A colour image needs neither.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Keep {
+    pub vis: bool,
+    pub aov: bool,
+}
+
+impl Keep {
+    pub const ALL: Keep = Keep {
+        vis: true,
+        aov: true,
+    };
 }
 
 impl<'a> Renderer<'a> {
@@ -274,26 +303,20 @@ impl<'a> Renderer<'a> {
         // the light structure is built by the first tile, reused by the rest
         self.set_light_cache(true);
         let result = (|| {
-            for (k, tile) in tiles.iter().enumerate() {
-                self.set_tile(tile.window, tile.kept)?;
-                let t = self.render_frame()?;
+            let mut done = 0;
+            for row in tile_rows(&tiles) {
+                let (band, t) = self.render_row(&tiles[row.clone()], Keep::ALL)?;
                 sum.add(&t);
-                let color = self.inspect().read_color()?;
-                if wide {
-                    place::<[u32; 2]>(
-                        bytemuck::cast_slice_mut(&mut image.color),
-                        cam.width,
-                        tile,
-                        bytemuck::cast_slice(&color),
-                    );
-                } else {
-                    place(&mut image.color, cam.width, tile, &color);
+                let at = band.y0 as usize * cam.width as usize;
+                let per = if wide { 2 } else { 1 };
+                image.color[per * at..per * at + band.image.color.len()]
+                    .copy_from_slice(&band.image.color);
+                image.vis[at..at + band.image.vis.len()].copy_from_slice(&band.image.vis);
+                if let (Some(a), Some(b)) = (image.aov.as_mut(), &band.image.aov) {
+                    a[at..at + b.len()].copy_from_slice(b);
                 }
-                place(&mut image.vis, cam.width, tile, &self.inspect().read_vis()?);
-                if let Some(a) = image.aov.as_mut() {
-                    place(a, cam.width, tile, &self.inspect().read_aov()?);
-                }
-                on_tile(k + 1, tiles.len());
+                done += row.len();
+                on_tile(done, tiles.len());
             }
             Ok::<_, Error>(())
         })();
@@ -301,6 +324,72 @@ impl<'a> Renderer<'a> {
         result?;
         Ok((Some(image), sum))
     }
+
+    /// Renders one row of a plan's tiles (`tile_rows`) into a band: the
+    /// image's rows those tiles keep, every column, reading back colour and
+    /// what `keep` asks for (the rest left empty). The caller sets the
+    /// light cache (the first tile builds the light structure).
+    pub fn render_row(&mut self, tiles: &[Tile], keep: Keep) -> Result<(Band, PassTimes)> {
+        let cam = self.settings.camera;
+        let wide = self.settings.look.color16;
+        let first = tiles
+            .first()
+            .ok_or_else(|| Error::Internal("an empty row of tiles".into()))?;
+        let (y0, rows) = (first.kept.y, first.kept.height);
+        let n = cam.width as usize * rows as usize;
+        let aovs = keep.aov && self.settings.aovs;
+        let mut image = Image {
+            width: cam.width,
+            height: rows,
+            color: vec![0; if wide { 2 * n } else { n }],
+            wide,
+            vis: if keep.vis {
+                vec![crate::gpu::VIS_EMPTY; n]
+            } else {
+                Vec::new()
+            },
+            aov: aovs.then(|| vec![0; n]),
+            tiles: tiles.len(),
+            spheres: self.inspect().represented(),
+        };
+        let mut sum = PassTimes::default();
+        for tile in tiles {
+            self.set_tile(tile.window, tile.kept)?;
+            let t = self.render_frame()?;
+            sum.add(&t);
+            let color = self.inspect().read_color()?;
+            if wide {
+                place::<[u32; 2]>(
+                    bytemuck::cast_slice_mut(&mut image.color),
+                    cam.width,
+                    y0,
+                    tile,
+                    bytemuck::cast_slice(&color),
+                );
+            } else {
+                place(&mut image.color, cam.width, y0, tile, &color);
+            }
+            if keep.vis {
+                place(
+                    &mut image.vis,
+                    cam.width,
+                    y0,
+                    tile,
+                    &self.inspect().read_vis()?,
+                );
+            }
+            if let Some(a) = image.aov.as_mut() {
+                place(a, cam.width, y0, tile, &self.inspect().read_aov()?);
+            }
+        }
+        Ok((Band { y0, image }, sum))
+    }
+}
+
+/// Rows `y0..y0 + image.height` of an image (all its columns).
+pub struct Band {
+    pub y0: u32,
+    pub image: Image,
 }
 
 #[cfg(test)]
