@@ -161,9 +161,10 @@ pub fn render_trajectory(
         )));
     }
     let mut reader = traj::open(args.trajectory)?;
+    // (frames hold every atom as loaded: --hide keeps a subset of them)
     let (tname, top_n, traj_n) = (
         shown(args.trajectory),
-        topology.spheres.len(),
+        topology.input_count() as usize,
         reader.atoms(),
     );
     if top_n != traj_n {
@@ -197,7 +198,11 @@ pub fn render_trajectory(
     let residues: Vec<u32> = if topology.level_names.len() >= 3 {
         topology.spheres.iter().map(|s| s.region[2]).collect()
     } else {
-        (0..top_n as u32).collect()
+        (0..topology.spheres.len() as u32).collect()
+    };
+    let kept: Option<std::sync::Arc<Vec<u32>>> = match &topology.origin {
+        Some(crate::scene::Origin::Plain { index, .. }) => Some(index.clone().into()),
+        _ => None,
     };
 
     // The camera is fitted to frame 0 of the trajectory, whatever the
@@ -206,6 +211,7 @@ pub fn render_trajectory(
     let mut scene = topology.clone();
     let mut f0 = Frame::default();
     reader.read(0, &mut f0)?;
+    f0.keep(kept.as_deref().map(Vec::as_slice));
     traj::apply_pbc(args.pbc, &mut f0.positions, f0.cell.as_ref(), &residues);
     for (s, p) in scene.spheres.iter_mut().zip(&f0.positions) {
         s.center = *p;
@@ -228,6 +234,7 @@ pub fn render_trajectory(
             let t = Instant::now();
             let mut f = Frame::default();
             let r = reader.read(k, &mut f).map_err(Error::from).map(|()| {
+                f.keep(kept.as_deref().map(Vec::as_slice));
                 traj::apply_pbc(pbc, &mut f.positions, f.cell.as_ref(), &residues);
                 (k, f)
             });

@@ -6,6 +6,7 @@
 use crate::error::{Error, Result};
 use crate::output::{self, RunStats};
 use crate::render::Renderer;
+use crate::scene::paint::{Colormap, Paint, Rule, Scheme};
 use crate::scene::{self, ColorBy, LoadOptions, ModelSelect, Scene};
 use crate::settings::{Aov, Options, RenderSettings, ShadowMode, SsdoMode};
 use crate::vk::{Context, ContextOptions, PassTimes};
@@ -37,9 +38,29 @@ pub struct SceneArgs {
     /// Multiply all radii.
     #[arg(long, default_value_t = SceneArgs::default().radius_scale, allow_negative_numbers = true)]
     pub radius_scale: f32,
-    /// Colour by element or chain.
-    #[arg(long, default_value_t = SceneArgs::default().color, value_parser = ["element", "chain"])]
+    /// Colour scheme: element, chain, residue (RasMol's amino colours),
+    /// bfactor, index (input order), hierarchy (the outermost level that
+    /// differs: chains of a protein, molecule types of a mesoscale scene),
+    /// or one colour R,G,B.
+    #[arg(long, default_value_t = SceneArgs::default().color, value_parser = check_scheme)]
     pub color: String,
+    /// The map of `--color bfactor` and `--color index`.
+    #[arg(long, value_enum, default_value_t = Colormap::default())]
+    pub colormap: Colormap,
+    /// Hide the spheres a selection picks (not loaded on the GPU: they
+    /// cast no shadow), e.g. `--hide "water or hetatm"`. Repeatable; with
+    /// --paint and --alpha applied in the order given.
+    #[arg(long, value_name = "SEL", value_parser = ordered(Rule::hide))]
+    pub hide: Vec<Ordered<Rule>>,
+    /// Colour a selection: SEL=R,G,B (or #RRGGBB, or a name), e.g.
+    /// `--paint "chain A=255,80,0"`. Repeatable.
+    #[arg(long, value_name = "SEL=COLOR", value_parser = ordered(Rule::paint))]
+    pub paint: Vec<Ordered<Rule>>,
+    /// See-through spheres: SEL=A (alpha 0..1; 1 opaque), composited in
+    /// exact depth order and casting translucent shadows (deep lists),
+    /// e.g. `--alpha "not chain A=0.3"`. Repeatable.
+    #[arg(long, value_name = "SEL=A", value_parser = ordered(Rule::alpha))]
+    pub alpha: Vec<Ordered<Rule>>,
     /// Expand an instanced model (PetWorld, cellPACK, manifest, --assembly)
     /// into one sphere record per atom, as before instancing: the same
     /// image, for comparisons (at most 2^24 spheres).
@@ -58,7 +79,59 @@ impl Default for SceneArgs {
             replicate: None,
             radius_scale: 1.0,
             color: "element".into(),
+            colormap: Colormap::default(),
+            hide: Vec::new(),
+            paint: Vec::new(),
+            alpha: Vec::new(),
             expand: false,
+        }
+    }
+}
+
+fn check_scheme(s: &str) -> std::result::Result<String, String> {
+    Scheme::parse(s).map(|_| s.to_string())
+}
+
+/// A value with its place among the values of several flags: clap calls
+/// value parsers in command-line order, so a counter orders `--hide`,
+/// `--paint` and `--alpha` as given.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Ordered<T> {
+    pub seq: u64,
+    pub value: T,
+}
+
+fn ordered<T: Clone + Send + Sync + 'static>(
+    parse: fn(&str) -> std::result::Result<T, String>,
+) -> impl Fn(&str) -> std::result::Result<Ordered<T>, String> + Clone + Send + Sync + 'static {
+    static SEQ: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    move |s| {
+        Ok(Ordered {
+            seq: SEQ.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
+            value: parse(s)?,
+        })
+    }
+}
+
+impl SceneArgs {
+    /// The colour scheme (None: the loader's element or chain colours)
+    /// and the rules in command-line order.
+    pub fn paint(&self) -> Paint {
+        let mut rules: Vec<&Ordered<Rule>> = self
+            .hide
+            .iter()
+            .chain(&self.paint)
+            .chain(&self.alpha)
+            .collect();
+        rules.sort_by_key(|r| r.seq);
+        let scheme = match self.color.as_str() {
+            "element" | "chain" => None,
+            s => Scheme::parse(s).ok(),
+        };
+        Paint {
+            scheme,
+            colormap: self.colormap,
+            rules: rules.into_iter().map(|r| r.value.clone()).collect(),
         }
     }
 }
@@ -165,6 +238,22 @@ pub fn load_scene_with_progress(
             scene::procedural(name, atoms, 1)?
         }
     };
+    // Colours and rules first: on an instanced scene they apply per
+    // molecule type or instance (what --expand then expands).
+    let paint = args.paint();
+    if !paint.is_empty() {
+        let (s, applied) = scene::paint::apply(scene, &paint)?;
+        scene = s;
+        for (rule, n) in paint.rules.iter().zip(&applied.selected) {
+            if *n == 0 {
+                eprintln!(
+                    "note: {} '{}' selects no sphere",
+                    rule.flag,
+                    crate::output::printable(&rule.text)
+                );
+            }
+        }
+    }
     if args.expand && scene.instancing.is_some() {
         scene = scene.expand()?;
     }
@@ -174,6 +263,11 @@ pub fn load_scene_with_progress(
         ));
     }
     if let Some(n) = args.replicate {
+        if scene.origin.is_some() {
+            return Err(Error::Input(
+                "--replicate copies the whole input: it does not combine with --hide".into(),
+            ));
+        }
         if scene.instancing.is_some() {
             return Err(Error::Input(
                 "--replicate applies to plain scenes (an instanced model: add --expand)".into(),
@@ -234,7 +328,13 @@ pub fn aov_image(r: &Renderer, aov: Aov) -> Result<output::AovImage> {
     let (w, h) = (cam.width, cam.height);
     Ok(match aov {
         Aov::Color => output::color_image(w, h, &r.inspect().read_color()?),
-        Aov::Id => output::id_image(w, h, &r.inspect().read_vis()?, r.inspect().represented()),
+        Aov::Id => output::id_image(
+            w,
+            h,
+            &r.inspect().read_vis()?,
+            r.inspect().represented(),
+            r.inspect().id_map().as_deref(),
+        ),
         Aov::Depth => {
             let d: Vec<f32> = r.inspect().read_gpos()?.iter().map(|p| p[3]).collect();
             output::depth_image(w, h, &d)
@@ -453,7 +553,7 @@ pub fn image_aov(img: &crate::render::tiles::Image, aov: Aov) -> output::AovImag
                 output::color_image(w, h, &img.color)
             }
         }
-        Aov::Id => output::id_image(w, h, &img.vis, img.spheres),
+        Aov::Id => output::id_image(w, h, &img.vis, img.spheres, img.ids.as_deref()),
         Aov::Depth => {
             let d: Vec<f32> = img.vis.iter().map(|&k| depth_of(k)).collect();
             output::depth_image(w, h, &d)
@@ -541,6 +641,7 @@ pub fn render_layer_bands(
     let n = settings.ssaa_for(Aov::Color);
     let mut r = Renderer::new_windowed(ctx, scene, s1.clone(), tile)?;
     let mut hash = <sha2::Sha256 as sha2::Digest>::new();
+    let ids = scene.id_map();
     // A tile row is cut into bands of 64 rows: the f32 layers (44 B/px)
     // would otherwise be the largest host buffer.
     let mut emit = |y0: u32, img: &crate::render::tiles::Image, color: &[u32]| -> Result<()> {
@@ -549,7 +650,8 @@ pub fn render_layer_bands(
             let rows = r0..(r0 + 64).min(img.height);
             let words = &color[2 * w * rows.start as usize..2 * w * rows.end as usize];
             output::color16_image(img.width, rows.len() as u32, words).hash_into(&mut hash);
-            on_band(y0 + r0, &band_layers(scene, &s1, y0, img, color, rows)?)?;
+            let layers = band_layers(scene, &s1, y0, img, color, rows, ids.as_ref())?;
+            on_band(y0 + r0, &layers)?;
         }
         Ok(())
     };
@@ -623,6 +725,7 @@ fn band_layers(
     img: &crate::render::tiles::Image,
     color_words: &[u32],
     rows: std::ops::Range<u32>,
+    ids: Option<&crate::scene::paint::IdMap>,
 ) -> Result<Layers> {
     let cam = s1.camera;
     let w = img.width;
@@ -661,10 +764,22 @@ fn band_layers(
             continue;
         }
         let sid = key & 0xFFFF_FFFF;
-        id[i] = (sid + 1) as f32;
-        if let Some((k, a)) = inst.and_then(|n| n.locate(sid)) {
-            instance[i] = k as f32;
-            atom[i] = a as f32;
+        // (input order: after --hide, what the scene id came from)
+        match ids.map(|m| m.locate(sid)) {
+            Some((input, loc)) => {
+                id[i] = (input + 1) as f32;
+                if let Some((k, a)) = loc {
+                    instance[i] = k as f32;
+                    atom[i] = a as f32;
+                }
+            }
+            None => {
+                id[i] = (sid + 1) as f32;
+                if let Some((k, a)) = inst.and_then(|n| n.locate(sid)) {
+                    instance[i] = k as f32;
+                    atom[i] = a as f32;
+                }
+            }
         }
         if let Some(&a) = words.get(j) {
             shadow[i] = (a & 0xFFFF) as f32 / 65535.0;

@@ -120,6 +120,8 @@ mod tests {
             source: "test".into(),
             instancing: None,
             expanded: false,
+            atoms: None,
+            origin: None,
         }
     }
 

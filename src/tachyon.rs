@@ -217,6 +217,8 @@ pub fn white_spheres(scene: &Scene) -> Scene {
         source: scene.source.clone(),
         instancing: None,
         expanded: false,
+        atoms: None,
+        origin: None,
     }
 }
 

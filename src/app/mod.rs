@@ -297,11 +297,17 @@ impl<'c> App<'c> {
                 } else {
                     (0..scene.spheres.len() as u32).collect()
                 };
+                // (frames hold every atom as loaded; --hide keeps a subset)
+                let kept = match &scene.origin {
+                    Some(crate::scene::Origin::Plain { index, .. }) => Some(index.clone()),
+                    _ => None,
+                };
                 self.player = Some(player::Player::open(
                     t,
-                    scene.spheres.len(),
+                    scene.input_count() as usize,
                     self.cmd.pbc,
                     residues,
+                    kept,
                 )?);
             }
             self.renderer = Some(r);

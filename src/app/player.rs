@@ -33,6 +33,7 @@ impl Player {
         atoms: usize,
         pbc: Pbc,
         residues: Vec<u32>,
+        kept: Option<Vec<u32>>,
     ) -> Result<Self> {
         let mut reader = traj::open(path)?;
         if reader.atoms() != atoms {
@@ -53,6 +54,7 @@ impl Player {
                 }
                 let mut f = Frame::default();
                 let r = reader.read(k, &mut f).map_err(Error::from).map(|()| {
+                    f.keep(kept.as_deref());
                     traj::apply_pbc(pbc, &mut f.positions, f.cell.as_ref(), &residues);
                     (k, f)
                 });

@@ -39,6 +39,11 @@ impl<'r> Inspect<'r, '_> {
         self.r.res.geom.len()
     }
 
+    /// Scene ids to input indices (None: the same; rules hid nothing).
+    pub fn id_map(&self) -> Option<std::sync::Arc<crate::scene::paint::IdMap>> {
+        self.r.res.ids.clone()
+    }
+
     /// Whether the scene is an instanced model drawn expanded.
     pub fn expanded(&self) -> bool {
         self.r.res.expanded

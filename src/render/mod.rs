@@ -50,6 +50,8 @@ pub(crate) struct Resources {
     geom: SceneGeom,
     /// The scene is an instanced model expanded (`Scene::expanded`).
     expanded: bool,
+    /// Scene ids to input indices when rules hid spheres (the id AOV).
+    ids: Option<std::sync::Arc<crate::scene::paint::IdMap>>,
     /// Bounding sphere of the sphere centres (camera depth offsets, zoom).
     bounds: (DVec3, f64),
     /// Typical sphere radius (screen-space effect radii).
@@ -226,6 +228,7 @@ impl<'c> Renderer<'c> {
         let mut res = Resources {
             geom,
             expanded: scene.expanded,
+            ids: scene.id_map().map(std::sync::Arc::new),
             bounds: (bs_center.as_dvec3(), bs_radius as f64),
             typical_radius: typical_radius(scene) as f64,
             globals: Globals {

@@ -39,6 +39,8 @@ pub struct Image {
     pub tiles: usize,
     /// Spheres the scene represents (the id AOV's encoding depends on it).
     pub spheres: u64,
+    /// Scene ids to input indices after rules hid spheres.
+    pub ids: Option<std::sync::Arc<crate::scene::paint::IdMap>>,
 }
 
 /// The most pixels one window may have on this device: the visibility
@@ -284,6 +286,7 @@ impl<'a> Renderer<'a> {
                 },
                 tiles: 1,
                 spheres: self.inspect().represented(),
+                ids: self.inspect().id_map(),
             };
             return Ok((Some(image), times));
         }
@@ -297,6 +300,7 @@ impl<'a> Renderer<'a> {
             aov: aovs.then(|| vec![0; n]),
             tiles: tiles.len(),
             spheres: self.inspect().represented(),
+            ids: self.inspect().id_map(),
         };
         let mut sum = PassTimes::default();
         let cache = self.res.stages.shadows.cache();
@@ -351,6 +355,7 @@ impl<'a> Renderer<'a> {
             aov: aovs.then(|| vec![0; n]),
             tiles: tiles.len(),
             spheres: self.inspect().represented(),
+            ids: self.inspect().id_map(),
         };
         let mut sum = PassTimes::default();
         for tile in tiles {

@@ -2,7 +2,8 @@
 //! (residue number 5, residue name 5, atom name 5, atom number 5, then x y z
 //! in nm), box line. Several frames in one file are models.
 
-use super::elements;
+use super::atoms::{AtomInfo, Known};
+use super::elements::{self, trim};
 use super::molecule::{AtomKeys, MolBuilder, key64};
 use super::text::{LineSource, parse_f32, show, split_ws};
 use super::{
@@ -16,6 +17,12 @@ pub(crate) fn parse(
     opts: &LoadOptions,
 ) -> Result<Scene, SceneError> {
     let mut builder = MolBuilder::new((src.raw_size() / 45 + 1).min(MAX_SPHERES), false);
+    builder.set_known(Known {
+        residue: true,
+        name: true,
+        element: true,
+        ..Known::default()
+    });
     let mut frame = 0u32;
     // Title line; blank lines after the last frame are allowed.
     while let Some((title_no, title, _)) = src.next()? {
@@ -102,6 +109,15 @@ pub(crate) fn parse(
                     residue: u128::from(residue),
                     asm_chain: b"",
                     entity: b"",
+                    info: AtomInfo {
+                        resname: trim(&line[5..10]),
+                        resid: std::str::from_utf8(trim(&line[..5]))
+                            .ok()
+                            .and_then(|v| v.parse().ok())
+                            .unwrap_or(0),
+                        name: trim(&line[10..15]),
+                        ..Default::default()
+                    },
                 },
             );
         }

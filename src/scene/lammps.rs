@@ -264,5 +264,7 @@ pub(crate) fn frame_scene(f: &DumpFrame, name: &str) -> Scene {
         source: name.to_string(),
         instancing: None,
         expanded: false,
+        atoms: None,
+        origin: None,
     }
 }

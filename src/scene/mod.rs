@@ -6,10 +6,13 @@
 //! integers whose only meaning is equality: two spheres share a region at a
 //! level exactly when their ids at that level are equal.
 
+pub mod atoms;
 pub mod bcif;
 pub mod elements;
 pub mod hybrid36;
 pub mod instanced;
+pub mod paint;
+pub mod select;
 
 mod cif;
 mod gro;
@@ -131,6 +134,28 @@ pub struct Scene {
     /// Made by expanding an instanced scene ([`Scene::expand`]): one sphere
     /// record per represented atom (the JSON says so).
     pub expanded: bool,
+    /// What selections read per sphere record (files that name atoms).
+    pub atoms: Option<atoms::Atoms>,
+    /// After `--hide`: where the spheres kept came from in input order
+    /// (what the id AOV names). None: nothing hidden.
+    pub origin: Option<Origin>,
+}
+
+/// The input-order index of the spheres a subset kept.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Origin {
+    /// Plain: per sphere record, and the count as loaded.
+    Plain { index: Vec<u32>, total: u64 },
+    /// Instanced: per instance kept its index and first atom's input
+    /// index as loaded, per stored atom its index in its molecule as
+    /// loaded.
+    Instanced {
+        instance: Vec<u32>,
+        first: Vec<u64>,
+        atom: Vec<u32>,
+        /// Spheres represented as loaded.
+        total: u64,
+    },
 }
 
 impl Scene {
@@ -146,6 +171,8 @@ impl Scene {
             source: source.into(),
             instancing: None,
             expanded: false,
+            atoms: None,
+            origin: None,
         }
     }
 
@@ -203,6 +230,8 @@ impl Scene {
                 source: self.source.clone(),
                 instancing: None,
                 expanded: false,
+                atoms: None,
+                origin: None,
             };
         };
         let step = (hi - lo) + Vec3::splat(2.0 * self.max_radius());
@@ -239,6 +268,8 @@ impl Scene {
             source: self.source.clone(),
             instancing: None,
             expanded: false,
+            atoms: None,
+            origin: None,
         }
     }
 }

@@ -3,6 +3,7 @@
 
 use std::collections::HashMap;
 
+use super::atoms::{AtomInfo, Atoms, Known};
 use super::elements::Element;
 use super::{ColorBy, MAX_LEVELS, MAX_SPHERES, Scene, SceneError, Sphere};
 
@@ -115,6 +116,8 @@ pub(crate) struct MolBuilder {
     last_asm: Option<u32>,
     /// Per assembly chain name (by index): the entity its first atom named.
     asm_entity: Vec<Vec<u8>>,
+    /// What selections read, one row per atom.
+    atoms: Atoms,
 }
 
 impl MolBuilder {
@@ -129,7 +132,13 @@ impl MolBuilder {
             asm_names: Vec::new(),
             last_asm: None,
             asm_entity: Vec::new(),
+            atoms: Atoms::new(Known::MOLECULAR),
         }
+    }
+
+    /// The atom fields the format gives (default: all of PDB/mmCIF's).
+    pub(crate) fn set_known(&mut self, known: Known) {
+        self.atoms.known = known;
     }
 
     /// Starts recording each atom's assembly chain name (instanced
@@ -154,7 +163,9 @@ impl MolBuilder {
             residue,
             asm_chain,
             entity,
+            info,
         } = keys;
+        self.atoms.push(element, &info);
         let chain_id = match self.last_chain {
             Some((l0, key, id)) if l0 == level0 && key == chain => id,
             _ => {
@@ -206,6 +217,7 @@ impl MolBuilder {
         color_by: ColorBy,
         assembly: Option<&Assembly>,
     ) -> Result<Scene, SceneError> {
+        let mut picked = None;
         let mut spheres = match (assembly, &self.asm_chain) {
             (Some(asm), Some(per_atom)) => {
                 let total = expanded_count(per_atom, &self.asm_names, asm);
@@ -218,9 +230,15 @@ impl MolBuilder {
                         self.spheres.len()
                     )));
                 }
-                expand(&self.spheres, per_atom, &self.asm_names, asm)
+                let (out, from) = expand(&self.spheres, per_atom, &self.asm_names, asm);
+                picked = Some(from);
+                out
             }
             _ => self.spheres,
+        };
+        let atoms = match picked {
+            Some(from) => self.atoms.pick(from.into_iter()),
+            None => self.atoms,
         };
         for (i, s) in spheres.iter_mut().enumerate() {
             s.region[3] = i as u32;
@@ -234,19 +252,23 @@ impl MolBuilder {
             source: source.to_string(),
             instancing: None,
             expanded: false,
+            atoms: Some(atoms),
+            origin: None,
         })
     }
 }
 
 /// What places an atom in the hierarchy: `chain` and `residue` are opaque
 /// keys; `asm_chain` is the chain name assembly lists refer to and `entity`
-/// its entity id (both ignored unless tracking assemblies).
+/// its entity id (both ignored unless tracking assemblies); `info` what
+/// selections read.
 pub(crate) struct AtomKeys<'a> {
     pub level0: u32,
     pub chain: u64,
     pub residue: u128,
     pub asm_chain: &'a [u8],
     pub entity: &'a [u8],
+    pub info: AtomInfo<'a>,
 }
 
 /// How an instanced scene's molecule types and instances come out of the
@@ -285,14 +307,17 @@ impl MolBuilder {
                 s.color = palette_color(s.region[1]);
             }
         }
-        // A molecule's atoms with chain indices dense within it.
+        // A molecule's atoms with chain indices dense within it; `order`
+        // collects the atoms' rows as the scene stores them.
+        let order = std::cell::RefCell::new(Vec::new());
         let molecule = |pick: &dyn Fn(usize) -> bool| -> Vec<Sphere> {
             let mut chains: Vec<u32> = Vec::new();
             self.spheres
                 .iter()
                 .enumerate()
                 .filter(|&(i, _)| pick(i))
-                .map(|(_, s)| {
+                .map(|(i, s)| {
+                    order.borrow_mut().push(i);
                     let c = match chains.iter().position(|&c| c == s.region[1]) {
                         Some(c) => c,
                         None => {
@@ -415,7 +440,9 @@ impl MolBuilder {
                 }
             }
         }
-        b.finish(source)
+        let mut scene = b.finish(source)?;
+        scene.atoms = Some(self.atoms.pick(order.into_inner().into_iter()));
+        Ok(scene)
     }
 }
 
@@ -443,9 +470,16 @@ fn expanded_count(per_atom: &[u32], names: &[Vec<u8>], asm: &Assembly) -> u128 {
 /// Builds the copies of an assembly. Level 0 becomes the copy index
 /// (combined with the model when several models are loaded); chains and
 /// residues are renumbered so each copy's are distinct regions.
-fn expand(spheres: &[Sphere], per_atom: &[u32], names: &[Vec<u8>], asm: &Assembly) -> Vec<Sphere> {
+/// Returns the copies and, per copy, the atom it copies.
+fn expand(
+    spheres: &[Sphere],
+    per_atom: &[u32],
+    names: &[Vec<u8>],
+    asm: &Assembly,
+) -> (Vec<Sphere>, Vec<usize>) {
     let models = spheres.iter().map(|s| s.region[0] + 1).max().unwrap_or(1);
     let mut out = Vec::new();
+    let mut from = Vec::new();
     let mut copy = 0u32;
     for group in &asm.groups {
         let wanted: Vec<bool> = names
@@ -453,10 +487,11 @@ fn expand(spheres: &[Sphere], per_atom: &[u32], names: &[Vec<u8>], asm: &Assembl
             .map(|n| group.chains.is_empty() || group.chains.iter().any(|c| c == n))
             .collect();
         for m in &group.ops {
-            for (s, &a) in spheres.iter().zip(per_atom) {
+            for (i, (s, &a)) in spheres.iter().zip(per_atom).enumerate() {
                 if !wanted[a as usize] {
                     continue;
                 }
+                from.push(i);
                 let [x, y, z] = s.center;
                 let t = |r: &[f32; 4]| r[0] * x + r[1] * y + r[2] * z + r[3];
                 let mut c = *s;
@@ -491,7 +526,7 @@ fn expand(spheres: &[Sphere], per_atom: &[u32], names: &[Vec<u8>], asm: &Assembl
         s.region[1] = chain;
         s.region[2] = residues - 1;
     }
-    out
+    (out, from)
 }
 
 #[cfg(test)]
@@ -513,6 +548,7 @@ mod tests {
             residue,
             asm_chain,
             entity: b"",
+            info: Default::default(),
         }
     }
 

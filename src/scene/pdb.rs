@@ -6,7 +6,9 @@
 //! residue numbers, blank chains with segment ids, missing element columns,
 //! residue numbers that wrap, MODEL/ENDMDL and REMARK 350 assemblies.
 
+use super::atoms::AtomInfo;
 use super::elements::{self, Element, trim};
+use super::hybrid36;
 use super::molecule::{AsmGroup, Assembly, AtomKeys, MolBuilder, find_assembly};
 use super::text::{LineSource, parse_f32, show};
 use super::{
@@ -215,6 +217,17 @@ fn atom(
             residue,
             asm_chain: trim(chain),
             entity: b"",
+            info: AtomInfo {
+                chain: trim(chain),
+                resname: trim(res_name),
+                resid: hybrid36::decode(4, &line[22..26]).map_or(0, |v| v as i32),
+                name: trim(&line[12..16]),
+                hetatm: line.starts_with(b"HETATM"),
+                bfactor: line
+                    .get(60..line.len().min(66))
+                    .and_then(parse_f32)
+                    .unwrap_or(0.0),
+            },
         },
     );
     Ok(())

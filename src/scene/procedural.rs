@@ -37,6 +37,8 @@ pub fn procedural(name: &str, atoms: usize, seed: u64) -> Result<Scene, SceneErr
         source: format!("scene:{}", name.to_ascii_lowercase()),
         instancing: None,
         expanded: false,
+        atoms: None,
+        origin: None,
     })
 }
 

@@ -24,6 +24,8 @@ fn two() -> Scene {
         source: "test".into(),
         instancing: None,
         expanded: false,
+        atoms: None,
+        origin: None,
     }
 }
 
@@ -46,6 +48,8 @@ fn bounds() {
         source: String::new(),
         instancing: None,
         expanded: false,
+        atoms: None,
+        origin: None,
     };
     assert_eq!(empty.center_bounds(), None);
     assert_eq!(empty.bounding_sphere(), (Vec3::ZERO, 0.0));

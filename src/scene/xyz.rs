@@ -15,6 +15,10 @@ pub(crate) fn parse_xyz(
     opts: &LoadOptions,
 ) -> Result<Scene, SceneError> {
     let mut spheres = Vec::new();
+    let mut atoms = super::atoms::Atoms::new(super::atoms::Known {
+        element: true,
+        ..Default::default()
+    });
     let mut frame = 0u32;
     // (line of the last frame's count, the count)
     let mut last_count: Option<(usize, usize)> = None;
@@ -95,6 +99,7 @@ pub(crate) fn parse_xyz(
                 color: element.color(),
                 region: [level0, index, 0, 0],
             });
+            atoms.push(element, &Default::default());
         }
     }
     if let ModelSelect::Index(n) = opts.model
@@ -110,6 +115,8 @@ pub(crate) fn parse_xyz(
         source: name.to_string(),
         instancing: None,
         expanded: false,
+        atoms: Some(atoms),
+        origin: None,
     })
 }
 
@@ -233,6 +240,8 @@ pub(crate) fn xyzr_scene(mut spheres: Vec<Sphere>, levels: usize, name: &str) ->
         source: name.to_string(),
         instancing: None,
         expanded: false,
+        atoms: None,
+        origin: None,
     }
 }
 

@@ -30,6 +30,20 @@ pub struct Frame {
     pub cell: Option<[[f64; 3]; 3]>,
 }
 
+impl Frame {
+    /// Keeps the atoms `index` names (a topology subset by `--hide`), in
+    /// that order; `None` keeps all.
+    pub fn keep(&mut self, index: Option<&[u32]>) {
+        if let Some(ix) = index {
+            let all = std::mem::take(&mut self.positions);
+            self.positions = ix
+                .iter()
+                .map(|&i| all.get(i as usize).copied().unwrap_or_default())
+                .collect();
+        }
+    }
+}
+
 #[derive(Debug, thiserror::Error)]
 pub enum TrajError {
     #[error("{path}: {source}")]

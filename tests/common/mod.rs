@@ -72,6 +72,8 @@ pub fn scene_of(spheres: Vec<Sphere>, name: &str) -> Scene {
         source: name.to_string(),
         instancing: None,
         expanded: false,
+        atoms: None,
+        origin: None,
     }
 }
 

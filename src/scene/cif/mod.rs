@@ -14,6 +14,7 @@ use assembly::{IDENTITY, oper_expression};
 pub(crate) use binary::parse_bcif;
 use instanced::{atom_model, finish_instanced, instanced_kind};
 
+use super::atoms::AtomInfo;
 use super::elements::{self, Element};
 use super::molecule::{AtomKeys, MolBuilder, find_assembly, key64};
 use super::text::{LineSource, parse_f32, show};
@@ -96,6 +97,8 @@ struct Columns {
     model: Option<usize>,
     alt: Option<usize>,
     entity: Option<usize>,
+    group: Option<usize>,
+    bfactor: Option<usize>,
 }
 
 impl Columns {
@@ -118,6 +121,8 @@ impl Columns {
             self.model,
             self.alt,
             self.entity,
+            self.group,
+            self.bfactor,
         ]
         .into_iter()
         .flatten()
@@ -144,6 +149,8 @@ impl Columns {
                 "pdbx_PDB_model_num" => &mut c.model,
                 "label_alt_id" => &mut c.alt,
                 "label_entity_id" => &mut c.entity,
+                "group_PDB" => &mut c.group,
+                "B_iso_or_equiv" => &mut c.bfactor,
                 _ => continue,
             };
             *slot = Some(i);
@@ -348,6 +355,19 @@ impl AtomReader {
                 residue: u128::from(residue),
                 asm_chain: label_asym.unwrap_or(chain),
                 entity: get(self.cols.entity).unwrap_or(b""),
+                info: AtomInfo {
+                    chain,
+                    resname: comp,
+                    resid: get(self.cols.auth_seq)
+                        .or_else(|| get(self.cols.label_seq))
+                        .and_then(|v| std::str::from_utf8(v).ok()?.parse().ok())
+                        .unwrap_or(0),
+                    name: get(self.cols.auth_atom)
+                        .or_else(|| get(self.cols.label_atom))
+                        .unwrap_or(b""),
+                    hetatm: get(self.cols.group).is_some_and(|g| g == b"HETATM"),
+                    bfactor: get(self.cols.bfactor).and_then(parse_f32).unwrap_or(0.0),
+                },
             },
         );
         Ok(())

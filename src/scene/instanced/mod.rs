@@ -313,12 +313,19 @@ impl Scene {
         }
         let mut spheres = Vec::with_capacity(n as usize);
         self.for_each_sphere(|s| spheres.push(s));
+        // (rules hid atoms: each sphere keeps its input index)
+        let origin = self.id_map().map(|m| super::Origin::Plain {
+            index: (0..n).map(|i| m.input(i) as u32).collect(),
+            total: m.total().unwrap_or(n),
+        });
         Ok(Scene {
             spheres,
             level_names: self.level_names.clone(),
             source: self.source.clone(),
             instancing: None,
             expanded: true,
+            atoms: None,
+            origin,
         })
     }
 }
@@ -565,6 +572,8 @@ impl InstancedBuilder {
             source: source.to_string(),
             instancing: Some(inst),
             expanded: false,
+            atoms: None,
+            origin: None,
         };
         check_extent(&scene)?;
         Ok(scene)

@@ -99,6 +99,8 @@ mod tests {
             source: "one".into(),
             instancing: None,
             expanded: false,
+            atoms: None,
+            origin: None,
         };
         let axes = Axes {
             width: 16,
