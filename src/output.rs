@@ -38,6 +38,15 @@ impl AovImage {
         }
     }
 
+    fn height(&self) -> u32 {
+        match self {
+            AovImage::Rgba8(i) => i.height(),
+            AovImage::Rgba16(i) => i.height(),
+            AovImage::Gray16(i) => i.height(),
+            AovImage::Gray8(i) => i.height(),
+        }
+    }
+
     fn width(&self) -> u32 {
         match self {
             AovImage::Rgba8(i) => i.width(),
@@ -64,18 +73,23 @@ impl AovImage {
         }
     }
 
-    /// The PNG file's bytes (the one encoder every output goes through).
+    /// The PNG file's bytes. The same encoder, settings and row-by-row
+    /// stream as [`PngStream`], so a tiled render's streamed file and the
+    /// whole image's bytes are identical (Python's `encode_png` relies on it).
     pub fn png_bytes(&self) -> Result<Vec<u8>> {
-        let mut out = std::io::Cursor::new(Vec::new());
-        let f = image::ImageFormat::Png;
-        match self {
-            AovImage::Rgba8(i) => i.write_to(&mut out, f),
-            AovImage::Rgba16(i) => i.write_to(&mut out, f),
-            AovImage::Gray16(i) => i.write_to(&mut out, f),
-            AovImage::Gray8(i) => i.write_to(&mut out, f),
+        use std::io::Write;
+        let (color, depth, bytes) = self.png_rows();
+        let out = SharedBytes::default();
+        let mut w = png_writer(out.clone(), self.width(), self.height(), color, depth)
+            .map_err(|e| Error::Internal(format!("PNG encoding: {e}")))?;
+        let row = bytes.len() / self.height().max(1) as usize;
+        for r in bytes.chunks(row.max(1)) {
+            w.write_all(r)
+                .map_err(|e| Error::Internal(format!("PNG encoding: {e}")))?;
         }
-        .map_err(|e| Error::Internal(format!("PNG encoding: {e}")))?;
-        Ok(out.into_inner())
+        w.finish()
+            .map_err(|e| Error::Internal(format!("PNG encoding: {e}")))?;
+        Ok(out.0.take())
     }
 
     /// Writes a PNG atomically ([`write_atomic`]).
@@ -134,11 +148,9 @@ impl PngStream {
                 .file
                 .take()
                 .ok_or_else(|| self.err("already finished"))?;
-            let mut enc = png::Encoder::new(file, self.width, self.height);
-            enc.set_color(color);
-            enc.set_depth(depth);
-            let w = enc.write_header().map_err(|e| self.err(e))?;
-            self.writer = Some(w.into_stream_writer().map_err(|e| self.err(e))?);
+            let w =
+                png_writer(file, self.width, self.height, color, depth).map_err(|e| self.err(e))?;
+            self.writer = Some(w);
         }
         let row = bytes.len() / band_rows(band).max(1) as usize;
         self.rows += band_rows(band);
@@ -164,6 +176,34 @@ impl PngStream {
         let w = self.writer.take().ok_or_else(|| self.err("no rows"))?;
         w.finish().map_err(|e| self.err(e))
     }
+}
+
+/// An in-memory sink the stream writer can own (its writer is `'static`).
+#[derive(Clone, Default)]
+struct SharedBytes(std::rc::Rc<std::cell::RefCell<Vec<u8>>>);
+
+impl std::io::Write for SharedBytes {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.0.borrow_mut().extend_from_slice(buf);
+        Ok(buf.len())
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+/// The one PNG encoder configuration every file goes through.
+fn png_writer<W: std::io::Write + 'static>(
+    out: W,
+    width: u32,
+    height: u32,
+    color: png::ColorType,
+    depth: png::BitDepth,
+) -> std::result::Result<png::StreamWriter<'static, W>, png::EncodingError> {
+    let mut enc = png::Encoder::new(out, width, height);
+    enc.set_color(color);
+    enc.set_depth(depth);
+    enc.write_header()?.into_stream_writer()
 }
 
 fn band_rows(img: &AovImage) -> u32 {

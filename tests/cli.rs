@@ -747,7 +747,7 @@ fn no_vulkan_driver_is_one_clear_line() {
 
 /// A tiled render is encoded row of tiles by row of tiles (streamed PNG,
 /// EXR scan-line blocks): the file decodes to the pixels of the untiled
-/// render, with sub-pixel samples, for colour (8 and 16 bit), ids, depth
+/// render (pixels and file bytes), with sub-pixel samples, for colour (8 and 16 bit), ids, depth
 /// and every EXR layer; the JSON's hash is the same too.
 #[test]
 fn streamed_tiled_files_equal_the_untiled_ones() {
@@ -790,6 +790,11 @@ fn streamed_tiled_files_equal_the_untiled_ones() {
             "{extra:?} not tiled: {log}"
         );
         assert!(pixels(&whole) == pixels(&tiled), "{extra:?}: pixels differ");
+        // one encoder for both: the files themselves are identical
+        assert!(
+            std::fs::read(&whole).unwrap() == std::fs::read(&tiled).unwrap(),
+            "{extra:?}: PNG bytes differ"
+        );
         assert_eq!(a["image_sha256"], b["image_sha256"], "{extra:?}");
     }
     let layers = |p: &PathBuf| -> Vec<(String, Vec<u32>)> {
