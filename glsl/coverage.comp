@@ -12,10 +12,13 @@
 
 layout(local_size_x_id = 0) in;
 layout(constant_id = 1) const bool ARGS = false;
+// See-through spheres: a pixel with fragments (oit_splat.comp) is covered.
+layout(constant_id = 2) const bool SEE_THROUGH = false;
 
 layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
 layout(set = 0, binding = 1) uniform usamplerBuffer visTex;
 layout(set = 0, binding = 2) buffer TileLists { uint tile_lists[]; };
+layout(set = 0, binding = 3) uniform usamplerBuffer oitCountTex;
 
 void write_args(uint at, uint groups) {
     tile_lists[at] = min(groups, MAX_GROUPS_X);
@@ -48,6 +51,7 @@ void main() {
         for (uint x = 0u; x < TL_REGION; ++x) {
             uvec2 p = min(o + uvec2(x, y), last);
             bool hit = texelFetch(visTex, int(p.y * w + p.x)).x != NO_SPHERE;
+            if (SEE_THROUGH) hit = hit || texelFetch(oitCountTex, int(p.y * w + p.x)).x != 0u;
             covered = covered || hit;
         }
     }

@@ -39,6 +39,7 @@ layout(set = 0, binding = 9) buffer Inline { uint inline_bits[]; };
 layout(constant_id = 2) const uint MODE = DEEP_COUNT;
 
 #include "push/deep_splat.glsl"
+#define SCENE_ATTRIBUTES
 #include "scene.glsl"
 
 Footprint band_footprint(uint id) {
@@ -69,7 +70,7 @@ void visit(uint id, Footprint f, ivec2 t) {
         return;
     }
     e_depth[addr] = f.depth;
-    e_alpha[addr] = pc.opacity;
+    e_alpha[addr] = scene_alpha(id);
     e_id[addr] = id;
 }
 

@@ -29,6 +29,7 @@ layout(set = 0, binding = 6) uniform usamplerBuffer orderTex;
 // The spheres as texels (scene.glsl): in a view's order a sphere's address
 // is not the invocation's, and a storage load at per-lane addresses is a
 // scalar loop per component on lavapipe; a texel fetch is a vector gather.
+#define SCENE_ATTRIBUTES
 #include "scene.glsl"
 #define SPHERE_AT(i) (scene_instanced() \
     ? (texelFetch(orderTex, int((i) >> BATCH_SHIFT)).x << BATCH_SHIFT) | scene_lane(i) \
@@ -40,47 +41,27 @@ layout(set = 0, binding = 6) uniform usamplerBuffer orderTex;
 // always orthographic): a branch on the view's data would run both sides.
 layout(constant_id = 2) const bool PERSP = false;
 
-// The view is loaded once per sphere (or band) and travels with the
-// footprint: loading it per pixel doubled the pass's cost on lavapipe.
-// Orthographic footprints also carry their plane coordinates per pixel,
-// so a pixel costs two multiply-adds, not pixel_plane's divisions.
-struct Footprint {
-    View v;
-    vec3 cv;
-    float r;
-    ivec4 rect;
-    vec2 origin; // plane coordinates of pixel (0, 0) relative to the centre
-    float step;  // world units per pixel
-};
+// See-through spheres (alpha below 1) are drawn by the fragment lists
+// (oit_splat.comp), not into the camera's visibility buffer: with
+// SEE_THROUGH the camera view skips them (the light views draw them all).
+layout(constant_id = 3) const bool SEE_THROUGH = false;
+
+#include "view_footprint.glsl"
 
 Footprint band_footprint(uint id) {
-    Footprint f;
-    f.v = pc.view_index == 0u ? g.cam : g.light;
-    vec4 s = scene_sphere(id);
-    f.cv = view_space(f.v, s.xyz, PERSP);
-    f.r = s.w;
-    // (an unused slot of an instanced batch has no footprint)
-    f.rect = scene_instanced() && s.w < 0.0 ? ivec4(1, 1, 0, 0) : sphere_rect(f.v, f.cv, s.w, PERSP);
-    f.step = 1.0 / f.v.center.w;
-    f.origin = vec2(0.5 - 0.5 * f.v.right.w, 0.5 * f.v.up.w - 0.5) * vec2(f.step, f.step) - f.cv.xy;
+    Footprint f = view_footprint(pc.view_index == 0u ? g.cam : g.light, id);
+    if (SEE_THROUGH && pc.view_index == 0u && scene_alpha(id) < 1.0) f.rect = ivec4(1, 1, 0, 0);
     return f;
 }
 
 void visit(uint id, Footprint f, ivec2 t) {
-    float d;
-    if (PERSP) {
-        d = hit_depth(f.v, f.cv, f.r, vec2(t), true);
-    } else {
-        vec2 dxy = f.origin + vec2(t.x, -t.y) * f.step;
-        float disc = f.r * f.r - dot(dxy, dxy);
-        d = disc < 0.0 ? -1.0 : max(f.cv.z - sqrt(disc) + f.v.depth.x, 0.0);
-    }
+    float d = footprint_depth(f, t);
     if (d < 0.0) return;
     // Early depth (as Schuetz et al.): a plain load first, and the 64-bit
     // atomic only where this sphere is nearer (measured on lavapipe: the
     // scattered atomics are most of the pass; the 1M capsid's raster went
     // from 147 to 107 ms at 1080p).
-    uint k = uint(t.y - int(f.v.dims.w)) * f.v.dims.x + uint(t.x - int(f.v.dims.z));
+    uint k = footprint_pixel(f, t);
     uint64_t key = vis_key(d, id);
     // (depth bits of positive floats order as unsigned integers; the empty
     // key is all ones; ties go to the atomic, which keeps the smaller id)

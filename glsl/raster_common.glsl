@@ -46,4 +46,5 @@ ivec4 sphere_rect(View v, vec3 cv, float r, bool persp) {
     ivec2 lo = ivec2(v.dims.zw), hi = min(lo + ivec2(v.dims.xy), ivec2(int(w), int(h))) - 1;
     return ivec4(max(rect.xy, lo), min(rect.zw, hi));
 }
+
 #endif

@@ -39,6 +39,13 @@ layout(set = 0, binding = 3) uniform usamplerBuffer wordBaseTex;
 #define TILE_LIST_BINDING 9
 #include "tiles.glsl"
 
+// See-through spheres (SEE_THROUGH): per pixel the count and head of its
+// fragments in front of the opaque surface (oit_splat.comp, oit_alloc.comp)
+// and the fragments (depth key, sphere id), sorted here in place.
+layout(set = 0, binding = 10) uniform usamplerBuffer oitCountTex;
+layout(set = 0, binding = 11) uniform usamplerBuffer oitHeadTex;
+layout(set = 0, binding = 12) readonly buffer OitFrags { uvec2 frags[]; };
+
 vec3 linear_to_srgb(vec3 c) { return pow(clamp(c, 0.0, 1.0), vec3(1.0 / 2.2)); }
 
 // Filmic tone curve (Narkowicz's fit of ACES) on the luminance: a toe that
@@ -153,62 +160,14 @@ void ssdo_at(uvec2 px, float z, vec3 n, uint id, out vec2 v, out vec3 bounce, ou
     screen_vis *= inv;
 }
 
-void main() {
-    uint w = g.cam.dims.x, h = g.cam.dims.y;
-    uvec2 px;
-    if (!tile_pixel(w, h, false, px) || !IN_ACTIVE(px)) return;
-    uint i = px.y * w + px.x;
-    Surface s;
-    if (TILE_LIST == 2u || !surface_of(px, s)) {
-        vec4 bg = background_at(px);
-        if (OUTLINE && on_outline(px, false, 0.0, 0u)) bg = vec4(0.0, 0.0, 0.0, 1.0);
-        put_color(i, bg);
-        if (AOVS) aov[i] = 0xFFFFFFFFu;
-        return;
-    }
-    vec3 albedo = albedo_of(s.id);
-    vec3 n = s.n;
-    vec3 o, vdir;
-    view_ray(g.cam, vec2(px + g.cam.dims.zw), PERSP, o, vdir);
-    vec3 v = -vdir;
-
+// Three-point lighting of a surface (unit normal n, toward the viewer v)
+// with ambient visibility and bounce amb and key-light visibility
+// vis_key, through the filmic curve (linear colour).
+vec3 lit(vec3 albedo, vec3 n, vec3 v, vec4 amb, float vis_key) {
     vec3 l_key = -normalize(g.light_dir.xyz);
     // Fill: from the camera's side opposite the key, softer. Rim: from behind.
     vec3 l_fill = normalize(-l_key + 2.0 * v);
     vec3 l_rim = normalize(-v + 0.5 * g.cam.up.xyz);
-
-    vec4 amb = vec4(1.0, 0.0, 0.0, 0.0);
-    float screen_vis = 1.0;
-    float z = view_z(g.cam, s.p, PERSP);
-    if (AO) {
-        vec2 v;
-        vec3 bounce;
-        if (AO_SPHERE) {
-            // (perspective: the frame about this pixel's ray, nearly the
-            // sphere's that ssdo_sphere.comp used)
-            mat3 b = !PERSP ? mat3(g.cam.right.xyz, g.cam.up.xyz, g.cam.dir.xyz)
-                                        : sphere_basis(vdir, g.cam.up.xyz);
-            vec3 nc = n * b;
-            uint w = s.id >> 5u;
-            uint below = texelFetch(flagTex, int(w)).x & ((1u << (s.id & 31u)) - 1u);
-            uint entry = texelFetch(wordBaseTex, int(w)).x + uint(bitCount(below));
-            sphere_ao_at(texelFetch(sphereAoTex, int(entry)), nc, v, bounce);
-#if defined(SHADOW_SCREEN)
-            uvec2 blk = px / SSDO_BLOCK;
-            screen_vis = unpack_record(texelFetch(recordTex, int(blk.y * g.counts.y + blk.x))).visibility;
-#endif
-        } else if (AO_HALF) {
-            ssdo_at(px, z, n, s.id, v, bounce, screen_vis);
-        } else {
-            unpack_ao(texelFetch(aoTex, int(i)).x, v, bounce, screen_vis);
-        }
-        amb = vec4(v.x * v.y, bounce);
-    }
-#if defined(SHADOW_SCREEN)
-    float vis_key = screen_vis;
-#else
-    float vis_key = USE_SHADOW ? key_visibility(s, i) : 1.0;
-#endif
 
     float nk = max(dot(n, l_key), 0.0);
     vec3 hk = normalize(l_key + v);
@@ -242,7 +201,12 @@ void main() {
     // them (rank correlation with Tachyon 0.909 -> 0.935 on 3P3W).
     vec3 c = albedo * (key + fill * ao + sky) + 0.5 * albedo * albedo * amb.yzw
            + vec3(0.25 * spec * vis_key) + vec3(rim * ao);
-    c = filmic(c);
+    return filmic(c);
+}
+
+// Linear colour c at view distance z, depth-cued (FOG) and
+// display-encoded, with its alpha (fog fades to a transparent background).
+vec4 display(vec3 c, float z, uvec2 px) {
     float alpha = 1.0;
     if (FOG) {
         // depth cue toward the background (display-linear), or toward
@@ -255,11 +219,132 @@ void main() {
             c = mix(c, pow(bg.rgb, vec3(2.2)), f);
         }
     }
-    vec3 outc = linear_to_srgb(c);
-    if (OUTLINE && on_outline(px, true, z, region_of(s.id))) {
-        outc = vec3(0.0);
-        alpha = 1.0;
+    return vec4(linear_to_srgb(c), alpha);
+}
+
+// The surface of sphere `id` seen through pixel q: its front hit (as
+// surface.glsl's surface_of for the visibility buffer's sphere).
+Surface surface_for(uvec2 q, uint id) {
+    Surface s;
+    s.img = vec2(q + g.cam.dims.zw);
+    s.id = id;
+    s.key = 0.0;
+    vec4 sp = scene_sphere(id);
+    s.sphere = sp;
+    vec3 o, d;
+    view_ray(g.cam, s.img, PERSP, o, d);
+    vec3 oc = o - sp.xyz;
+    float b = dot(oc, d);
+    float disc = max(b * b - (dot(oc, oc) - sp.w * sp.w), 0.0);
+    float t = -b - sqrt(disc);
+    s.p = o + t * d;
+    s.n = normalize(s.p - sp.xyz);
+    return s;
+}
+
+// The pixel's see-through fragments composited front to back over `base`
+// (display-encoded, straight alpha): each lit like an opaque surface with
+// its key-light visibility and no ambient occlusion (SSDO sees the opaque
+// surface), weighted by its alpha. The fragments are taken in (depth key,
+// id) order by selection, each step a scan for the least one after the
+// last: a transmittance below 1/1024 ends the walk (what lies behind could
+// change the pixel by at most a quarter of an 8-bit step), so a pixel with
+// n fragments costs about n x the layers that show, not a full sort
+// (measured on the 1M capsid, half see-through: 23 fragments per pixel on
+// average, 178 at most; insertion sort made shade 811 ms).
+vec4 composite(uvec2 px, uint i, vec4 base) {
+    uint n = texelFetch(oitCountTex, int(i)).x;
+    uint head = texelFetch(oitHeadTex, int(i)).x;
+    if (n == 0u || head == F_NONE) return base;
+    vec3 o, vdir;
+    view_ray(g.cam, vec2(px + g.cam.dims.zw), PERSP, o, vdir);
+    vec3 v = -vdir;
+    vec3 acc = vec3(0.0);
+    float acc_a = 0.0, T = 1.0;
+    uvec2 prev = uvec2(0u);
+    for (uint a = 0u; a < n && T >= 1.0 / 1024.0; ++a) {
+        uvec2 best = uvec2(0xFFFFFFFFu);
+        for (uint b = 0u; b < n; ++b) {
+            uvec2 f = frags[head + b];
+            bool after = a == 0u || f.x > prev.x || (f.x == prev.x && f.y > prev.y);
+            bool before = f.x < best.x || (f.x == best.x && f.y < best.y);
+            if (after && before) best = f;
+        }
+        prev = best;
+        uint id = best.y;
+        Surface fs = surface_for(px, id);
+#if defined(SHADOW_SCREEN)
+        float vis_key = 1.0;
+#else
+        float vis_key = USE_SHADOW ? key_visibility(fs, i) : 1.0;
+#endif
+        vec3 c = lit(albedo_of(id), fs.n, v, vec4(1.0, 0.0, 0.0, 0.0), vis_key);
+        vec4 d = display(c, view_z(g.cam, fs.p, PERSP), px);
+        float w = T * scene_alpha(id) * d.a;
+        acc += w * d.rgb;
+        acc_a += w;
+        T -= w;
     }
-    put_color(i, vec4(outc, alpha));
+    float out_a = acc_a + T * base.a;
+    vec3 rgb = acc + T * base.a * base.rgb;
+    return vec4(out_a > 0.0 ? rgb / out_a : vec3(0.0), out_a);
+}
+
+void main() {
+    uint w = g.cam.dims.x, h = g.cam.dims.y;
+    uvec2 px;
+    if (!tile_pixel(w, h, false, px) || !IN_ACTIVE(px)) return;
+    uint i = px.y * w + px.x;
+    Surface s;
+    if (TILE_LIST == 2u || !surface_of(px, s)) {
+        vec4 bg = background_at(px);
+        if (OUTLINE && on_outline(px, false, 0.0, 0u)) bg = vec4(0.0, 0.0, 0.0, 1.0);
+        if (SEE_THROUGH && TILE_LIST != 2u) bg = composite(px, i, bg);
+        put_color(i, bg);
+        if (AOVS) aov[i] = 0xFFFFFFFFu;
+        return;
+    }
+    vec3 albedo = albedo_of(s.id);
+    vec3 n = s.n;
+    vec3 o, vdir;
+    view_ray(g.cam, vec2(px + g.cam.dims.zw), PERSP, o, vdir);
+    vec3 v = -vdir;
+
+    vec4 amb = vec4(1.0, 0.0, 0.0, 0.0);
+    float screen_vis = 1.0;
+    float z = view_z(g.cam, s.p, PERSP);
+    if (AO) {
+        vec2 v;
+        vec3 bounce;
+        if (AO_SPHERE) {
+            // (perspective: the frame about this pixel's ray, nearly the
+            // sphere's that ssdo_sphere.comp used)
+            mat3 b = !PERSP ? mat3(g.cam.right.xyz, g.cam.up.xyz, g.cam.dir.xyz)
+                                        : sphere_basis(vdir, g.cam.up.xyz);
+            vec3 nc = n * b;
+            uint w = s.id >> 5u;
+            uint below = texelFetch(flagTex, int(w)).x & ((1u << (s.id & 31u)) - 1u);
+            uint entry = texelFetch(wordBaseTex, int(w)).x + uint(bitCount(below));
+            sphere_ao_at(texelFetch(sphereAoTex, int(entry)), nc, v, bounce);
+#if defined(SHADOW_SCREEN)
+            uvec2 blk = px / SSDO_BLOCK;
+            screen_vis = unpack_record(texelFetch(recordTex, int(blk.y * g.counts.y + blk.x))).visibility;
+#endif
+        } else if (AO_HALF) {
+            ssdo_at(px, z, n, s.id, v, bounce, screen_vis);
+        } else {
+            unpack_ao(texelFetch(aoTex, int(i)).x, v, bounce, screen_vis);
+        }
+        amb = vec4(v.x * v.y, bounce);
+    }
+#if defined(SHADOW_SCREEN)
+    float vis_key = screen_vis;
+#else
+    float vis_key = USE_SHADOW ? key_visibility(s, i) : 1.0;
+#endif
+    vec4 c = display(lit(albedo, n, v, amb, vis_key), z, px);
+    if (OUTLINE && on_outline(px, true, z, region_of(s.id))) c = vec4(0.0, 0.0, 0.0, 1.0);
+    if (SEE_THROUGH) c = composite(px, i, c);
+    put_color(i, c);
     if (AOVS) aov[i] = uint(clamp(vis_key, 0.0, 1.0) * 65535.0 + 0.5) | (uint(clamp(amb.x, 0.0, 1.0) * 65535.0 + 0.5) << 16);
 }

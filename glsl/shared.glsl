@@ -42,6 +42,7 @@ struct Globals {
     vec4 shadow_f1;
     uvec4 shadow_u;
     uvec4 scene;      // instanced scenes' levels (scene.glsl scene_region)
+    vec4 alpha;       // x opacity multiplying every sphere's alpha (scene_alpha)
 };
 
 // (Colours are a separate RGBA8 word per sphere, colorTex; scene.glsl

@@ -48,6 +48,9 @@ pub struct Globals {
     /// (chain region = instance * y + chain), z the molecule level's index,
     /// w the chain level's (NO_LEVEL: none).
     pub scene: [u32; 4],
+    /// x: `--opacity`, multiplying every sphere's alpha (its colour's A
+    /// byte / 255; glsl/scene.glsl `scene_alpha`).
+    pub alpha: [f32; 4],
 }
 
 /// Per-sphere attributes used after visibility: the regions (SSDO, the
@@ -73,7 +76,7 @@ pub type GpuBatch = [u32; 4];
 pub const VIS_EMPTY: u64 = u64::MAX;
 
 const _: () = assert!(std::mem::size_of::<GpuView>() == 96);
-const _: () = assert!(std::mem::size_of::<Globals>() == 2 * 96 + 8 * 16);
+const _: () = assert!(std::mem::size_of::<Globals>() == 2 * 96 + 9 * 16);
 const _: () = assert!(std::mem::size_of::<SphereAttr>() == 16);
 const _: () = assert!(std::mem::size_of::<GpuSphere>() == 16);
 

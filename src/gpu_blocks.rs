@@ -126,9 +126,23 @@ gpu_push! {
         job_capacity: u32,
         /// Entries of the list arrays (pool chunks * 64).
         entry_capacity: u32,
-        /// Alpha of every entry.
-        opacity: f32,
-        pad: [u32; 3],
+    }
+
+    /// `oit_count` and `oit_fill` (glsl/oit_splat.comp).
+    OitSplatPush "oit_splat" {
+        sphere_count: u32,
+        /// Footprints above this many pixels go to band jobs.
+        big_area: u32,
+        /// Entries of the band job buffer.
+        job_capacity: u32,
+        /// Fragments the pool holds.
+        capacity: u32,
+    }
+
+    /// `oit_alloc` (glsl/oit_alloc.comp).
+    OitAllocPush "oit_alloc" {
+        /// Fragments the pool holds.
+        capacity: u32,
     }
 
     /// `deep_alloc` (glsl/deep_alloc.comp).
@@ -208,6 +222,8 @@ gpu_spec! {
         perspective: bool = PERSP,
         /// ISSM t = 0: the 2x2 texels around P (lookup_issm.glsl).
         quad: bool = ISSM_QUAD,
+        /// See-through spheres: composite the pixel's fragment list over it.
+        see_through: bool = SEE_THROUGH,
     }
 
     /// The switches of an `ssdo_prep` pipeline (glsl/ssdo_prep.comp).

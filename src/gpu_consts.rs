@@ -39,6 +39,25 @@ gpu_constants! {
     C_BANDS_RUN: u32 = 17;
     /// Deep counters: first of the three indirect dispatch words.
     C_ARGS: u32 = 20;
+    /// See-through fragment lists: "no list" (an empty pixel, or one of a
+    /// tile that did not fit in the pool).
+    F_NONE: u32 = 0xFFFF_FFFF;
+    /// Fragment counters: fragments requested from the pool (may exceed
+    /// its capacity: then what the frame needs).
+    F_TOTAL: u32 = 0;
+    /// Fragment counters: 1 if a tile did not fit.
+    F_OVERFLOW: u32 = 1;
+    /// Fragment counters: most fragments of a pixel.
+    F_MAX: u32 = 2;
+    /// Fragment counters: fill slots outside their pixel's run (must stay 0).
+    F_FILL_ERRORS: u32 = 3;
+    /// Fragment counters: pixels with a fragment.
+    F_PIXELS: u32 = 4;
+    /// Fragment counters: band jobs requested, dispatched, and the first
+    /// of the three indirect dispatch words.
+    F_BANDS_REQ: u32 = 16;
+    F_BANDS_RUN: u32 = 17;
+    F_ARGS: u32 = 20;
     /// Raster counters: band jobs requested.
     R_BANDS_REQ: u32 = 0;
     /// Raster counters: band jobs dispatched.

@@ -707,6 +707,8 @@ pub struct RunStats {
     pub gpu_memory: std::collections::BTreeMap<String, u64>,
     pub validation_messages: u32,
     pub deep: Option<DeepStats>,
+    /// See-through spheres' fragment lists (null without any).
+    pub see_through: Option<crate::stages::see_through::SeeThroughStats>,
     pub image_sha256: String,
     /// With a light-space technique, `bench` also measures frames that
     /// reuse its map/lists (camera moving, light fixed): an addition to

@@ -1109,6 +1109,7 @@ pub fn run_stats(
         gpu_memory,
         validation_messages: ctx.validation_messages(),
         deep: r.inspect().deep_stats(),
+        see_through: r.inspect().see_through_stats(),
         image_sha256: image_sha256.to_string(),
         light_cached: None,
         frame_ms: times.iter().map(|t| t.total_ms).collect(),

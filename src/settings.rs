@@ -240,9 +240,56 @@ pub struct RenderSettings {
     /// default; off runs every tile, for comparisons and tests: the images
     /// are the same bytes).
     pub tile_lists: bool,
+    /// Draws every sphere opaque in the camera view while the shadows keep
+    /// each sphere's alpha (off by default: alpha below 1 is see-through).
+    /// For tests and comparisons of translucent shadows alone: their
+    /// receivers must be visible surfaces.
+    pub opaque_view: bool,
 }
 
 impl RenderSettings {
+    /// Refuses see-through spheres (`per_sphere_alpha`, or `--opacity`
+    /// below 1) where they cannot be drawn: the graphics raster draws
+    /// opaque spheres only.
+    pub fn check_see_through(&self, per_sphere_alpha: bool) -> crate::error::Result<()> {
+        if self.raster == RasterMode::Graphics
+            && !self.opaque_view
+            && (per_sphere_alpha || self.opacity < 1.0)
+        {
+            return Err(crate::error::Error::Input(
+                "--raster graphics draws opaque spheres only: see-through spheres (--alpha, \
+                 --opacity below 1) need --raster compute"
+                    .into(),
+            ));
+        }
+        Ok(())
+    }
+
+    /// A one-line note when the key-light technique does not give
+    /// see-through spheres (`per_sphere_alpha`: a colour's alpha below 1)
+    /// the translucent shadow `--alpha` asks for; only deep lists do.
+    pub fn see_through_note(&self, per_sphere_alpha: bool) -> Option<String> {
+        let name = clap::ValueEnum::to_possible_value(&self.shadows)?
+            .get_name()
+            .to_string();
+        match self.shadows {
+            ShadowMode::Issm | ShadowMode::IssmSoft | ShadowMode::SmPcf
+                if per_sphere_alpha || self.opacity < 1.0 =>
+            {
+                Some(format!(
+                    "--shadows {name} casts opaque shadows from see-through spheres \
+                     (translucent shadows: --shadows deep)"
+                ))
+            }
+            ShadowMode::Osm if per_sphere_alpha => Some(
+                "--shadows osm gives every sphere the --opacity shadow, not its --alpha \
+                 (per-sphere shadows: --shadows deep)"
+                    .into(),
+            ),
+            _ => None,
+        }
+    }
+
     /// The camera moved by (dx, dy) pixels in the image plane (x right, y
     /// down): the sub-pixel sample positions of `--ssaa`.
     pub fn shifted(&self, dx: f64, dy: f64) -> RenderSettings {
@@ -501,6 +548,10 @@ pub struct DeepParams {
         value_name = "DEEP_POOL_CHUNKS"
     )]
     pub pool_chunks: Option<u32>,
+    /// Initial see-through fragment pool in fragments (grown on overflow;
+    /// default: 2 per pixel).
+    #[arg(long, value_name = "FRAGMENTS")]
+    pub see_through_fragments: Option<u32>,
 }
 
 default_from_args!(DeepParams);
@@ -690,6 +741,7 @@ impl Options {
             ssaa: self.ssaa,
             tile_size: self.tile_size,
             tile_lists: true,
+            opaque_view: false,
             look: self.look,
         })
     }
@@ -736,8 +788,13 @@ mod tests {
         assert_eq!(l.knobs.shadow_diffuse, 0.05);
         let (s, d) = (SsdoKnobs::default(), DeepParams::default());
         assert_eq!(
-            (s.blur, s.semantic_levels, d.pool_chunks),
-            (true, None, None)
+            (
+                s.blur,
+                s.semantic_levels,
+                d.pool_chunks,
+                d.see_through_fragments
+            ),
+            (true, None, None, None)
         );
         let i = IssmParams::default();
         assert_eq!(

@@ -262,6 +262,8 @@ fn osm_vs_deep(ctx: &Context, name: &str, scene: &Scene) {
     for opacity in [0.3f32, 0.7] {
         let mut s = baseline_settings(scene, ShadowMode::Osm, ShadowMapParams::default());
         s.opacity = opacity;
+        // translucent shadows on visible (opaque-drawn) receivers
+        s.opaque_view = true;
         let reference = reference_for(scene, &s.camera, s.light, opacity as f64);
         let o = render(ctx, scene, s.clone());
         for n in ["osm_raster", "osm_prefix", "shade"] {
@@ -318,6 +320,8 @@ fn osm_transmittance_vs_exact_and_deep_1tii() {
     for slices in [16u32, 32, 64] {
         let mut s = s.clone();
         s.opacity = opacity;
+        // translucent shadows on visible (opaque-drawn) receivers
+        s.opaque_view = true;
         s.shadow_maps.osm_slices = slices;
         let f = render(&ctx, &scene, s);
         let (e, _) = mae(&f.shadow, &f.ids, &reference);
@@ -355,6 +359,8 @@ fn a_lone_sphere_never_shadows_itself() {
     ] {
         let mut s = settings(cam, mode);
         s.opacity = opacity;
+        // translucent shadows on visible (opaque-drawn) receivers
+        s.opaque_view = true;
         s.shadow_maps.pcf_samples = samples;
         // A map-filling sphere: the OSM raster goes through band jobs.
         let f = render(&ctx, &scene, s);

@@ -25,6 +25,8 @@ fn deep_settings(scene: &Scene, w: u32, h: u32, map: u32, opacity: f32) -> Rende
     let mut s = settings(camera(scene, w, h, None), ShadowMode::Deep);
     s.issm.size = map;
     s.opacity = opacity;
+    // translucent shadows on visible receivers: every sphere drawn opaque
+    s.opaque_view = true;
     s
 }
 

@@ -301,6 +301,41 @@ fn cases(d: &Path) -> Vec<Case> {
             "beyond the f32 precision of the scene",
         ),
         c(
+            "a misspelt selection keyword",
+            render(one(tii.clone()), &["--hide", "chian A"]),
+            "'chian' at column 1: unknown keyword",
+        ),
+        c(
+            "an unclosed parenthesis in a selection",
+            render(one(tii.clone()), &["--alpha", "(chain A or water=0.5"]),
+            "'(' at column 1: is never closed",
+        ),
+        c(
+            "--alpha out of 0..1",
+            render(one(tii.clone()), &["--alpha", "chain A=1.5"]),
+            "between 0 and 1",
+        ),
+        c(
+            "--paint with no colour",
+            render(one(tii.clone()), &["--paint", "chain A"]),
+            "SEL=COLOR",
+        ),
+        c(
+            "--color bfactor on a file without B-factors",
+            render(procedural.clone(), &["--color", "bfactor"]),
+            "--color",
+        ),
+        c(
+            "see-through spheres with the graphics raster",
+            render(one(tii.clone()), &["--alpha", "chain A=0.5", "--raster", "graphics"]),
+            "need --raster compute",
+        ),
+        c(
+            "--hide with --replicate",
+            render(one(tii.clone()), &["--hide", "water", "--replicate", "2x1x1"]),
+            "does not combine with --hide",
+        ),
+        c(
             "--png-depth 16 with an EXR",
             {
                 let mut a = render(procedural.clone(), &["--png-depth", "16"]);

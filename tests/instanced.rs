@@ -1214,3 +1214,95 @@ mod bcif_writer {
         out
     }
 }
+
+/// A glob matching a label by its leading word characters (labels hold
+/// spaces and punctuation the selection lexer splits on).
+fn label_glob(label: &str) -> String {
+    let head: String = label
+        .chars()
+        .take_while(|c| c.is_ascii_alphanumeric() || *c == '_')
+        .collect();
+    format!("{head}*")
+}
+
+/// Rules on an instanced model (`molecule`, `node`) act per molecule type
+/// or per instance without expanding (copies told apart become variants),
+/// and render as the expanded model with the same rules: colour words and
+/// ids (mapped to input order) identical, with see-through spheres and
+/// deep shadows, under validation.
+#[test]
+fn rules_on_an_instanced_model_render_as_the_expanded_model() {
+    use sphereshade::run::{Ordered, SceneArgs, load_scene};
+    use sphereshade::scene::paint::Rule;
+    let file = data_file("meso/flagellarmotor_2-no_bonds.bcif");
+    let load = |rules: &[(&str, String)], expand: bool| {
+        let mut a = SceneArgs {
+            input: Some(file.clone()),
+            expand,
+            ..Default::default()
+        };
+        for (seq, (kind, text)) in rules.iter().enumerate() {
+            let o = |value| Ordered {
+                seq: seq as u64,
+                value,
+            };
+            match *kind {
+                "hide" => a.hide.push(o(Rule::hide(text).unwrap())),
+                "alpha" => a.alpha.push(o(Rule::alpha(text).unwrap())),
+                _ => a.paint.push(o(Rule::paint(text).unwrap())),
+            }
+        }
+        load_scene(&a)
+            .unwrap_or_else(|e| panic!("{rules:?}: {e}"))
+            .0
+    };
+    let plain = load(&[], false);
+    let inst = plain.instancing.as_ref().expect("instanced");
+    let (m0, m1) = (&inst.molecules[0], &inst.molecules[1]);
+    let node = &inst.nodes[inst.molecules[2].node as usize];
+    let rules = vec![
+        ("hide", format!("molecule {}", label_glob(&m0.label))),
+        (
+            "paint",
+            format!("molecule {}=orange", label_glob(&m1.label)),
+        ),
+        ("alpha", format!("node {}=0.4", label_glob(&node.label))),
+    ];
+    let ruled = load(&rules, false);
+    let expanded = load(&rules, true);
+    let ri = ruled
+        .instancing
+        .as_ref()
+        .expect("rules keep the model instanced");
+    assert!(expanded.instancing.is_none());
+    assert_eq!(ri.represented(), expanded.spheres.len() as u64);
+    assert!(ri.represented() < inst.represented(), "nothing hidden");
+    assert!(ruled.has_translucent() && expanded.has_translucent());
+    eprintln!(
+        "rules {rules:?}: {} of {} represented spheres kept, {} molecule variants, {} stored atoms",
+        ri.represented(),
+        inst.represented(),
+        ri.molecules.len(),
+        ruled.spheres.len()
+    );
+    let ctx = validated_context();
+    let cam = camera(&plain, 128, 96, None);
+    let mut s = settings(cam, ShadowMode::Deep);
+    s.ssdo = SsdoMode::Semantic;
+    let frame = |scene: &Scene| {
+        let mut r = Renderer::new(&ctx, scene, s.clone()).expect("renderer");
+        r.render_frame().expect("frame");
+        let map = r.inspect().id_map();
+        let ids: Vec<Option<u64>> = ids_from_vis(&r.inspect().read_vis().unwrap())
+            .into_iter()
+            .map(|id| id.map(|i| map.as_ref().map_or(i as u64, |m| m.input(i as u64))))
+            .collect();
+        (r.inspect().read_color().unwrap(), ids)
+    };
+    let (ci, ii) = frame(&ruled);
+    let (ce, ie) = frame(&expanded);
+    assert!(ii == ie, "ids differ");
+    let n = ci.iter().zip(&ce).filter(|(a, b)| a != b).count();
+    assert_eq!(n, 0, "{n} colour words differ");
+    assert_no_validation_messages(&ctx);
+}

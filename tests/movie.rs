@@ -618,3 +618,91 @@ fn binary_trajectories_stop_at_the_damage() {
     }
     let _ = std::fs::remove_dir_all(&d);
 }
+
+/// `--hide` on a trajectory: every frame keeps the subset (the hidden
+/// atoms' coordinates are read and dropped); frame 40 renders as an XYZR
+/// of its kept coordinates, and its id image (input order) never shows a
+/// hidden atom.
+#[test]
+fn hidden_atoms_stay_hidden_in_every_frame() {
+    let d = dir("hide");
+    let (top, traj) = (data("adk_open.pdb"), data("adk_dims.dcd"));
+    let cam = ["--view-center", "0,0,0", "--view-height", "90"];
+    let rule = ["--hide", "resid 1-60 or name CA", "--color", "200,180,90"];
+    let frame = |aov: &str| {
+        let pattern = d.join(format!("{aov}_%02d.png"));
+        let mut a = traj_args(
+            &top,
+            &traj,
+            &[
+                "--frames",
+                "38:41",
+                "--aov",
+                aov,
+                "--out",
+                pattern.to_str().unwrap(),
+            ],
+        );
+        a.extend(cam);
+        a.extend(rule);
+        ok(&run(&a, None));
+        std::fs::read(d.join(format!("{aov}_40.png"))).unwrap()
+    };
+    let (color, ids) = (frame("color"), frame("id"));
+    // which atoms the rule hides, from the PDB's own columns
+    let text = std::fs::read_to_string(&top).unwrap();
+    let hidden: Vec<bool> = text
+        .lines()
+        .filter(|l| l.starts_with("ATOM  ") || l.starts_with("HETATM"))
+        .map(|l| {
+            let resid: i64 = l[22..26].trim().parse().unwrap();
+            (1..=60).contains(&resid) || l[12..16].trim() == "CA"
+        })
+        .collect();
+    let n_hidden = hidden.iter().filter(|&&h| h).count();
+    assert!(n_hidden > 500 && n_hidden < hidden.len());
+    let img = image::load_from_memory(&ids).unwrap().to_rgba8();
+    let mut seen = 0;
+    for p in img.pixels() {
+        let v = p[0] as usize | (p[1] as usize) << 8 | (p[2] as usize) << 16;
+        if v > 0 {
+            assert!(!hidden[v - 1], "hidden atom {} in frame 40's ids", v - 1);
+            seen += 1;
+        }
+    }
+    assert!(seen > 500);
+    // frame 40's kept coordinates with the topology's radii, as .xyzr
+    let scene =
+        sphereshade::scene::load(Path::new(&top), &Default::default(), &mut |_, _| {}).unwrap();
+    assert_eq!(scene.spheres.len(), hidden.len());
+    let mut r = sphereshade::traj::open(Path::new(&traj)).unwrap();
+    let mut f = sphereshade::traj::Frame::default();
+    r.read(40, &mut f).unwrap();
+    let text: String = f
+        .positions
+        .iter()
+        .zip(&scene.spheres)
+        .zip(&hidden)
+        .filter(|(_, h)| !**h)
+        .map(|((p, s), _)| format!("{} {} {} {}\n", p[0], p[1], p[2], s.radius))
+        .collect();
+    let xyzr = d.join("kept40.xyzr");
+    std::fs::write(&xyzr, text).unwrap();
+    let single = d.join("single.png");
+    let mut a = vec!["render", xyzr.to_str().unwrap()];
+    a.extend(SMALL);
+    a.extend([
+        "plain",
+        "--color",
+        "200,180,90",
+        "--out",
+        single.to_str().unwrap(),
+    ]);
+    a.extend(cam);
+    ok(&run(&a, None));
+    assert!(
+        color == std::fs::read(&single).unwrap(),
+        "frame 40 with --hide differs from its kept coordinates"
+    );
+    let _ = std::fs::remove_dir_all(&d);
+}

@@ -23,6 +23,7 @@ void main() {
     put4(g.shadow_f1);
     put4u(g.shadow_u);
     put4u(g.scene);
+    put4(g.alpha);
     for (int a = 0; a < 2; ++a) {
         put4u(attrs[a].region);
     }

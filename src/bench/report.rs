@@ -56,6 +56,12 @@ pub(super) fn paired(a_ms: &[f64], a: f64, b_ms: &[f64], b: f64) -> f64 {
 /// translucent/opaque deep, semantic/plain SSDO (full frames), graphics /
 /// compute raster (the `raster` pass), and ms per million spheres of the
 /// local-lighting frame.
+/// A run with see-through spheres at opacity 1: bench's half see-through
+/// frame (its spheres' alpha, not `--opacity`).
+fn half_see_through(r: &RunStats) -> bool {
+    r.see_through.is_some() && r.opacity == 1.0
+}
+
 pub fn ratios(runs: &[RunStats]) -> BTreeMap<String, f64> {
     let mut out = BTreeMap::new();
     // (the JSON spells the modes as the command line does: `name()`)
@@ -69,6 +75,7 @@ pub fn ratios(runs: &[RunStats]) -> BTreeMap<String, f64> {
                     && r.ssdo == ssdo.name()
                     && r.raster == raster.name()
                     && (r.opacity - opacity).abs() < 1e-6
+                    && !half_see_through(r)
             })
         };
     let bases = runs.iter().filter(|r| {
@@ -76,6 +83,7 @@ pub fn ratios(runs: &[RunStats]) -> BTreeMap<String, f64> {
             && r.ssdo == SsdoMode::Off.name()
             && r.raster == RasterMode::Compute.name()
             && r.opacity == 1.0
+            && !half_see_through(r)
     });
     let frame = |x: &RunStats| x.total_ms.median;
     let over = |a: &RunStats, b: &RunStats| paired(&a.frame_ms, frame(a), &b.frame_ms, frame(b));
@@ -116,6 +124,16 @@ pub fn ratios(runs: &[RunStats]) -> BTreeMap<String, f64> {
             1.0,
         ) {
             out.insert(format!("full_over_local[{tag}]"), over(f, r));
+            // half of the spheres see-through, against the same frame opaque
+            if let Some(h) = runs.iter().find(|x| {
+                half_see_through(x)
+                    && (x.input.as_str(), x.spheres, x.width, x.height, x.expanded)
+                        == (r.input.as_str(), r.spheres, r.width, r.height, r.expanded)
+                    && (x.shadows.as_str(), x.ssdo.as_str())
+                        == (f.shadows.as_str(), f.ssdo.as_str())
+            }) {
+                out.insert(format!("see_through_half_over_full[{tag}]"), over(h, f));
+            }
         }
         if let Some(s) = soft {
             out.insert(format!("issm_soft_overhead[{tag}]"), over(s, r));
@@ -474,6 +492,7 @@ mod tests {
             gpu_memory: Default::default(),
             validation_messages: 0,
             deep: None,
+            see_through: None,
             image_sha256: String::new(),
             light_cached: None,
             frame_ms: vec![],

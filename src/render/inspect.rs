@@ -119,7 +119,25 @@ impl<'r> Inspect<'r, '_> {
         for (class, bytes) in self.r.res.stages.shadows.memory() {
             add(class, bytes);
         }
+        if let Some(s) = &self.r.res.stages.see_through {
+            add("see_through", s.memory_bytes());
+        }
         m
+    }
+
+    /// The see-through stage (made the first frame that had see-through
+    /// spheres).
+    pub fn see_through(&self) -> Option<&'r crate::stages::see_through::SeeThrough> {
+        self.r.res.stages.see_through.as_ref()
+    }
+
+    /// The last frame's see-through fragment lists (None: no see-through
+    /// spheres this frame).
+    pub fn see_through_stats(&self) -> Option<crate::stages::see_through::SeeThroughStats> {
+        let on = self.r.res.see_through(&self.r.settings);
+        self.see_through()
+            .filter(|_| on)
+            .and_then(|s| s.stats.clone())
     }
 
     /// Visibility buffer (depth|id per pixel), without the guard words;

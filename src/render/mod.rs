@@ -19,6 +19,7 @@ use crate::passes::scene::{SceneBuffers, SceneGeom};
 use crate::scene::Scene;
 use crate::semantic;
 use crate::settings::{RasterMode, RenderSettings, SsdoMode};
+use crate::stages::see_through::SeeThrough;
 use crate::stages::shading::ShadeFrame;
 use crate::stages::shadows::{Lookup, ShadowSetup};
 use crate::stages::ssdo::{SceneScale, SsdoModes, SsdoParams};
@@ -52,6 +53,8 @@ pub(crate) struct Resources {
     expanded: bool,
     /// Scene ids to input indices when rules hid spheres (the id AOV).
     ids: Option<std::sync::Arc<crate::scene::paint::IdMap>>,
+    /// Some sphere's colour has alpha below 1 (see-through).
+    translucent: bool,
     /// Bounding sphere of the sphere centres (camera depth offsets, zoom).
     bounds: (DVec3, f64),
     /// Typical sphere radius (screen-space effect radii).
@@ -128,11 +131,35 @@ impl Resources {
         let (hw, hh) = self.targets.half();
         self.globals.counts[1] = hw;
         self.globals.counts[2] = hh;
+        self.globals.alpha = [settings.opacity, 0.0, 0.0, 0.0];
+        let see_through = self.see_through(settings);
+        if see_through {
+            settings.check_see_through(true)?;
+            self.stages.raster.compute.enable_see_through(ctx)?;
+            if self.stages.see_through.is_none() {
+                self.stages.see_through =
+                    Some(SeeThrough::new(ctx, self.scene.spec, self.scene.slots)?);
+            }
+            if let Some(s) = &mut self.stages.see_through {
+                s.prepare(
+                    ctx,
+                    self.targets.pixels,
+                    settings.deep.see_through_fragments,
+                )?;
+            }
+        }
         let p = self.ssdo_params(settings);
         // The lookup borrows the technique: keep what the pipelines need.
         let (plain, shade) = {
             let l = self.lookup(settings, &p);
-            let frame = ShadeFrame::new(settings, &l, &p, self.bgra, self.typical_radius);
+            let frame = ShadeFrame::new(
+                settings,
+                &l,
+                &p,
+                self.bgra,
+                self.typical_radius,
+                see_through,
+            );
             let plain: Lookup<'static> = Lookup {
                 kind: l.kind,
                 soft: l.soft,
@@ -152,7 +179,17 @@ impl Resources {
                 .ssdo
                 .prepare(ctx, &p, ssdo_modes(settings), &plain, counts)?;
         }
-        Ok(FrameParams { ssdo: p, shade })
+        Ok(FrameParams {
+            ssdo: p,
+            shade,
+            see_through,
+        })
+    }
+
+    /// Whether this frame has see-through spheres: a colour's alpha below
+    /// 1, or `--opacity` below 1 (it multiplies every alpha).
+    pub(crate) fn see_through(&self, settings: &RenderSettings) -> bool {
+        !settings.opaque_view && (self.translucent || settings.opacity < 1.0)
     }
 }
 
@@ -161,6 +198,8 @@ impl Resources {
 pub(crate) struct FrameParams {
     pub ssdo: SsdoParams,
     pub shade: ShadeFrame,
+    /// The see-through stage runs (its lists are prepared).
+    pub see_through: bool,
 }
 
 /// The SSDO stage's switches from the settings.
@@ -229,6 +268,7 @@ impl<'c> Renderer<'c> {
             geom,
             expanded: scene.expanded,
             ids: scene.id_map().map(std::sync::Arc::new),
+            translucent: scene.has_translucent(),
             bounds: (bs_center.as_dvec3(), bs_radius as f64),
             typical_radius: typical_radius(scene) as f64,
             globals: Globals {
@@ -502,6 +542,30 @@ impl<'c> Renderer<'c> {
         let cam = self.settings.camera;
         self.res.globals.cam = cam.to_gpu_window(self.res.depth_offset(&cam), self.settings.window);
         self.res.update_light_view(&self.settings);
+        Ok(())
+    }
+
+    /// New sphere colours (RGBA8, alpha 255 opaque), one per sphere record
+    /// in the scene's order (an instanced scene's molecule atoms): the
+    /// viewer's colour and see-through presets. Alpha changes the shadows
+    /// (deep lists) and whether the see-through passes run.
+    pub fn set_colors(&mut self, colors: &[[u8; 4]]) -> Result<()> {
+        // (16 B per sphere record: the colour buffer may be padded)
+        let n = self.res.scene.spheres.size / 16;
+        if colors.len() as u64 != n {
+            return Err(Error::Input(format!(
+                "{} colours for {n} sphere records",
+                colors.len()
+            )));
+        }
+        // Frames in flight read the colour buffer.
+        self.wait_idle()?;
+        self.res
+            .scene
+            .colors
+            .upload(self.ctx, 0, bytemuck::cast_slice(colors))?;
+        self.res.translucent = colors.iter().any(|c| c[3] < 255);
+        self.res.light_changed(self.ctx, &self.settings)?;
         Ok(())
     }
 

@@ -63,12 +63,26 @@ impl Renderer<'_> {
             }
         }
         Err(Error::DeviceLimit(
-            "deep shadow list pool still overflows after growing it".into(),
+            "the deep shadow lists' or see-through fragments' pool still overflows after growing it"
+                .into(),
         ))
     }
 
+    /// The deep lists and the see-through fragments check their pools; a
+    /// frame either overflowed is rendered again.
     fn after_frame(&mut self) -> Result<FrameCheck> {
-        self.res.stages.shadows.after_frame(self.ctx)
+        let shadows = self.res.stages.shadows.after_frame(self.ctx)?;
+        let see = self.res.see_through(&self.settings);
+        let grown = match &mut self.res.stages.see_through {
+            Some(s) if see => s.after_frame(self.ctx)?,
+            _ => false,
+        };
+        Ok(if grown { FrameCheck::Retry } else { shadows })
+    }
+
+    /// Whether each frame must be checked before the next is recorded.
+    fn checks_frames(&self) -> bool {
+        self.res.stages.shadows.checks_frames() || self.res.see_through(&self.settings)
     }
 
     /// Records and submits the next frame without waiting for it; returns
@@ -77,7 +91,7 @@ impl Renderer<'_> {
     /// A technique that checks each frame (deep lists) makes this wait like
     /// `render_frame`.
     pub fn render_frame_pipelined(&mut self) -> Result<Option<PassTimes>> {
-        if self.res.stages.shadows.checks_frames() {
+        if self.checks_frames() {
             return self.render_frame().map(Some);
         }
         let slot = self.next_slot;

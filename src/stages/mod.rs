@@ -7,9 +7,12 @@
 //!   rasterizer) and the tile lists of the covered regions;
 //! - [`shadows`]: the key light's structure, one technique at a time;
 //! - [`ssdo`]: semantic SSDO with one bounce, and its bilateral blur;
-//! - [`shading`]: three-point lighting into the colour buffer and the AOVs.
+//! - [`see_through`]: the camera's fragment lists of see-through spheres;
+//! - [`shading`]: three-point lighting into the colour buffer and the AOVs,
+//!   compositing the see-through fragments.
 
 pub mod raster;
+pub mod see_through;
 pub mod shading;
 pub mod shadows;
 pub mod ssdo;

@@ -16,7 +16,7 @@ use crate::passes::screen::{ScreenInputs, surface_bindings};
 use crate::passes::tiles::{TILE_BINDING, Tiles};
 use crate::passes::variants::{TiledDispatch, Variants};
 use crate::settings::RenderSettings;
-use crate::vk::pipeline::{Binding, PipelineDesc, texel, wo};
+use crate::vk::pipeline::{Binding, PipelineDesc, ro, texel, wo};
 use crate::vk::{Buffer, Context, Recorder};
 use ash::vk::Format;
 
@@ -71,6 +71,8 @@ pub struct ShadeInputs<'a> {
     /// The SSDO stage's outputs (its targets, unread, without SSDO).
     pub ssdo: &'a SsdoOutputs<'a>,
     pub tiles: Tiles<'a>,
+    /// The see-through fragment lists, when the frame has some.
+    pub see_through: Option<crate::stages::see_through::SeeThroughOutputs<'a>>,
 }
 
 /// The stage's pipeline choice and push constants for one frame, computed
@@ -92,6 +94,7 @@ impl ShadeFrame {
         ssdo: &SsdoParams,
         bgra: bool,
         typical_radius: f64,
+        see_through: bool,
     ) -> Self {
         let on = settings.ssdo_on();
         let outline_px = outline_px(settings);
@@ -116,6 +119,7 @@ impl ShadeFrame {
                     fog: fog.is_some_and(|f| f.0[1] > f.0[0]),
                     perspective: settings.camera.fov_deg.is_some(),
                     quad: lookup.quad(),
+                    see_through,
                 },
             },
             push: ShadePush {
@@ -156,7 +160,7 @@ impl ShadeMode {
     }
 }
 
-const SHADE_OUTPUTS: [Binding; 7] = [
+const SHADE_OUTPUTS: [Binding; 10] = [
     texel("aoTex", Format::R32_UINT),
     texel("recordTex", Format::R32G32B32A32_UINT),
     wo("Color"),
@@ -164,6 +168,9 @@ const SHADE_OUTPUTS: [Binding; 7] = [
     texel("sphereAoTex", Format::R32G32B32A32_UINT),
     texel("flagTex", Format::R32_UINT),
     texel("wordBaseTex", Format::R32_UINT),
+    texel("oitCountTex", Format::R32_UINT),
+    texel("oitHeadTex", Format::R32_UINT),
+    ro("OitFrags"),
 ];
 
 impl ShadePass {
@@ -231,6 +238,13 @@ impl ShadePass {
                 "wordBaseTex",
                 spheres.map_or(io.ssdo.records, |s| &s.word_base),
             ),
+        ]);
+        // (bound and unread without see-through spheres)
+        let see = io.see_through;
+        bufs.extend([
+            ("oitCountTex", see.map_or(io.ssdo.records, |s| s.counts)),
+            ("oitHeadTex", see.map_or(io.ssdo.records, |s| s.heads)),
+            ("OitFrags", see.map_or(io.ssdo.records, |s| s.frags)),
         ]);
         bufs.extend(io.lookup.buffers.iter().copied());
         rec.pass(Self::NAME, |p| {

@@ -113,6 +113,33 @@ impl Buffer {
 
     /// A device-local storage buffer (also readable as a uniform texel
     /// buffer and writable as a storage texel buffer, through views).
+    /// A device-local buffer of `words` u32 followed by `guard` words of
+    /// `pattern` that no pass may touch (GPU-AV does not check atomics:
+    /// tests read the guards instead).
+    pub fn guarded(
+        ctx: &Context,
+        name: &str,
+        words: u64,
+        guard: u64,
+        pattern: u32,
+        usage: vk::BufferUsageFlags,
+    ) -> Result<Self> {
+        let buf = Buffer::new(
+            ctx,
+            name,
+            (words + guard) * 4,
+            usage,
+            MemoryLocation::GpuOnly,
+        )?;
+        let guard = vec![pattern; guard as usize];
+        if let Err(e) = buf.upload(ctx, words * 4, bytemuck::cast_slice(&guard)) {
+            let mut buf = buf;
+            buf.destroy(ctx);
+            return Err(e);
+        }
+        Ok(buf)
+    }
+
     pub fn storage(ctx: &Context, name: &str, size: u64) -> Result<Self> {
         Self::new(
             ctx,

@@ -98,6 +98,7 @@ pub fn settings(camera: Camera, shadows: ShadowMode) -> RenderSettings {
         ssaa: 1,
         tile_size: None,
         tile_lists: true,
+        opaque_view: false,
     }
 }
 

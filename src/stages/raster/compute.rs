@@ -5,7 +5,7 @@ use crate::error::Result;
 use crate::gpu::blocks::RasterPush;
 use crate::gpu::consts::{R_ARGS, R_BANDS_REQ, R_BANDS_RUN};
 use crate::passes::bands::{BandArgs, BandCounters, BandJob, BandPipelines};
-use crate::passes::scene::{SCENE_GEOMETRY, SceneBuffers, SceneGeom};
+use crate::passes::scene::{SCENE_ATTRIBUTES, SCENE_GEOMETRY, SceneBuffers, SceneGeom};
 use crate::passes::{LOCAL_SIZE, spirv};
 use crate::vk::guard::Destroy;
 use crate::vk::pipeline::{PipelineDesc, rw, texel, uniform};
@@ -58,6 +58,12 @@ pub struct RasterPass {
     /// Orthographic views (the camera's and the light's) and perspective
     /// camera views (specialization constant 2).
     pipes: [BandPipelines; 2],
+    /// The same with SEE_THROUGH (constant 3: the camera view skips
+    /// spheres whose alpha is below 1), made the first time a frame has
+    /// see-through spheres.
+    see_through: Option<[BandPipelines; 2]>,
+    /// Kept to make them.
+    scene: u32,
     args: BandArgs,
     jobs: Buffer,
     big_area: u32,
@@ -179,8 +185,9 @@ pub fn vis_buffer(ctx: &Context, name: &str, pixels: u64) -> Result<Buffer> {
 impl RasterPass {
     pub const NAME: &'static str = "raster";
 
-    /// The rasterizer for a scene of this SCENE_SPEC (passes::scene).
-    pub fn new(ctx: &Context, scene: u32) -> Result<Self> {
+    /// The rasterizer's pipelines (orthographic, perspective) with or
+    /// without SEE_THROUGH.
+    fn pipelines(ctx: &Context, scene: u32, see_through: bool) -> Result<[BandPipelines; 2]> {
         let bindings = [
             &[
                 uniform("GlobalsBlock"),
@@ -191,6 +198,7 @@ impl RasterPass {
                 texel("orderTex", ash::vk::Format::R32_UINT),
             ][..],
             &SCENE_GEOMETRY,
+            &SCENE_ATTRIBUTES,
         ]
         .concat();
         let desc = PipelineDesc {
@@ -202,8 +210,17 @@ impl RasterPass {
             constants: &[],
             scene,
         };
-        let ortho = ctx.guard(BandPipelines::new(ctx, &desc, &[0])?);
-        let persp = ctx.guard(BandPipelines::new(ctx, &desc, &[1])?);
+        let st = see_through as u32;
+        let ortho = ctx.guard(BandPipelines::new(ctx, &desc, &[0, st])?);
+        let persp = BandPipelines::new(ctx, &desc, &[1, st])?;
+        Ok([ortho.keep(), persp])
+    }
+
+    /// The rasterizer for a scene of this SCENE_SPEC (passes::scene).
+    pub fn new(ctx: &Context, scene: u32) -> Result<Self> {
+        let [ortho, persp] = Self::pipelines(ctx, scene, false)?;
+        let ortho = ctx.guard(ortho);
+        let persp = ctx.guard(persp);
         let args = ctx.guard(BandArgs::new(ctx, "raster band args")?);
         let jobs = ctx.guard(Buffer::storage(
             ctx,
@@ -219,12 +236,23 @@ impl RasterPass {
         let light = ViewOrder::new(ctx, "light sphere order")?;
         Ok(RasterPass {
             pipes: [ortho.keep(), persp.keep()],
+            see_through: None,
+            scene,
             args: args.keep(),
             jobs: jobs.keep(),
             big_area: big_area(ctx),
             counters: counters.keep(),
             orders: [camera.keep(), light],
         })
+    }
+
+    /// Makes the SEE_THROUGH pipelines (the first frame with see-through
+    /// spheres).
+    pub fn enable_see_through(&mut self, ctx: &Context) -> Result<()> {
+        if self.see_through.is_none() {
+            self.see_through = Some(Self::pipelines(ctx, self.scene, true)?);
+        }
+        Ok(())
     }
 
     /// Band jobs and counters (with the visibility buffers they serve).
@@ -276,6 +304,7 @@ impl RasterPass {
         io: &RasterIo<'b>,
         view: ViewIndex,
         perspective: bool,
+        see_through: bool,
     ) -> Result<()> {
         let RasterIo {
             globals,
@@ -299,7 +328,16 @@ impl RasterPass {
             job_capacity: JOB_CAPACITY,
             sphere_count,
         };
-        let pipe = &self.pipes[(view == ViewIndex::Camera && perspective) as usize];
+        let pipes = match (&self.see_through, see_through) {
+            (Some(p), true) => p,
+            (None, true) => {
+                return Err(crate::error::Error::Internal(
+                    "see-through raster pipelines were not made".into(),
+                ));
+            }
+            _ => &self.pipes,
+        };
+        let pipe = &pipes[(view == ViewIndex::Camera && perspective) as usize];
         let mut bindings = vec![
             ("GlobalsBlock", globals),
             ("Vis", vis),
@@ -309,6 +347,7 @@ impl RasterPass {
             ("orderTex", &order.buf),
         ];
         bindings.extend(scene.geometry());
+        bindings.extend(scene.attributes());
         self.args.steps(
             p,
             &BandJob {
@@ -331,11 +370,15 @@ impl RasterPass {
         name: &'static str,
         io: &RasterIo<'b>,
     ) -> Result<()> {
-        rec.pass(name, |p| self.steps(p, io, ViewIndex::Light, false))
+        rec.pass(name, |p| self.steps(p, io, ViewIndex::Light, false, false))
     }
 
     pub fn destroy(&mut self, ctx: &Context) {
-        for p in &mut self.pipes {
+        for p in self
+            .pipes
+            .iter_mut()
+            .chain(self.see_through.iter_mut().flatten())
+        {
             p.destroy(ctx);
         }
         self.args.destroy(ctx);

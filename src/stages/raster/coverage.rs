@@ -15,52 +15,55 @@ use ash::vk::Format;
 
 pub struct CoveragePass {
     regions: ComputePipeline,
+    /// The same with SEE_THROUGH: pixels with see-through fragments are
+    /// covered too.
+    see_through: ComputePipeline,
     args: ComputePipeline,
 }
 
-const BINDINGS: [Binding; 3] = [
+const BINDINGS: [Binding; 4] = [
     uniform("GlobalsBlock"),
     texel("visTex", Format::R32G32_UINT),
     rw("TileLists"),
+    texel("oitCountTex", Format::R32_UINT),
 ];
 
 impl CoveragePass {
     pub const NAME: &'static str = "coverage";
 
     pub fn new(ctx: &Context) -> Result<Self> {
-        let make = |args: u32, local_size: u32| {
+        let make = |name: &str, args: u32, see: u32, local_size: u32| {
             ComputePipeline::new(
                 ctx,
                 &PipelineDesc {
-                    name: if args == 0 {
-                        "coverage"
-                    } else {
-                        "coverage args"
-                    },
+                    name,
                     shader: spirv::COVERAGE_COMP,
                     bindings: &BINDINGS,
                     push_size: 0,
                     local_size,
-                    constants: &[args],
+                    constants: &[args, see],
                     scene: 0,
                 },
             )
         };
-        let regions = ctx.guard(make(0, LOCAL_SIZE)?);
-        let args = make(1, 1)?;
+        let regions = ctx.guard(make("coverage", 0, 0, LOCAL_SIZE)?);
+        let see_through = ctx.guard(make("coverage see-through", 0, 1, LOCAL_SIZE)?);
+        let args = make("coverage args", 1, 0, 1)?;
         Ok(CoveragePass {
             regions: regions.keep(),
+            see_through: see_through.keep(),
             args,
         })
     }
 
     /// The steps of the pass: lists of the w x h visibility buffer `vis`
-    /// into `lists`.
+    /// (and, with see-through spheres, the fragment counts) into `lists`.
     pub fn steps<'b>(
         &'b self,
         p: &mut PassBuilder<'b>,
         globals: &'b Buffer,
         vis: &'b Buffer,
+        counts: Option<&'b Buffer>,
         lists: &'b Buffer,
         (w, h): (u32, u32),
     ) {
@@ -68,14 +71,22 @@ impl CoveragePass {
             ("GlobalsBlock", globals),
             ("visTex", vis),
             ("TileLists", lists),
+            // (bound and unread without see-through spheres)
+            ("oitCountTex", counts.unwrap_or(vis)),
         ];
         p.fill(lists, 8, 0);
-        p.dispatch(&self.regions, &(), Grid::Invocations(regions(w, h)), &bufs);
+        let pipe = if counts.is_some() {
+            &self.see_through
+        } else {
+            &self.regions
+        };
+        p.dispatch(pipe, &(), Grid::Invocations(regions(w, h)), &bufs);
         p.dispatch(&self.args, &(), Grid::Groups([1, 1, 1]), &bufs);
     }
 
     pub fn destroy(&mut self, ctx: &Context) {
         self.regions.destroy(ctx);
+        self.see_through.destroy(ctx);
         self.args.destroy(ctx);
     }
 }

@@ -56,6 +56,8 @@ pub struct RasterInputs<'a> {
     /// the window) in pixels.
     pub image: (u32, u32),
     pub size: (u32, u32),
+    /// See-through spheres are drawn by the fragment lists, not here.
+    pub see_through: bool,
 }
 
 pub struct RasterStage {
@@ -89,7 +91,8 @@ impl RasterStage {
         })
     }
 
-    /// `raster`: the camera's visibility buffer.
+    /// `raster`: the camera's visibility buffer (with `io.see_through`
+    /// the opaque spheres' only).
     pub fn record(&self, rec: &mut Recorder, io: &RasterInputs, t: &RasterTargets) -> Result<()> {
         let (w, h) = io.size;
         let target = RasterIo {
@@ -101,20 +104,26 @@ impl RasterStage {
         rec.pass(RasterPass::NAME, |p| {
             match &self.graphics {
                 Some(g) => g.steps(p, &target, io.image),
-                None => self
-                    .compute
-                    .steps(p, &target, ViewIndex::Camera, io.perspective)?,
+                None => self.compute.steps(
+                    p,
+                    &target,
+                    ViewIndex::Camera,
+                    io.perspective,
+                    io.see_through,
+                )?,
             }
             Ok(())
         })
     }
 
-    /// `coverage` (with tile lists): the tiles the per-pixel passes run.
+    /// `coverage` (with tile lists): the tiles the per-pixel passes run
+    /// (`counts`: the see-through fragment counts, when there are some).
     pub fn record_tiles<'a>(
         &self,
         rec: &mut Recorder,
         globals: &Buffer,
         t: &'a RasterTargets,
+        counts: Option<&Buffer>,
         size: (u32, u32),
         lists: bool,
     ) -> Result<Tiles<'a>> {
@@ -122,7 +131,8 @@ impl RasterStage {
             return Ok(Tiles::All);
         }
         rec.pass(CoveragePass::NAME, |p| {
-            self.coverage.steps(p, globals, &t.vis, &t.tiles, size);
+            self.coverage
+                .steps(p, globals, &t.vis, counts, &t.tiles, size);
             Ok(())
         })?;
         Ok(Tiles::Lists(&t.tiles))

@@ -92,7 +92,7 @@ mod tests {
             spheres: vec![Sphere {
                 center: [0.0; 3],
                 radius: 1.0,
-                color: [200; 4],
+                color: [200, 200, 200, 255],
                 region: [0; 4],
             }],
             level_names: vec![],

@@ -108,18 +108,5 @@ pub(super) fn guarded(
     words: u64,
     usage: vk::BufferUsageFlags,
 ) -> Result<Buffer> {
-    let buf = Buffer::new(
-        ctx,
-        name,
-        (words + GUARD_WORDS) * 4,
-        usage,
-        MemoryLocation::GpuOnly,
-    )?;
-    let guard = vec![GUARD_PATTERN; GUARD_WORDS as usize];
-    if let Err(e) = buf.upload(ctx, words * 4, bytemuck::cast_slice(&guard)) {
-        let mut buf = buf;
-        buf.destroy(ctx);
-        return Err(e);
-    }
-    Ok(buf)
+    Buffer::guarded(ctx, name, words, GUARD_WORDS, GUARD_PATTERN, usage)
 }

@@ -52,14 +52,13 @@ use crate::error::{Error, Result};
 use crate::gpu::blocks::{AllocPush, SortPush, SplatPush};
 use crate::gpu::consts;
 use crate::passes::bands::{BandArgs, BandCounters, BandJob, BandPipelines};
-use crate::passes::scene::SCENE_GEOMETRY;
+use crate::passes::scene::{SCENE_ATTRIBUTES, SCENE_GEOMETRY};
 use crate::passes::{LOCAL_SIZE, spirv};
 use crate::settings::ShadowMode;
 use crate::vk::pipeline::{Binding, PipelineDesc, ro, rw, uniform, wo};
 use crate::vk::{Buffer, ComputePipeline, Context, Grid, Recorder};
 use ash::vk;
 use bytemuck::{Pod, Zeroable};
-use gpu_allocator::MemoryLocation;
 use serde::{Deserialize, Serialize};
 use std::any::Any;
 use std::sync::atomic::{AtomicU32, Ordering};
@@ -304,6 +303,7 @@ impl DeepShadows {
                             rw("Inline"),
                         ][..],
                         &SCENE_GEOMETRY,
+                        &SCENE_ATTRIBUTES,
                     ]
                     .concat(),
                     push_size: std::mem::size_of::<SplatPush>() as u32,
@@ -438,14 +438,13 @@ impl DeepShadows {
             ("Inline", &self.inline_bits),
         ];
         splat_bufs.extend(f.scene.geometry());
+        splat_bufs.extend(f.scene.attributes());
         let job_capacity = self.job_limit.load(Ordering::Relaxed);
         let splat = SplatPush {
             sphere_count: self.sphere_count,
             big_area: BIG_AREA,
             job_capacity,
             entry_capacity: self.entry_capacity(),
-            opacity: f.opacity.clamp(0.0, 1.0),
-            pad: [0; 3],
         };
         let band_counters = BandCounters {
             job_capacity,

@@ -1,0 +1,71 @@
+#version 460
+// See-through spheres, passes 1 and 3 of the camera's fragment lists (the
+// deep lists' count -> allocate -> fill, in the camera view): every sphere
+// whose alpha is below 1 (scene_alpha) visits its footprint as the
+// rasterizer does (exact ray-sphere test per pixel centre) and, where its
+// front hit lies in front of the pixel's nearest opaque surface (the
+// visibility buffer's depth word), makes a fragment:
+//   MODE 0 (oit_count): atomicAdd the pixel's count;
+//   MODE 1 (oit_fill):  take a slot with the pixel's atomic cursor and write
+//                       (depth key, sphere id) at head + slot (head from
+//                       oit_alloc).
+// One pipeline for both modes, so both enumerate the same (sphere, pixel)
+// pairs; large footprints go to band jobs (bands.glsl) that the fill pass
+// replays, as the deep lists do. Opaque spheres have an empty footprint.
+#include "raster_common.glsl"
+
+layout(local_size_x_id = 0) in;
+
+layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
+// The opaque visibility buffer as 32-bit words (2k + 1: pixel k's depth).
+layout(set = 0, binding = 1) uniform usamplerBuffer visWordTex;
+layout(set = 0, binding = 2) buffer Count { uint counts[]; };
+layout(set = 0, binding = 3) buffer Cursor { uint cursor[]; };
+layout(set = 0, binding = 4) readonly buffer Head { uint heads[]; };
+layout(set = 0, binding = 5) writeonly buffer Frags { uvec2 frags[]; };
+layout(set = 0, binding = 6) buffer Counters { uint counters[]; };
+layout(set = 0, binding = 7) buffer Jobs { uvec2 jobs[]; };
+layout(set = 0, binding = 8) buffer Inline { uint inline_bits[]; };
+
+#define SCENE_ATTRIBUTES
+#include "scene.glsl"
+#include "push/oit_splat.glsl"
+
+layout(constant_id = 2) const bool PERSP = false;
+layout(constant_id = 3) const uint MODE = 0u;
+
+#include "view_footprint.glsl"
+
+Footprint band_footprint(uint id) {
+    Footprint f = view_footprint(g.cam, id);
+    if (scene_alpha(id) >= 1.0) f.rect = ivec4(1, 1, 0, 0);
+    return f;
+}
+
+void visit(uint id, Footprint f, ivec2 t) {
+    float d = footprint_depth(f, t);
+    if (d < 0.0) return;
+    uint k = footprint_pixel(f, t);
+    // In front of the opaque surface (the empty key's word is all ones).
+    if (floatBitsToUint(d) >= texelFetch(visWordTex, int(2u * k + 1u)).x) return;
+    if (MODE == 0u) {
+        atomicAdd(counts[k], 1u);
+        return;
+    }
+    uint head = heads[k];
+    if (head == F_NONE) return; // its tile did not fit: the frame is rendered again
+    uint slot = atomicAdd(cursor[k], 1u);
+    uint addr = head + slot;
+    if (slot >= counts[k] || addr >= pc.capacity) {
+        atomicAdd(counters[F_FILL_ERRORS], 1u);
+        return;
+    }
+    frags[addr] = uvec2(floatBitsToUint(d), id);
+}
+
+bool band_queue() { return MODE == 0u; }
+void band_inline(uint id) { atomicOr(inline_bits[id >> 5], 1u << (id & 31u)); }
+bool band_replay(uint id) { return (inline_bits[id >> 5] & (1u << (id & 31u))) != 0u; }
+#define BAND_REQ F_BANDS_REQ
+#define BAND_RUN F_BANDS_RUN
+#include "bands.glsl"

@@ -1,0 +1,493 @@
+//! See-through spheres (alpha below 1, DESIGN.md "Colour, selections and
+//! translucency"): exact order-independent transparency in the camera view
+//! through per-pixel fragment lists, built with the deep shadow lists'
+//! count -> allocate -> fill machinery in the camera's view:
+//!
+//! - `oit_count`: every see-through sphere visits its footprint (the
+//!   band skeleton of glsl/bands.glsl, exact ray-sphere test per pixel)
+//!   and counts a fragment per pixel where its front hit lies in front of
+//!   the opaque surface (the raster drew only opaque spheres);
+//! - `oit_alloc`: per 8x8 pixel tile (one invocation each), a running sum
+//!   of the counts and one pool `atomicAdd`: each pixel's fragments are
+//!   contiguous from its head;
+//!   a tile that does not fit is flagged, the pool grown and the frame
+//!   rendered again (as the deep lists do);
+//! - `oit_fill`: the same enumeration writing (depth key, sphere id);
+//! - `shade` takes each pixel's fragments in (depth, id) order, a
+//!   selection scan per step until the transmittance is below 1/1024, and
+//!   composites them, lit, front to back over the opaque surface.
+//!
+//! Host memory: nothing. Device memory: 12 B per pixel (count, cursor,
+//! head) and 8 B per fragment of the pool, plus band jobs.
+
+use crate::error::{Error, Result};
+use crate::gpu::blocks::{OitAllocPush, OitSplatPush};
+use crate::gpu::consts::{
+    F_ARGS, F_BANDS_REQ, F_BANDS_RUN, F_FILL_ERRORS, F_MAX, F_OVERFLOW, F_PIXELS, F_TOTAL,
+};
+use crate::passes::bands::{BandArgs, BandCounters, BandJob, BandPipelines};
+use crate::passes::scene::{SCENE_ATTRIBUTES, SCENE_GEOMETRY, SceneBuffers};
+use crate::passes::{LOCAL_SIZE, spirv};
+use crate::vk::pipeline::{PipelineDesc, ro, rw, texel, uniform, wo};
+use crate::vk::{Buffer, ComputePipeline, Context, Grid, Recorder};
+use ash::vk;
+use serde::{Deserialize, Serialize};
+
+/// u32 guard words after every per-pixel and pool buffer.
+pub const GUARD_WORDS: u64 = 64;
+pub const GUARD_PATTERN: u32 = 0x0175_EE00;
+/// Counter words (stats 0..15, band jobs 16..23).
+const COUNTER_WORDS: u64 = 32;
+/// Footprints above this many pixels go to band jobs (the rasterizer's
+/// CPU threshold: the lists are a camera raster too).
+const BIG_AREA: u32 = 1024;
+/// Band jobs per frame before the per-sphere fallback loop.
+const JOB_CAPACITY: u32 = 1 << 18;
+/// Initial pool: fragments per pixel of the window.
+const INITIAL_PER_PIXEL: u64 = 2;
+
+const LAYOUT: BandCounters = BandCounters {
+    job_capacity: JOB_CAPACITY,
+    requested: F_BANDS_REQ,
+    run: F_BANDS_RUN,
+    args: F_ARGS,
+};
+
+/// A frame's fragment lists as read back: per pixel its count and head
+/// (F_NONE: no fragments, or its tile did not fit), and the pool's
+/// (depth key bits, sphere id) pairs.
+pub struct FragmentLists {
+    pub counts: Vec<u32>,
+    pub heads: Vec<u32>,
+    pub frags: Vec<[u32; 2]>,
+}
+
+/// The fragment lists of a frame (the JSON's `see_through`).
+#[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
+pub struct SeeThroughStats {
+    /// Fragments in front of the opaque surfaces.
+    pub fragments: u64,
+    /// Pixels showing one or more.
+    pub pixels: u64,
+    /// Most fragments of one pixel.
+    pub max_per_pixel: u64,
+    /// Fragments the pool holds.
+    pub capacity: u64,
+    /// Device bytes of the lists (per-pixel words and the pool).
+    pub bytes: u64,
+    /// A frame did not fit and was rendered again with a larger pool.
+    pub overflowed: bool,
+}
+
+/// The per-pixel words and the pool, sized for a window.
+struct Lists {
+    pixels: u64,
+    capacity: u32,
+    counts: Buffer,
+    cursor: Buffer,
+    heads: Buffer,
+    frags: Buffer,
+}
+
+fn guarded(ctx: &Context, name: &str, words: u64) -> Result<Buffer> {
+    let usage = vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER;
+    Buffer::guarded(ctx, name, words, GUARD_WORDS, GUARD_PATTERN, usage)
+}
+
+impl Lists {
+    fn new(ctx: &Context, pixels: u64, capacity: u32) -> Result<Self> {
+        let counts = ctx.guard(guarded(ctx, "fragment counts", pixels)?);
+        let cursor = ctx.guard(guarded(ctx, "fragment cursors", pixels)?);
+        let heads = ctx.guard(guarded(ctx, "fragment heads", pixels)?);
+        let frags = guarded(ctx, "fragments", capacity as u64 * 2)?;
+        Ok(Lists {
+            pixels,
+            capacity,
+            counts: counts.keep(),
+            cursor: cursor.keep(),
+            heads: heads.keep(),
+            frags,
+        })
+    }
+
+    fn buffers(&self) -> [(&Buffer, u64); 4] {
+        [
+            (&self.counts, self.pixels),
+            (&self.cursor, self.pixels),
+            (&self.heads, self.pixels),
+            (&self.frags, self.capacity as u64 * 2),
+        ]
+    }
+
+    fn bytes(&self) -> u64 {
+        self.buffers().iter().map(|(b, _)| b.size).sum()
+    }
+
+    fn destroy(&mut self, ctx: &Context) {
+        for b in [
+            &mut self.counts,
+            &mut self.cursor,
+            &mut self.heads,
+            &mut self.frags,
+        ] {
+            b.destroy(ctx);
+        }
+    }
+}
+
+/// The most fragments one pool can hold on this device (two words each
+/// in one storage buffer).
+fn max_capacity(ctx: &Context) -> u64 {
+    let range = ctx.props.limits.max_storage_buffer_range as u64;
+    (range / 4).saturating_sub(GUARD_WORDS) / 2
+}
+
+/// The stage: made the first time a frame has see-through spheres.
+pub struct SeeThrough {
+    /// The splat shader counting and filling, each for orthographic and
+    /// perspective cameras (specialization constants 3 and 2).
+    count: [BandPipelines; 2],
+    fill: [BandPipelines; 2],
+    args: BandArgs,
+    alloc: ComputePipeline,
+    counters: Buffer,
+    jobs: Buffer,
+    inline_bits: Buffer,
+    sphere_count: u32,
+    lists: Option<Lists>,
+    /// The last frame's lists.
+    pub stats: Option<SeeThroughStats>,
+    retried: bool,
+}
+
+/// What the lists read in a frame.
+pub struct SeeThroughInputs<'a> {
+    pub globals: &'a Buffer,
+    pub scene: &'a SceneBuffers,
+    /// The opaque visibility buffer.
+    pub vis: &'a Buffer,
+    pub perspective: bool,
+}
+
+/// What `coverage` and `shade` read of them.
+#[derive(Clone, Copy)]
+pub struct SeeThroughOutputs<'a> {
+    pub counts: &'a Buffer,
+    pub heads: &'a Buffer,
+    pub frags: &'a Buffer,
+}
+
+impl SeeThrough {
+    pub fn new(ctx: &Context, scene: u32, sphere_count: u32) -> Result<Self> {
+        let splat = |mode: u32, name: &str| -> Result<[BandPipelines; 2]> {
+            let bindings = [
+                &[
+                    uniform("GlobalsBlock"),
+                    texel("visWordTex", vk::Format::R32_UINT),
+                    rw("Count"),
+                    rw("Cursor"),
+                    ro("Head"),
+                    wo("Frags"),
+                    rw("Counters"),
+                    rw("Jobs"),
+                    rw("Inline"),
+                ][..],
+                &SCENE_GEOMETRY,
+                &SCENE_ATTRIBUTES,
+            ]
+            .concat();
+            let desc = PipelineDesc {
+                name,
+                shader: spirv::OIT_SPLAT_COMP,
+                bindings: &bindings,
+                push_size: std::mem::size_of::<OitSplatPush>() as u32,
+                local_size: LOCAL_SIZE,
+                constants: &[],
+                scene,
+            };
+            // constants 2 (PERSP) and 3 (MODE)
+            let ortho = ctx.guard(BandPipelines::new(ctx, &desc, &[0, mode])?);
+            let persp = BandPipelines::new(ctx, &desc, &[1, mode])?;
+            Ok([ortho.keep(), persp])
+        };
+        let count = ctx.guard(splat(0, "oit count")?);
+        let fill = ctx.guard(splat(1, "oit fill")?);
+        let alloc = ctx.guard(ComputePipeline::new(
+            ctx,
+            &PipelineDesc {
+                name: "oit alloc",
+                shader: spirv::OIT_ALLOC_COMP,
+                bindings: &[
+                    uniform("GlobalsBlock"),
+                    ro("Count"),
+                    wo("Head"),
+                    rw("Counters"),
+                ],
+                push_size: std::mem::size_of::<OitAllocPush>() as u32,
+                local_size: 64,
+                constants: &[],
+                scene: 0,
+            },
+        )?);
+        let args = ctx.guard(BandArgs::new(ctx, "oit band args")?);
+        let usage = vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::INDIRECT_BUFFER;
+        let counters = ctx.guard(Buffer::guarded(
+            ctx,
+            "fragment counters",
+            COUNTER_WORDS,
+            GUARD_WORDS,
+            GUARD_PATTERN,
+            usage,
+        )?);
+        let jobs = ctx.guard(Buffer::storage(
+            ctx,
+            "oit band jobs",
+            JOB_CAPACITY as u64 * 8,
+        )?);
+        let inline_bits = Buffer::storage(
+            ctx,
+            "oit inline spheres",
+            (sphere_count as u64).div_ceil(32).max(1) * 4,
+        )?;
+        Ok(SeeThrough {
+            count: count.keep(),
+            fill: fill.keep(),
+            args: args.keep(),
+            alloc: alloc.keep(),
+            counters: counters.keep(),
+            jobs: jobs.keep(),
+            inline_bits,
+            sphere_count,
+            lists: None,
+            stats: None,
+            retried: false,
+        })
+    }
+
+    /// Lists for a window of `pixels` (made, or remade when the window
+    /// changed; the pool keeps its size or starts at 2 per pixel).
+    pub fn prepare(&mut self, ctx: &Context, pixels: u64, initial: Option<u32>) -> Result<()> {
+        if self.lists.as_ref().is_some_and(|l| l.pixels == pixels) {
+            return Ok(());
+        }
+        let capacity = match (&self.lists, initial) {
+            (Some(l), _) => l.capacity as u64,
+            (None, Some(n)) => n.max(1) as u64,
+            (None, None) => (pixels * INITIAL_PER_PIXEL).max(1024),
+        }
+        .min(max_capacity(ctx));
+        ctx.wait_idle();
+        let lists = Lists::new(ctx, pixels, capacity as u32)?;
+        if let Some(mut old) = self.lists.replace(lists) {
+            old.destroy(ctx);
+        }
+        Ok(())
+    }
+
+    fn lists(&self) -> Result<&Lists> {
+        self.lists
+            .as_ref()
+            .ok_or_else(|| Error::Internal("see-through lists used before prepare".into()))
+    }
+
+    /// What coverage and shade read.
+    pub fn outputs(&self) -> Result<SeeThroughOutputs<'_>> {
+        let l = self.lists()?;
+        Ok(SeeThroughOutputs {
+            counts: &l.counts,
+            heads: &l.heads,
+            frags: &l.frags,
+        })
+    }
+
+    /// `oit_count`, `oit_alloc`, `oit_fill`.
+    pub fn record(
+        &self,
+        rec: &mut Recorder,
+        io: &SeeThroughInputs,
+        size: (u32, u32),
+    ) -> Result<()> {
+        let l = self.lists()?;
+        let pixels = size.0 as u64 * size.1 as u64;
+        if pixels != l.pixels {
+            return Err(Error::Internal("see-through lists of another size".into()));
+        }
+        let mut bufs = vec![
+            ("GlobalsBlock", io.globals),
+            ("visWordTex", io.vis),
+            ("Count", &l.counts),
+            ("Cursor", &l.cursor),
+            ("Head", &l.heads),
+            ("Frags", &l.frags),
+            ("Counters", &self.counters),
+            ("Jobs", &self.jobs),
+            ("Inline", &self.inline_bits),
+        ];
+        bufs.extend(io.scene.geometry());
+        bufs.extend(io.scene.attributes());
+        let push = OitSplatPush {
+            sphere_count: self.sphere_count,
+            big_area: BIG_AREA,
+            job_capacity: JOB_CAPACITY,
+            capacity: l.capacity,
+        };
+        let view = io.perspective as usize;
+        rec.pass("oit_count", |p| {
+            p.fill(&l.counts, pixels * 4, 0);
+            p.fill(&l.cursor, pixels * 4, 0);
+            p.fill(&self.counters, COUNTER_WORDS * 4, 0);
+            let words = (self.sphere_count as u64).div_ceil(32).max(1);
+            p.fill(&self.inline_bits, words * 4, 0);
+            self.args.steps(
+                p,
+                &BandJob {
+                    pipes: &self.count[view],
+                    push: &push,
+                    bindings: &bufs,
+                    sphere_count: self.sphere_count,
+                    counters: &self.counters,
+                    layout: &LAYOUT,
+                },
+            );
+            Ok(())
+        })?;
+        rec.pass("oit_alloc", |p| {
+            p.dispatch(
+                &self.alloc,
+                &OitAllocPush {
+                    capacity: l.capacity,
+                },
+                Grid::Groups([(size.0.div_ceil(8) * size.1.div_ceil(8)).div_ceil(64), 1, 1]),
+                &[
+                    ("GlobalsBlock", io.globals),
+                    ("Count", &l.counts),
+                    ("Head", &l.heads),
+                    ("Counters", &self.counters),
+                ],
+            );
+            Ok(())
+        })?;
+        rec.pass("oit_fill", |p| {
+            self.args.steps(
+                p,
+                &BandJob {
+                    pipes: &self.fill[view],
+                    push: &push,
+                    bindings: &bufs,
+                    sphere_count: self.sphere_count,
+                    counters: &self.counters,
+                    layout: &LAYOUT,
+                },
+            );
+            Ok(())
+        })
+    }
+
+    /// The frame's counter words.
+    pub fn read_counters(&self, ctx: &Context) -> Result<Vec<u32>> {
+        self.counters.download_pod(ctx, 0, COUNTER_WORDS)
+    }
+
+    /// Reads the frame's counters; on overflow grows the pool to what the
+    /// frame needs (plus 1/8) so it can be rendered again.
+    pub fn after_frame(&mut self, ctx: &Context) -> Result<bool> {
+        let c = self.read_counters(ctx)?;
+        if c[F_FILL_ERRORS as usize] != 0 {
+            return Err(Error::Internal(format!(
+                "see-through fill wrote {} fragments outside their runs",
+                c[F_FILL_ERRORS as usize]
+            )));
+        }
+        let (capacity, bytes, pixels) = {
+            let l = self.lists()?;
+            (l.capacity, l.bytes(), l.pixels)
+        };
+        let overflowed = c[F_OVERFLOW as usize] != 0;
+        let needed = c[F_TOTAL as usize] as u64;
+        self.stats = Some(SeeThroughStats {
+            fragments: needed,
+            pixels: c[F_PIXELS as usize] as u64,
+            max_per_pixel: c[F_MAX as usize] as u64,
+            capacity: capacity as u64,
+            bytes,
+            overflowed: overflowed || self.retried,
+        });
+        if !overflowed {
+            self.retried = false;
+            return Ok(false);
+        }
+        let max = max_capacity(ctx);
+        if needed > max {
+            return Err(Error::DeviceLimit(format!(
+                "see-through spheres make {needed} fragments in front of the opaque ones, more than \
+                 the {max} one device buffer holds: render in tiles (--tile-size) or make fewer \
+                 spheres see-through"
+            )));
+        }
+        let want = (needed + needed / 8 + 1).min(max) as u32;
+        ctx.wait_idle();
+        let lists = Lists::new(ctx, pixels, want)?;
+        if let Some(mut old) = self.lists.replace(lists) {
+            old.destroy(ctx);
+        }
+        self.retried = true;
+        Ok(true)
+    }
+
+    /// Device bytes: the lists, counters and band-job scratch.
+    pub fn memory_bytes(&self) -> u64 {
+        self.lists.as_ref().map_or(0, Lists::bytes)
+            + self.counters.size
+            + self.jobs.size
+            + self.inline_bits.size
+    }
+
+    /// Names of the buffers whose guard words a pass overwrote.
+    pub fn damaged_guards(&self, ctx: &Context) -> Result<Vec<String>> {
+        let mut bad = Vec::new();
+        let mut check = |b: &Buffer, words: u64| -> Result<()> {
+            let g: Vec<u32> = b.download_pod(ctx, words, GUARD_WORDS)?;
+            if g.iter().any(|&w| w != GUARD_PATTERN) {
+                bad.push(b.name.clone());
+            }
+            Ok(())
+        };
+        check(&self.counters, COUNTER_WORDS)?;
+        if let Some(l) = &self.lists {
+            for (b, words) in l.buffers() {
+                check(b, words)?;
+            }
+        }
+        Ok(bad)
+    }
+
+    /// Every pixel's fragments as the fill left them (in atomic order).
+    pub fn read_lists(&self, ctx: &Context) -> Result<FragmentLists> {
+        let l = self.lists()?;
+        let counts = l.counts.download_pod(ctx, 0, l.pixels)?;
+        let heads = l.heads.download_pod(ctx, 0, l.pixels)?;
+        let used = (self.read_counters(ctx)?[F_TOTAL as usize] as u64).min(l.capacity as u64);
+        let frags = l.frags.download_pod(ctx, 0, used)?;
+        Ok(FragmentLists {
+            counts,
+            heads,
+            frags,
+        })
+    }
+
+    pub fn destroy(&mut self, ctx: &Context) {
+        for p in self.count.iter_mut().chain(self.fill.iter_mut()) {
+            p.destroy(ctx);
+        }
+        self.args.destroy(ctx);
+        self.alloc.destroy(ctx);
+        for b in [&mut self.counters, &mut self.jobs, &mut self.inline_bits] {
+            b.destroy(ctx);
+        }
+        if let Some(l) = &mut self.lists {
+            l.destroy(ctx);
+        }
+    }
+}
+
+crate::impl_destroy!(SeeThrough);
