@@ -50,6 +50,11 @@ pub struct BenchArgs {
     /// run once either way.
     #[arg(long)]
     pub instancing: Option<String>,
+    /// Comma list: `off` (opaque spheres as loaded), `half` (the first half
+    /// of the sphere records see-through at alpha 0.5). The default matrix
+    /// adds one `half` run of the full frame.
+    #[arg(long)]
+    pub see_through: Option<String>,
     /// Comma list of image sizes, e.g. 1920x1080,3840x2160.
     #[arg(long, conflicts_with_all = ["width", "height"])]
     pub size: Option<String>,
@@ -252,6 +257,9 @@ struct Technique {
     opacity: f32,
     /// Draw an instanced model expanded (`--instancing off`).
     expanded: bool,
+    /// The first half of the sphere records see-through at alpha 0.5 (the
+    /// cost of see-through spheres against the same frame opaque).
+    half: bool,
 }
 
 /// The default techniques: local lighting, ISSM hard/soft, deep opaque and
@@ -268,6 +276,7 @@ fn default_techniques() -> Vec<Technique> {
         raster,
         opacity,
         expanded: false,
+        half: false,
     };
     vec![
         t(S::None, O::Off, Compute, 1.0),
@@ -277,6 +286,10 @@ fn default_techniques() -> Vec<Technique> {
         t(S::Deep, O::Off, Compute, 0.5),
         t(S::IssmSoft, O::Semantic, Compute, 1.0),
         t(S::IssmSoft, O::Plain, Compute, 1.0),
+        Technique {
+            half: true,
+            ..t(S::IssmSoft, O::Semantic, Compute, 1.0)
+        },
         t(S::None, O::Off, Graphics, 1.0),
     ]
 }
@@ -360,6 +373,7 @@ pub fn run(a: &BenchArgs) -> Result<BenchReport> {
                             raster,
                             opacity,
                             expanded: false,
+                            half: false,
                         });
                     }
                 }
@@ -391,6 +405,28 @@ pub fn run(a: &BenchArgs) -> Result<BenchReport> {
             })
         })
         .collect();
+    let techniques: Vec<Technique> = match &a.see_through {
+        None => techniques,
+        Some(s) => {
+            let halves: Vec<bool> = s
+                .split(',')
+                .map(|p| match p.trim() {
+                    "off" => Ok(false),
+                    "half" => Ok(true),
+                    _ => Err(Error::Input(format!(
+                        "--see-through {s}: '{p}' is not off or half"
+                    ))),
+                })
+                .collect::<Result<_>>()?;
+            let mut v: Vec<Technique> = Vec::new();
+            for t in techniques.iter().filter(|t| !t.half) {
+                for &half in &halves {
+                    v.push(Technique { half, ..*t });
+                }
+            }
+            v
+        }
+    };
     let def_atoms = if a.quick {
         vec![100_000]
     } else {
@@ -482,14 +518,15 @@ pub fn run(a: &BenchArgs) -> Result<BenchReport> {
                     continue;
                 }
                 let desc = format!(
-                    "{} ({} spheres) {w}x{h} shadows={} ssdo={} raster={} opacity={}{}",
+                    "{} ({} spheres) {w}x{h} shadows={} ssdo={} raster={} opacity={}{}{}",
                     set.name,
                     set.scene.represented(),
                     t.shadows.name(),
                     t.ssdo.name(),
                     t.raster.name(),
                     t.opacity,
-                    if t.expanded { " instancing=off" } else { "" }
+                    if t.expanded { " instancing=off" } else { "" },
+                    if t.half { " half see-through" } else { "" }
                 );
                 let elapsed = started.elapsed().as_secs_f64();
                 let eta = if done > 1 {
@@ -573,6 +610,27 @@ fn failed_run(run: String, e: Error) -> FailedRun {
     }
 }
 
+/// The scene with its first half of sphere records at alpha 0.5 (an
+/// instanced scene: the first half of each molecule's atoms).
+fn half_see_through(scene: &Scene) -> Scene {
+    let mut s = scene.clone();
+    let mut half = |r: std::ops::Range<usize>| {
+        let n = r.len() / 2;
+        for sp in &mut s.spheres[r.start..r.start + n] {
+            sp.color[3] = 128;
+        }
+    };
+    match &scene.instancing {
+        Some(inst) => {
+            for m in &inst.molecules {
+                half(m.first as usize..(m.first + m.atoms) as usize);
+            }
+        }
+        None => half(0..scene.spheres.len()),
+    }
+    s
+}
+
 /// A run set up and warmed up, waiting for its measured frames.
 struct Pending<'c> {
     /// The technique's place in the matrix.
@@ -602,11 +660,21 @@ fn prepare<'c>(
         raster: t.raster,
         opacity: t.opacity,
     };
-    let scene = match (&set.expanded, t.expanded) {
+    let half;
+    let mut scene = match (&set.expanded, t.expanded) {
         (Some(e), true) => e,
         _ => &set.scene,
     };
-    let settings = a.options.resolve(&axes, scene)?;
+    if t.half {
+        half = half_see_through(scene);
+        scene = &half;
+    }
+    let mut settings = a.options.resolve(&axes, scene)?;
+    // `--opacity` measures translucent shadows (the deep lists' cost) on
+    // spheres drawn opaque; see-through spheres are `--see-through half`'s
+    // runs (every sphere see-through at 1M+ spheres overflows lavapipe's
+    // 128 MiB buffers: 25.7 M fragments on the 1M capsid at 1080p).
+    settings.opaque_view = !t.half;
     let base = settings.camera;
     let run = run::PreparedRun::new(
         ctx,
