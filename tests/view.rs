@@ -139,7 +139,7 @@ fn view_toggles_every_mode_and_drags_the_light_without_rebuilding() {
         .unwrap_or_else(|| panic!("no toggle summary: {err}"));
     eprintln!("{summary}");
     assert!(
-        summary.contains("19 mode toggles") && summary.contains("8 light-drag steps"),
+        summary.contains("22 mode toggles") && summary.contains("8 light-drag steps"),
         "{summary}"
     );
     assert!(summary.contains("renderers created 1,"), "{summary}");

@@ -474,30 +474,80 @@ impl Scene {
 
 /// Loads a structure file as the CLI does (`model`: a number or "all");
 /// an instanced model comes expanded (one row per represented sphere).
+/// `color`/`colormap` are `--color`/`--colormap`; `rules` is a list of
+/// (kind, text) pairs, kind "hide", "paint" or "alpha", applied in order as
+/// the CLI's `--hide`/`--paint`/`--alpha`; `hide`, `paint`, `alpha` (a
+/// string or a list) are applied after them, in that order.
 #[pyfunction]
-#[pyo3(signature = (path, model=None, assembly=None, color="element"))]
+#[pyo3(signature = (path, model=None, assembly=None, color="element", colormap="viridis",
+                    rules=None, hide=None, paint=None, alpha=None))]
+#[allow(clippy::too_many_arguments)]
 fn load(
     py: Python<'_>,
     path: std::path::PathBuf,
     model: Option<&Bound<'_, PyAny>>,
     assembly: Option<u32>,
     color: &str,
+    colormap: &str,
+    rules: Option<Vec<(String, String)>>,
+    hide: Option<&Bound<'_, PyAny>>,
+    paint: Option<&Bound<'_, PyAny>>,
+    alpha: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<Scene> {
+    use sphereshade::run::Ordered;
+    use sphereshade::scene::paint::Rule;
     let model = match model {
         None => None,
         Some(m) => Some(m.str()?.to_string()),
     };
-    let args = sphereshade::run::SceneArgs {
+    let colormap =
+        <sphereshade::scene::paint::Colormap as clap::ValueEnum>::from_str(colormap, true)
+            .map_err(|_| {
+                value_error(format!(
+                    "colormap '{colormap}': expected viridis, magma or turbo"
+                ))
+            })?;
+    sphereshade::scene::paint::Scheme::parse(color)
+        .map_err(|e| value_error(format!("color: {e}")))?;
+    let mut args = sphereshade::run::SceneArgs {
         input: Some(path),
         model,
         assembly,
         color: color.to_string(),
+        colormap,
         ..Default::default()
     };
-    if !["element", "chain"].contains(&color) {
-        return Err(value_error(format!(
-            "color '{color}': expected element or chain"
-        )));
+    // one list in application order: rules, then hide, paint, alpha
+    let mut all: Vec<(String, String)> = rules.unwrap_or_default();
+    for (kind, v) in [("hide", hide), ("paint", paint), ("alpha", alpha)] {
+        let Some(v) = v else { continue };
+        let texts: Vec<String> = match v.extract::<String>() {
+            Ok(one) => vec![one],
+            Err(_) => v.extract()?,
+        };
+        all.extend(texts.into_iter().map(|t| (kind.to_string(), t)));
+    }
+    for (seq, (kind, text)) in all.into_iter().enumerate() {
+        let parse = match kind.as_str() {
+            "hide" => Rule::hide,
+            "paint" => Rule::paint,
+            "alpha" => Rule::alpha,
+            k => {
+                return Err(value_error(format!(
+                    "rule kind '{k}': expected hide, paint or alpha"
+                )));
+            }
+        };
+        let value = parse(&text).map_err(|e| value_error(format!("--{kind}: {e}")))?;
+        let o = Ordered {
+            seq: seq as u64,
+            value,
+        };
+        match kind.as_str() {
+            "hide" => args.hide.push(o),
+            "paint" => args.paint.push(o),
+            _ => args.alpha.push(o),
+        }
     }
     let args = sphereshade::run::SceneArgs {
         expand: true,

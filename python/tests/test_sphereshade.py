@@ -115,6 +115,35 @@ def test_load_and_trajectory_readers():
         t[98]
 
 
+def test_load_takes_the_cli_colour_and_rules(tmp_path):
+    # the same scheme and rules as the CLI, in order: hidden spheres are
+    # gone, alpha lands in the colours, and the render is the CLI's
+    rules = ["--color", "chain", "--hide", "chain D", "--alpha", "chain A=0.4",
+             "--paint", "resname TRP=yellow"]
+    s = sphereshade.load(DATA / "1tii.pdb", color="chain",
+                         rules=[("hide", "chain D"), ("alpha", "chain A=0.4"),
+                                ("paint", "resname TRP=yellow")])
+    full = sphereshade.load(DATA / "1tii.pdb")
+    assert 0 < len(s) < len(full)
+    assert set(np.unique(s.colors[:, 3])) == {102, 255}
+    assert (s.colors[:, :3] == [240, 220, 30]).all(axis=1).any()  # "yellow"
+    png = tmp_path / "cli.png"
+    opts = ["--width", "96", "--height", "72", "--shadows", "deep", "--ssdo", "off"]
+    run_cli(["render", str(DATA / "1tii.pdb"), *rules, *opts, "--out", str(png)])
+    img = sphereshade.render(s.positions, s.radii, s.colors, width=96, height=72,
+                             shadows="deep", ssdo="off")
+    assert sphereshade.encode_png(img) == png.read_bytes()
+    # keyword shorthands equal the rules list
+    t = sphereshade.load(DATA / "1tii.pdb", color="chain", hide="chain D",
+                         alpha=["chain A=0.4"], paint="resname TRP=yellow")
+    assert (t.colors == s.colors).all()
+    for kw, msg in [(dict(hide="chain"), "column"), (dict(alpha="chain A=2"), "2"),
+                    (dict(color="rainbow"), "rainbow"), (dict(rules=[("tint", "all")]), "tint"),
+                    (dict(colormap="jet"), "jet")]:
+        with pytest.raises(ValueError, match=msg):
+            sphereshade.load(DATA / "1tii.pdb", **kw)
+
+
 @pytest.mark.parametrize("call, message", [
     (lambda p, r: sphereshade.render(p[:, :2], r), "shape (N, 3)"),
     (lambda p, r: sphereshade.render(p.astype(np.int32), r), "float32 or float64"),

@@ -77,6 +77,7 @@ fn script(name: &str) -> Vec<Action> {
             v.extend([Action::Key("o"); 3]);
             v.extend([Action::Key("b"); 2]);
             v.extend([Action::Key("-"), Action::Key("+")]);
+            v.extend([Action::Key("t"); 3]);
             v.extend([Action::LightDrag(6.0, 3.0); 8]);
             // and once more with every technique alive, the light moved
             v.extend([Action::Key("s"); 6]);
@@ -87,7 +88,7 @@ fn script(name: &str) -> Vec<Action> {
 }
 
 pub const HELP: &str = "controls: left drag orbit | right/middle drag pan | wheel zoom | shift+drag light | \
-S shadows (none/issm/issm-soft/deep/sm-pcf/osm) | O ssdo (off/plain/semantic) | B blur | +/- opacity | R reset camera | \
+S shadows (none/issm/issm-soft/deep/sm-pcf/osm) | O ssdo (off/plain/semantic) | B blur | +/- opacity | T see-through presets | R reset camera | \
 P screenshot | H help | Esc quit | with --trajectory: space play/pause, left/right step, [ ] slower/faster, L loop";
 
 /// Camera parameters the controls change.
@@ -139,6 +140,59 @@ struct App<'c> {
     toggle_times: Vec<f64>,
     drag_times: Vec<f64>,
     player: Option<player::Player>,
+    /// T's see-through presets: the colours as loaded, each sphere record's
+    /// group (outermost differing hierarchy level, or molecule type), and
+    /// the preset shown.
+    loaded_colors: Vec<[u8; 4]>,
+    groups: Vec<u32>,
+    preset: usize,
+}
+
+/// T cycles these (the first is the colours and --alpha rules as loaded).
+const PRESETS: [&str; 3] = [
+    "as loaded",
+    "first group opaque, the others at alpha 0.3",
+    "every sphere at alpha 0.5",
+];
+
+/// Each sphere record's group for the presets: the molecule type of an
+/// instanced scene, else the region at the outermost hierarchy level
+/// whose regions differ (the chains of a protein).
+fn preset_groups(scene: &Scene) -> Vec<u32> {
+    if let Some(inst) = &scene.instancing {
+        let mut g = vec![0; scene.spheres.len()];
+        for (m, mol) in inst.molecules.iter().enumerate() {
+            let r = mol.first as usize..(mol.first + mol.atoms) as usize;
+            g[r].iter_mut().for_each(|x| *x = m as u32);
+        }
+        return g;
+    }
+    let levels = scene.level_names.len().min(4);
+    let first = scene.spheres.first().map(|s| s.region);
+    let level = (0..levels).find(|&l| {
+        scene
+            .spheres
+            .iter()
+            .any(|s| Some(s.region[l]) != first.map(|f| f[l]))
+    });
+    match level {
+        Some(l) => scene.spheres.iter().map(|s| s.region[l]).collect(),
+        None => vec![0; scene.spheres.len()],
+    }
+}
+
+fn preset_colors(preset: usize, loaded: &[[u8; 4]], groups: &[u32]) -> Vec<[u8; 4]> {
+    let first = groups.first().copied().unwrap_or(0);
+    loaded
+        .iter()
+        .zip(groups)
+        .map(|(c, &g)| match preset {
+            1 if g != first => [c[0], c[1], c[2], 77],
+            1 => [c[0], c[1], c[2], 255],
+            2 => [c[0], c[1], c[2], 128],
+            _ => *c,
+        })
+        .collect()
 }
 
 /// The next value of a mode in its declaration order (wrapping): S and O
@@ -312,6 +366,8 @@ impl<'c> App<'c> {
             }
             self.renderer = Some(r);
             self.loading = Loading::Done;
+            self.loaded_colors = scene.spheres.iter().map(|s| s.color).collect();
+            self.groups = preset_groups(&scene);
             drop(scene);
         }
         if let Some(a) = self.actions.pop_front() {
@@ -424,6 +480,12 @@ impl<'c> App<'c> {
             Key::Character("b" | "B") => r.update(|n| n.ssdo_knobs.blur = !s.ssdo_knobs.blur)?,
             Key::Character("+" | "=") => r.update(|n| n.opacity = (s.opacity + 0.1).min(1.0))?,
             Key::Character("-" | "_") => r.update(|n| n.opacity = (s.opacity - 0.1).max(0.0))?,
+            Key::Character("t" | "T") => {
+                self.preset = (self.preset + 1) % PRESETS.len();
+                let colors = preset_colors(self.preset, &self.loaded_colors, &self.groups);
+                r.set_colors(&colors)?;
+                eprintln!("view: see-through preset: {}", PRESETS[self.preset]);
+            }
             Key::Character("r" | "R") => {
                 self.orbit = self.home;
                 return self.update_camera();
@@ -695,6 +757,9 @@ pub fn run(cmd: ViewCmd) -> Result<Exit> {
         toggle_times: Vec::new(),
         drag_times: Vec::new(),
         player: None,
+        loaded_colors: Vec::new(),
+        groups: Vec::new(),
+        preset: 0,
     };
     let ran = event_loop.run_app(&mut app);
     if let Some(p) = &app.player {
