@@ -78,6 +78,34 @@ pub fn ratios(runs: &[RunStats]) -> BTreeMap<String, f64> {
                     && !half_see_through(r)
             })
         };
+    // Half of the spheres see-through, against the same frame opaque (any
+    // technique: the name says which).
+    for h in runs.iter().filter(|r| half_see_through(r)) {
+        let same = |x: &&RunStats| {
+            !half_see_through(x)
+                && (x.input.as_str(), x.spheres, x.width, x.height, x.expanded)
+                    == (h.input.as_str(), h.spheres, h.width, h.height, h.expanded)
+                && (x.shadows.as_str(), x.ssdo.as_str(), x.raster.as_str())
+                    == (h.shadows.as_str(), h.ssdo.as_str(), h.raster.as_str())
+                && x.opacity == h.opacity
+        };
+        if let Some(o) = runs.iter().find(same) {
+            out.insert(
+                format!(
+                    "see_through_half_over_opaque[{} {}+{}]",
+                    data_tag(h),
+                    h.shadows,
+                    h.ssdo
+                ),
+                paired(
+                    &h.frame_ms,
+                    h.total_ms.median,
+                    &o.frame_ms,
+                    o.total_ms.median,
+                ),
+            );
+        }
+    }
     let bases = runs.iter().filter(|r| {
         r.shadows == ShadowMode::None.name()
             && r.ssdo == SsdoMode::Off.name()
@@ -124,16 +152,6 @@ pub fn ratios(runs: &[RunStats]) -> BTreeMap<String, f64> {
             1.0,
         ) {
             out.insert(format!("full_over_local[{tag}]"), over(f, r));
-            // half of the spheres see-through, against the same frame opaque
-            if let Some(h) = runs.iter().find(|x| {
-                half_see_through(x)
-                    && (x.input.as_str(), x.spheres, x.width, x.height, x.expanded)
-                        == (r.input.as_str(), r.spheres, r.width, r.height, r.expanded)
-                    && (x.shadows.as_str(), x.ssdo.as_str())
-                        == (f.shadows.as_str(), f.ssdo.as_str())
-            }) {
-                out.insert(format!("see_through_half_over_full[{tag}]"), over(h, f));
-            }
         }
         if let Some(s) = soft {
             out.insert(format!("issm_soft_overhead[{tag}]"), over(s, r));
@@ -330,6 +348,9 @@ fn technique_label(r: &RunStats) -> String {
     if r.raster != RasterMode::Compute.name() {
         l += " gfx";
     }
+    if half_see_through(r) {
+        l += " half see-through";
+    }
     l
 }
 
@@ -513,10 +534,16 @@ mod tests {
         });
         let mut full = run("issm-soft", 1.0, 20.0);
         full.ssdo = "semantic".into();
+        // the same frame with half of the spheres see-through: it is
+        // neither the full frame nor a local-lighting base
+        let mut half = full.clone();
+        half.total_ms.median = 50.0;
+        half.see_through = Some(Default::default());
         let runs = vec![
             run("none", 1.0, 10.0),
             hard,
             run("issm-soft", 1.0, 13.2),
+            half,
             full,
         ];
         let r = ratios(&runs);
@@ -532,6 +559,15 @@ mod tests {
         assert!((get("ms_per_million_spheres") - 5.0).abs() < 1e-12);
         assert!((get("issm_cached_overhead") - 1.05).abs() < 1e-12);
         assert!((get("full_over_local") - 2.0).abs() < 1e-12);
+        assert!((get("see_through_half_over_opaque") - 2.5).abs() < 1e-12);
+        assert!(
+            get("see_through_half_over_opaque").to_bits()
+                == r[&format!(
+                    "see_through_half_over_opaque[{} issm-soft+semantic]",
+                    data_tag(&runs[4])
+                )]
+                    .to_bits()
+        );
         // measured together, the cached frames divide by the local frames
         // of the same rounds
         let mut runs = runs;
