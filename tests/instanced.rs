@@ -1232,29 +1232,10 @@ fn label_glob(label: &str) -> String {
 /// deep shadows, under validation.
 #[test]
 fn rules_on_an_instanced_model_render_as_the_expanded_model() {
-    use sphereshade::run::{Ordered, SceneArgs, load_scene};
-    use sphereshade::scene::paint::Rule;
     let file = data_file("meso/flagellarmotor_2-no_bonds.bcif");
     let load = |rules: &[(&str, String)], expand: bool| {
-        let mut a = SceneArgs {
-            input: Some(file.clone()),
-            expand,
-            ..Default::default()
-        };
-        for (seq, (kind, text)) in rules.iter().enumerate() {
-            let o = |value| Ordered {
-                seq: seq as u64,
-                value,
-            };
-            match *kind {
-                "hide" => a.hide.push(o(Rule::hide(text).unwrap())),
-                "alpha" => a.alpha.push(o(Rule::alpha(text).unwrap())),
-                _ => a.paint.push(o(Rule::paint(text).unwrap())),
-            }
-        }
-        load_scene(&a)
-            .unwrap_or_else(|e| panic!("{rules:?}: {e}"))
-            .0
+        let r: Vec<(&str, &str)> = rules.iter().map(|(k, t)| (*k, t.as_str())).collect();
+        load_with_rules(&file, &r, expand)
     };
     let plain = load(&[], false);
     let inst = plain.instancing.as_ref().expect("instanced");

@@ -68,6 +68,45 @@ fn files(d: &Path) -> Vec<String> {
 
 const SMALL: [&str; 6] = ["--width", "96", "--height", "72", "--validate", "--ssdo"];
 
+/// Writes frame `k` of `traj` (the atoms `keep` keeps, the topology's
+/// radii) as an .xyzr in `d`, renders it with `extra` and the camera, and
+/// returns the PNG's bytes.
+fn render_frame_as_xyzr(
+    d: &Path,
+    top: &str,
+    traj: &str,
+    k: usize,
+    keep: &dyn Fn(usize) -> bool,
+    extra: &[&str],
+    cam: &[&str],
+) -> Vec<u8> {
+    let scene =
+        sphereshade::scene::load(Path::new(top), &Default::default(), &mut |_, _| {}).unwrap();
+    let mut r = sphereshade::traj::open(Path::new(traj)).unwrap();
+    let mut f = sphereshade::traj::Frame::default();
+    r.read(k, &mut f).unwrap();
+    assert_eq!(f.positions.len(), scene.spheres.len());
+    let text: String = f
+        .positions
+        .iter()
+        .zip(&scene.spheres)
+        .enumerate()
+        .filter(|(i, _)| keep(*i))
+        .map(|(_, (p, s))| format!("{} {} {} {}\n", p[0], p[1], p[2], s.radius))
+        .collect();
+    let xyzr = d.join(format!("frame{k}.xyzr"));
+    std::fs::write(&xyzr, text).unwrap();
+    let single = d.join("single.png");
+    let mut a = vec!["render", xyzr.to_str().unwrap()];
+    a.extend(SMALL);
+    a.push("plain");
+    a.extend(extra);
+    a.extend(["--out", single.to_str().unwrap()]);
+    a.extend(cam);
+    ok(&run(&a, None));
+    std::fs::read(&single).unwrap()
+}
+
 fn traj_args<'a>(top: &'a str, traj: &'a str, extra: &[&'a str]) -> Vec<&'a str> {
     let mut a = vec!["render", top, "--trajectory", traj];
     a.extend(SMALL);
@@ -99,29 +138,8 @@ fn frame_k_renders_like_an_xyzr_of_its_coordinates() {
     a.extend(cam);
     ok(&run(&a, None));
     // frame 40's coordinates with the topology's radii, as .xyzr
-    let scene =
-        sphereshade::scene::load(Path::new(&top), &Default::default(), &mut |_, _| {}).unwrap();
-    let mut r = sphereshade::traj::open(Path::new(&traj)).unwrap();
-    let mut f = sphereshade::traj::Frame::default();
-    r.read(40, &mut f).unwrap();
-    let text: String = f
-        .positions
-        .iter()
-        .zip(&scene.spheres)
-        .map(|(p, s)| format!("{} {} {} {}\n", p[0], p[1], p[2], s.radius))
-        .collect();
-    let xyzr = d.join("frame40.xyzr");
-    std::fs::write(&xyzr, text).unwrap();
-    let single = d.join("single.png");
-    let mut a = vec!["render", xyzr.to_str().unwrap()];
-    a.extend(SMALL);
-    a.extend(["plain", "--aov", "id", "--out", single.to_str().unwrap()]);
-    a.extend(cam);
-    ok(&run(&a, None));
-    let (from_traj, from_file) = (
-        std::fs::read(d.join("id_40.png")).unwrap(),
-        std::fs::read(&single).unwrap(),
-    );
+    let from_file = render_frame_as_xyzr(&d, &top, &traj, 40, &|_| true, &["--aov", "id"], &cam);
+    let from_traj = std::fs::read(d.join("id_40.png")).unwrap();
     assert!(
         from_traj == from_file,
         "frame 40 of the DCD and its XYZR give different id images"
@@ -672,36 +690,10 @@ fn hidden_atoms_stay_hidden_in_every_frame() {
     }
     assert!(seen > 500);
     // frame 40's kept coordinates with the topology's radii, as .xyzr
-    let scene =
-        sphereshade::scene::load(Path::new(&top), &Default::default(), &mut |_, _| {}).unwrap();
-    assert_eq!(scene.spheres.len(), hidden.len());
-    let mut r = sphereshade::traj::open(Path::new(&traj)).unwrap();
-    let mut f = sphereshade::traj::Frame::default();
-    r.read(40, &mut f).unwrap();
-    let text: String = f
-        .positions
-        .iter()
-        .zip(&scene.spheres)
-        .zip(&hidden)
-        .filter(|(_, h)| !**h)
-        .map(|((p, s), _)| format!("{} {} {} {}\n", p[0], p[1], p[2], s.radius))
-        .collect();
-    let xyzr = d.join("kept40.xyzr");
-    std::fs::write(&xyzr, text).unwrap();
-    let single = d.join("single.png");
-    let mut a = vec!["render", xyzr.to_str().unwrap()];
-    a.extend(SMALL);
-    a.extend([
-        "plain",
-        "--color",
-        "200,180,90",
-        "--out",
-        single.to_str().unwrap(),
-    ]);
-    a.extend(cam);
-    ok(&run(&a, None));
+    let keep = |i: usize| !hidden[i];
+    let single = render_frame_as_xyzr(&d, &top, &traj, 40, &keep, &rule[2..], &cam);
     assert!(
-        color == std::fs::read(&single).unwrap(),
+        color == single,
         "frame 40 with --hide differs from its kept coordinates"
     );
     let _ = std::fs::remove_dir_all(&d);

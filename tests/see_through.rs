@@ -76,6 +76,31 @@ fn render(ctx: &Context, scene: &Scene, s: RenderSettings) -> Frame {
     }
 }
 
+/// Every sphere the ray of pixel (px, py) hits, as (front hit distance,
+/// sphere), nearest first (f64); None where f32 rounding may decide: a
+/// ray grazing a silhouette, or two front hits within 1e-4.
+fn sorted_hits(spheres: &[Sphere], cam: &Camera, px: u32, py: u32) -> Option<Vec<(f64, usize)>> {
+    let (o, d) = cam.ray(px, py);
+    let mut hits = Vec::new();
+    for (i, s) in spheres.iter().enumerate() {
+        let c = glam::DVec3::new(s.center[0] as f64, s.center[1] as f64, s.center[2] as f64);
+        let r = s.radius as f64;
+        let oc = o - c;
+        let q = oc - oc.dot(d) * d;
+        if (r * r - q.length_squared()).abs() <= 2e-2 * r {
+            return None;
+        }
+        if let Some((t, _)) = ray_sphere(o, d, c, r) {
+            hits.push((t, i));
+        }
+    }
+    hits.sort_by(|a, b| a.0.total_cmp(&b.0));
+    if hits.windows(2).any(|w| w[1].0 - w[0].0 < 1e-4) {
+        return None;
+    }
+    Some(hits)
+}
+
 /// Checks one camera; returns the pixels compared.
 fn composite_matches(ctx: &Context, name: &str, fov: Option<f64>) -> usize {
     let spheres = stack();
@@ -98,28 +123,11 @@ fn composite_matches(ctx: &Context, name: &str, fov: Option<f64>) -> usize {
     let (mut compared, mut worst, mut four) = (0, 0.0f64, 0);
     let mut diff = image::RgbaImage::new(W, H);
     for py in 0..H {
-        'px: for px in 0..W {
+        for px in 0..W {
             let k = (py * W + px) as usize;
-            let (o, d) = cam.ray(px, py);
-            let mut hits = Vec::new();
-            for (i, s) in spheres.iter().enumerate() {
-                let c =
-                    glam::DVec3::new(s.center[0] as f64, s.center[1] as f64, s.center[2] as f64);
-                let r = s.radius as f64;
-                // grazing rays: coverage is f32 rounding's call
-                let oc = o - c;
-                let q = oc - oc.dot(d) * d;
-                if (r * r - q.length_squared()).abs() <= 2e-2 * r {
-                    continue 'px;
-                }
-                if let Some((t, _)) = ray_sphere(o, d, c, r) {
-                    hits.push((t, i));
-                }
-            }
-            hits.sort_by(|a, b| a.0.total_cmp(&b.0));
-            if hits.windows(2).any(|w| w[1].0 - w[0].0 < 1e-4) {
+            let Some(hits) = sorted_hits(&spheres, &cam, px, py) else {
                 continue;
-            }
+            };
             // front to back until the first opaque sphere, which is the base
             let (mut acc, mut acc_a, mut t) = ([0.0f64; 3], 0.0, 1.0);
             let mut base = [0.0f64; 4];
@@ -214,7 +222,7 @@ fn fragment_lists_match_a_cpu_model() {
     let mut runs: Vec<(u32, u32)> = Vec::new();
     let (mut checked, mut total) = (0, 0u64);
     for py in 0..H {
-        'px: for px in 0..W {
+        for px in 0..W {
             let k = (py * W + px) as usize;
             let (n, head) = (l.counts[k], l.heads[k]);
             total += n as u64;
@@ -222,33 +230,17 @@ fn fragment_lists_match_a_cpu_model() {
                 assert_ne!(head, sphereshade::gpu::consts::F_NONE, "pixel {k}: no head");
                 runs.push((head, n));
             }
-            let (o, d) = cam.ray(px, py);
-            let mut hits = Vec::new();
-            for (i, s) in spheres.iter().enumerate() {
-                let c =
-                    glam::DVec3::new(s.center[0] as f64, s.center[1] as f64, s.center[2] as f64);
-                let rr = s.radius as f64;
-                let oc = o - c;
-                let q = oc - oc.dot(d) * d;
-                if (rr * rr - q.length_squared()).abs() <= 2e-2 * rr {
-                    continue 'px;
-                }
-                if let Some((t, _)) = ray_sphere(o, d, c, rr) {
-                    hits.push((t, i as u32));
-                }
-            }
-            hits.sort_by(|a, b| a.0.total_cmp(&b.0));
-            if hits.windows(2).any(|w| w[1].0 - w[0].0 < 1e-4) {
+            let Some(hits) = sorted_hits(&spheres, &cam, px, py) else {
                 continue;
-            }
+            };
             let opaque = hits
                 .iter()
-                .find(|h| spheres[h.1 as usize].color[3] == 255)
+                .find(|h| spheres[h.1].color[3] == 255)
                 .map_or(f64::INFINITY, |h| h.0);
             let want: Vec<u32> = hits
                 .iter()
-                .filter(|h| h.0 < opaque && spheres[h.1 as usize].color[3] < 255)
-                .map(|h| h.1)
+                .filter(|h| h.0 < opaque && spheres[h.1].color[3] < 255)
+                .map(|h| h.1 as u32)
                 .collect();
             let mut got: Vec<[u32; 2]> = if n == 0 {
                 Vec::new()
@@ -330,25 +322,7 @@ fn in_chain(chain: &str) -> Vec<bool> {
 }
 
 fn load_1tii(rules: &[(&str, &str)]) -> Scene {
-    use sphereshade::run::{Ordered, SceneArgs, load_scene};
-    use sphereshade::scene::paint::Rule;
-    let mut args = SceneArgs {
-        input: Some(data_file("1tii.pdb")),
-        ..Default::default()
-    };
-    for (seq, (kind, text)) in rules.iter().enumerate() {
-        let o = |value| Ordered {
-            seq: seq as u64,
-            value,
-        };
-        match *kind {
-            "hide" => args.hide.push(o(Rule::hide(text).unwrap())),
-            "alpha" => args.alpha.push(o(Rule::alpha(text).unwrap())),
-            "paint" => args.paint.push(o(Rule::paint(text).unwrap())),
-            _ => unreachable!(),
-        }
-    }
-    load_scene(&args).expect("1tii").0
+    load_with_rules(&data_file("1tii.pdb"), rules, false)
 }
 
 /// `--hide`: the hidden chain is not uploaded, never appears in the id AOV

@@ -332,23 +332,22 @@ impl SeeThrough {
             capacity: l.capacity,
         };
         let view = io.perspective as usize;
+        // count and fill: one enumeration, two modes
+        let job = |pipes| BandJob {
+            pipes,
+            push: &push,
+            bindings: &bufs,
+            sphere_count: self.sphere_count,
+            counters: &self.counters,
+            layout: &LAYOUT,
+        };
         rec.pass("oit_count", |p| {
             p.fill(&l.counts, pixels * 4, 0);
             p.fill(&l.cursor, pixels * 4, 0);
             p.fill(&self.counters, COUNTER_WORDS * 4, 0);
             let words = (self.sphere_count as u64).div_ceil(32).max(1);
             p.fill(&self.inline_bits, words * 4, 0);
-            self.args.steps(
-                p,
-                &BandJob {
-                    pipes: &self.count[view],
-                    push: &push,
-                    bindings: &bufs,
-                    sphere_count: self.sphere_count,
-                    counters: &self.counters,
-                    layout: &LAYOUT,
-                },
-            );
+            self.args.steps(p, &job(&self.count[view]));
             Ok(())
         })?;
         rec.pass("oit_alloc", |p| {
@@ -368,17 +367,7 @@ impl SeeThrough {
             Ok(())
         })?;
         rec.pass("oit_fill", |p| {
-            self.args.steps(
-                p,
-                &BandJob {
-                    pipes: &self.fill[view],
-                    push: &push,
-                    bindings: &bufs,
-                    sphere_count: self.sphere_count,
-                    counters: &self.counters,
-                    layout: &LAYOUT,
-                },
-            );
+            self.args.steps(p, &job(&self.fill[view]));
             Ok(())
         })
     }
