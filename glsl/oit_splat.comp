@@ -27,8 +27,15 @@ layout(set = 0, binding = 6) buffer Counters { uint counters[]; };
 layout(set = 0, binding = 7) buffer Jobs { uvec2 jobs[]; };
 layout(set = 0, binding = 8) buffer Inline { uint inline_bits[]; };
 
+// The camera raster's order (raster.comp): runs of 64 spheres front to
+// back, so a pixel's fragments arrive nearly in depth order and shade's
+// sort of them is about linear.
+layout(set = 0, binding = 9) uniform usamplerBuffer orderTex;
 #define SCENE_ATTRIBUTES
 #include "scene.glsl"
+#define SPHERE_AT(i) (scene_instanced() \
+    ? (texelFetch(orderTex, int((i) >> BATCH_SHIFT)).x << BATCH_SHIFT) | scene_lane(i) \
+    : texelFetch(orderTex, int(i)).x)
 #include "push/oit_splat.glsl"
 
 layout(constant_id = 2) const bool PERSP = false;

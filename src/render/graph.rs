@@ -8,6 +8,7 @@ use super::Resources;
 use crate::error::Result;
 use crate::passes::screen::ScreenInputs;
 use crate::settings::{RasterMode, RenderSettings};
+use crate::stages::raster::compute::ViewIndex;
 use crate::stages::raster::{RasterInputs, RasterStage};
 use crate::stages::see_through::{SeeThrough, SeeThroughInputs};
 use crate::stages::shading::{ShadeInputs, ShadePass};
@@ -198,6 +199,7 @@ impl Resources {
                         globals,
                         scene: &self.scene,
                         vis: &t.raster.vis,
+                        order: self.stages.raster.compute.order(ViewIndex::Camera),
                         perspective: cam.fov_deg.is_some(),
                     },
                     size,

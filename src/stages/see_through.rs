@@ -166,6 +166,9 @@ pub struct SeeThroughInputs<'a> {
     pub scene: &'a SceneBuffers,
     /// The opaque visibility buffer.
     pub vis: &'a Buffer,
+    /// The camera raster's sphere order (front to back in runs): a pixel's
+    /// fragments are then written nearly in depth order.
+    pub order: &'a Buffer,
     pub perspective: bool,
 }
 
@@ -191,6 +194,7 @@ impl SeeThrough {
                     rw("Counters"),
                     rw("Jobs"),
                     rw("Inline"),
+                    texel("orderTex", vk::Format::R32_UINT),
                 ][..],
                 &SCENE_GEOMETRY,
                 &SCENE_ATTRIBUTES,
@@ -322,6 +326,7 @@ impl SeeThrough {
             ("Counters", &self.counters),
             ("Jobs", &self.jobs),
             ("Inline", &self.inline_bits),
+            ("orderTex", io.order),
         ];
         bufs.extend(io.scene.geometry());
         bufs.extend(io.scene.attributes());

@@ -279,6 +279,11 @@ impl RasterPass {
         }
     }
 
+    /// `view`'s order buffer (what its raster visits the spheres in).
+    pub fn order(&self, view: ViewIndex) -> &Buffer {
+        &self.orders[view as usize].buf
+    }
+
     /// Whether `view` has an order sorted for the current spheres.
     pub fn order_ready(&self, view: ViewIndex) -> bool {
         self.orders[view as usize].dir.is_some()
