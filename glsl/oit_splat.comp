@@ -28,8 +28,8 @@ layout(set = 0, binding = 7) buffer Jobs { uvec2 jobs[]; };
 layout(set = 0, binding = 8) buffer Inline { uint inline_bits[]; };
 
 // The camera raster's order (raster.comp): runs of 64 spheres front to
-// back, so a pixel's fragments arrive nearly in depth order and shade's
-// sort of them is about linear.
+// back, neighbours in space visited together (cache locality; a pixel's
+// fragments still arrive in no useful order: shade selects them).
 layout(set = 0, binding = 9) uniform usamplerBuffer orderTex;
 #define SCENE_ATTRIBUTES
 #include "scene.glsl"

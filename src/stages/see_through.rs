@@ -166,8 +166,9 @@ pub struct SeeThroughInputs<'a> {
     pub scene: &'a SceneBuffers,
     /// The opaque visibility buffer.
     pub vis: &'a Buffer,
-    /// The camera raster's sphere order (front to back in runs): a pixel's
-    /// fragments are then written nearly in depth order.
+    /// The camera raster's sphere order (runs front to back): neighbours
+    /// in space are visited together (1M capsid, half see-through: count
+    /// 190 -> 120 ms, fill 470 -> 365 ms against input order).
     pub order: &'a Buffer,
     pub perspective: bool,
 }
