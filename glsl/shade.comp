@@ -44,7 +44,9 @@ layout(set = 0, binding = 3) uniform usamplerBuffer wordBaseTex;
 // and the fragments (depth key, sphere id), sorted here in place.
 layout(set = 0, binding = 10) uniform usamplerBuffer oitCountTex;
 layout(set = 0, binding = 11) uniform usamplerBuffer oitHeadTex;
-layout(set = 0, binding = 12) readonly buffer OitFrags { uvec2 frags[]; };
+// (the pool as RG32UI texels: a gather per scan step, where a storage load
+// at per-lane addresses is a scalar loop on lavapipe)
+layout(set = 0, binding = 12) uniform usamplerBuffer oitFragTex;
 
 vec3 linear_to_srgb(vec3 c) { return pow(clamp(c, 0.0, 1.0), vec3(1.0 / 2.2)); }
 
@@ -267,7 +269,7 @@ vec4 composite(uvec2 px, uint i, vec4 base) {
     for (uint a = 0u; a < n && T >= 1.0 / 1024.0; ++a) {
         uvec2 best = uvec2(0xFFFFFFFFu);
         for (uint b = 0u; b < n; ++b) {
-            uvec2 f = frags[head + b];
+            uvec2 f = texelFetch(oitFragTex, int(head + b)).xy;
             bool after = a == 0u || f.x > prev.x || (f.x == prev.x && f.y > prev.y);
             bool before = f.x < best.x || (f.x == best.x && f.y < best.y);
             if (after && before) best = f;

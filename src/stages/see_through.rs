@@ -135,11 +135,13 @@ impl Lists {
     }
 }
 
-/// The most fragments one pool can hold on this device (two words each
-/// in one storage buffer).
+/// The most fragments one pool can hold on this device: two words each in
+/// one storage buffer, which shade also reads as RG32UI texels.
 fn max_capacity(ctx: &Context) -> u64 {
-    let range = ctx.props.limits.max_storage_buffer_range as u64;
-    (range / 4).saturating_sub(GUARD_WORDS) / 2
+    let limits = &ctx.props.limits;
+    let range = limits.max_storage_buffer_range as u64;
+    let storage = (range / 4).saturating_sub(GUARD_WORDS) / 2;
+    storage.min((limits.max_texel_buffer_elements as u64).saturating_sub(GUARD_WORDS / 2))
 }
 
 /// The stage: made the first time a frame has see-through spheres.
@@ -190,12 +192,13 @@ impl SeeThrough {
                     texel("visWordTex", vk::Format::R32_UINT),
                     rw("Count"),
                     rw("Cursor"),
-                    ro("Head"),
+                    texel("oitHeadTex", vk::Format::R32_UINT),
                     wo("Frags"),
                     rw("Counters"),
                     rw("Jobs"),
                     rw("Inline"),
                     texel("orderTex", vk::Format::R32_UINT),
+                    texel("oitCountTex", vk::Format::R32_UINT),
                 ][..],
                 &SCENE_GEOMETRY,
                 &SCENE_ATTRIBUTES,
@@ -322,12 +325,13 @@ impl SeeThrough {
             ("visWordTex", io.vis),
             ("Count", &l.counts),
             ("Cursor", &l.cursor),
-            ("Head", &l.heads),
+            ("oitHeadTex", &l.heads),
             ("Frags", &l.frags),
             ("Counters", &self.counters),
             ("Jobs", &self.jobs),
             ("Inline", &self.inline_bits),
             ("orderTex", io.order),
+            ("oitCountTex", &l.counts),
         ];
         bufs.extend(io.scene.geometry());
         bufs.extend(io.scene.attributes());

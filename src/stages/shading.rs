@@ -16,7 +16,7 @@ use crate::passes::screen::{ScreenInputs, surface_bindings};
 use crate::passes::tiles::{TILE_BINDING, Tiles};
 use crate::passes::variants::{TiledDispatch, Variants};
 use crate::settings::RenderSettings;
-use crate::vk::pipeline::{Binding, PipelineDesc, ro, texel, wo};
+use crate::vk::pipeline::{Binding, PipelineDesc, texel, wo};
 use crate::vk::{Buffer, Context, Recorder};
 use ash::vk::Format;
 
@@ -170,7 +170,7 @@ const SHADE_OUTPUTS: [Binding; 10] = [
     texel("wordBaseTex", Format::R32_UINT),
     texel("oitCountTex", Format::R32_UINT),
     texel("oitHeadTex", Format::R32_UINT),
-    ro("OitFrags"),
+    texel("oitFragTex", Format::R32G32_UINT),
 ];
 
 impl ShadePass {
@@ -244,7 +244,7 @@ impl ShadePass {
         bufs.extend([
             ("oitCountTex", see.map_or(io.ssdo.records, |s| s.counts)),
             ("oitHeadTex", see.map_or(io.ssdo.records, |s| s.heads)),
-            ("OitFrags", see.map_or(io.ssdo.records, |s| s.frags)),
+            ("oitFragTex", see.map_or(io.ssdo.records, |s| s.frags)),
         ]);
         bufs.extend(io.lookup.buffers.iter().copied());
         rec.pass(Self::NAME, |p| {
