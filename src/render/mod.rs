@@ -134,8 +134,8 @@ impl Resources {
         self.globals.alpha = [settings.opacity, 0.0, 0.0, 0.0];
         let see_through = self.see_through(settings);
         if see_through {
-            settings.check_see_through(true)?;
-            self.stages.raster.compute.enable_see_through(ctx)?;
+            settings.check_see_through(self.translucent)?;
+            self.stages.raster.enable_see_through(ctx)?;
             if self.stages.see_through.is_none() {
                 self.stages.see_through =
                     Some(SeeThrough::new(ctx, self.scene.spec, self.scene.slots)?);

@@ -16,8 +16,8 @@ use ash::vk::Format;
 pub struct CoveragePass {
     regions: ComputePipeline,
     /// The same with SEE_THROUGH: pixels with see-through fragments are
-    /// covered too.
-    see_through: ComputePipeline,
+    /// covered too (made the first time a frame has see-through spheres).
+    see_through: Option<ComputePipeline>,
     args: ComputePipeline,
 }
 
@@ -31,29 +31,45 @@ const BINDINGS: [Binding; 4] = [
 impl CoveragePass {
     pub const NAME: &'static str = "coverage";
 
+    fn pipeline(
+        ctx: &Context,
+        name: &str,
+        args: u32,
+        see: u32,
+        local_size: u32,
+    ) -> Result<ComputePipeline> {
+        ComputePipeline::new(
+            ctx,
+            &PipelineDesc {
+                name,
+                shader: spirv::COVERAGE_COMP,
+                bindings: &BINDINGS,
+                push_size: 0,
+                local_size,
+                constants: &[args, see],
+                scene: 0,
+            },
+        )
+    }
+
     pub fn new(ctx: &Context) -> Result<Self> {
-        let make = |name: &str, args: u32, see: u32, local_size: u32| {
-            ComputePipeline::new(
-                ctx,
-                &PipelineDesc {
-                    name,
-                    shader: spirv::COVERAGE_COMP,
-                    bindings: &BINDINGS,
-                    push_size: 0,
-                    local_size,
-                    constants: &[args, see],
-                    scene: 0,
-                },
-            )
-        };
-        let regions = ctx.guard(make("coverage", 0, 0, LOCAL_SIZE)?);
-        let see_through = ctx.guard(make("coverage see-through", 0, 1, LOCAL_SIZE)?);
-        let args = make("coverage args", 1, 0, 1)?;
+        let regions = ctx.guard(Self::pipeline(ctx, "coverage", 0, 0, LOCAL_SIZE)?);
+        let args = Self::pipeline(ctx, "coverage args", 1, 0, 1)?;
         Ok(CoveragePass {
             regions: regions.keep(),
-            see_through: see_through.keep(),
+            see_through: None,
             args,
         })
+    }
+
+    /// Makes the SEE_THROUGH pipeline (the first frame with see-through
+    /// spheres).
+    pub fn enable_see_through(&mut self, ctx: &Context) -> Result<()> {
+        if self.see_through.is_none() {
+            let p = Self::pipeline(ctx, "coverage see-through", 0, 1, LOCAL_SIZE)?;
+            self.see_through = Some(p);
+        }
+        Ok(())
     }
 
     /// The steps of the pass: lists of the w x h visibility buffer `vis`
@@ -66,7 +82,7 @@ impl CoveragePass {
         counts: Option<&'b Buffer>,
         lists: &'b Buffer,
         (w, h): (u32, u32),
-    ) {
+    ) -> Result<()> {
         let bufs = [
             ("GlobalsBlock", globals),
             ("visTex", vis),
@@ -75,18 +91,25 @@ impl CoveragePass {
             ("oitCountTex", counts.unwrap_or(vis)),
         ];
         p.fill(lists, 8, 0);
-        let pipe = if counts.is_some() {
-            &self.see_through
-        } else {
-            &self.regions
+        let pipe = match (counts, &self.see_through) {
+            (None, _) => &self.regions,
+            (Some(_), Some(p)) => p,
+            (Some(_), None) => {
+                return Err(crate::error::Error::Internal(
+                    "see-through coverage pipeline was not made".into(),
+                ));
+            }
         };
         p.dispatch(pipe, &(), Grid::Invocations(regions(w, h)), &bufs);
         p.dispatch(&self.args, &(), Grid::Groups([1, 1, 1]), &bufs);
+        Ok(())
     }
 
     pub fn destroy(&mut self, ctx: &Context) {
         self.regions.destroy(ctx);
-        self.see_through.destroy(ctx);
+        if let Some(p) = &mut self.see_through {
+            p.destroy(ctx);
+        }
         self.args.destroy(ctx);
     }
 }

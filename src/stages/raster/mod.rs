@@ -91,6 +91,13 @@ impl RasterStage {
         })
     }
 
+    /// Makes the pipelines that leave see-through spheres to the fragment
+    /// lists (the first frame that has some).
+    pub fn enable_see_through(&mut self, ctx: &Context) -> Result<()> {
+        self.compute.enable_see_through(ctx)?;
+        self.coverage.enable_see_through(ctx)
+    }
+
     /// `raster`: the camera's visibility buffer (with `io.see_through`
     /// the opaque spheres' only).
     pub fn record(&self, rec: &mut Recorder, io: &RasterInputs, t: &RasterTargets) -> Result<()> {
@@ -132,8 +139,7 @@ impl RasterStage {
         }
         rec.pass(CoveragePass::NAME, |p| {
             self.coverage
-                .steps(p, globals, &t.vis, counts, &t.tiles, size);
-            Ok(())
+                .steps(p, globals, &t.vis, counts, &t.tiles, size)
         })?;
         Ok(Tiles::Lists(&t.tiles))
     }
