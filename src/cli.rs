@@ -203,8 +203,9 @@ fn render(args: RenderArgs) -> Result<Exit> {
     let (scene, load_ms) = run::load_scene(&args.scene)?;
     let mut settings = args.options.resolve(&args.axes, &scene)?;
     settings.look.color16 = args.png_depth == 16;
-    settings.check_see_through(scene.has_translucent())?;
-    if let Some(n) = settings.see_through_note(scene.has_translucent()) {
+    let translucent = scene.has_translucent();
+    settings.check_see_through(translucent)?;
+    if let Some(n) = settings.see_through_note(translucent) {
         eprintln!("note: {n}");
     }
     let ctx = run::context_for(&args.options)?;

@@ -114,6 +114,21 @@ fn ordered<T: Clone + Send + Sync + 'static>(
 }
 
 impl SceneArgs {
+    /// Appends a rule as its flag does (`kind`: "hide", "paint" or
+    /// "alpha"), after every rule given so far (Python and tests; the
+    /// error names the flag).
+    pub fn add_rule(&mut self, kind: &str, text: &str) -> std::result::Result<(), String> {
+        type Parse = fn(&str) -> std::result::Result<Rule, String>;
+        let (parse, list): (Parse, &mut Vec<Ordered<Rule>>) = match kind {
+            "hide" => (Rule::hide, &mut self.hide),
+            "paint" => (Rule::paint, &mut self.paint),
+            "alpha" => (Rule::alpha, &mut self.alpha),
+            k => return Err(format!("rule kind '{k}': expected hide, paint or alpha")),
+        };
+        list.push(ordered(parse)(text).map_err(|e| format!("--{kind}: {e}"))?);
+        Ok(())
+    }
+
     /// The colour scheme (None: the loader's element or chain colours)
     /// and the rules in command-line order.
     pub fn paint(&self) -> Paint {
@@ -765,21 +780,17 @@ fn band_layers(
         }
         let sid = key & 0xFFFF_FFFF;
         // (input order: after --hide, what the scene id came from)
-        match ids.map(|m| m.locate(sid)) {
-            Some((input, loc)) => {
-                id[i] = (input + 1) as f32;
-                if let Some((k, a)) = loc {
-                    instance[i] = k as f32;
-                    atom[i] = a as f32;
-                }
-            }
-            None => {
-                id[i] = (sid + 1) as f32;
-                if let Some((k, a)) = inst.and_then(|n| n.locate(sid)) {
-                    instance[i] = k as f32;
-                    atom[i] = a as f32;
-                }
-            }
+        let (input, loc) = match ids {
+            Some(m) => m.locate(sid),
+            None => (
+                sid,
+                inst.and_then(|n| n.locate(sid)).map(|(k, a)| (k as u32, a)),
+            ),
+        };
+        id[i] = (input + 1) as f32;
+        if let Some((k, a)) = loc {
+            instance[i] = k as f32;
+            atom[i] = a as f32;
         }
         if let Some(&a) = words.get(j) {
             shadow[i] = (a & 0xFFFF) as f32 / 65535.0;

@@ -494,8 +494,6 @@ fn load(
     paint: Option<&Bound<'_, PyAny>>,
     alpha: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<Scene> {
-    use sphereshade::run::Ordered;
-    use sphereshade::scene::paint::Rule;
     let model = match model {
         None => None,
         Some(m) => Some(m.str()?.to_string()),
@@ -527,27 +525,8 @@ fn load(
         };
         all.extend(texts.into_iter().map(|t| (kind.to_string(), t)));
     }
-    for (seq, (kind, text)) in all.into_iter().enumerate() {
-        let parse = match kind.as_str() {
-            "hide" => Rule::hide,
-            "paint" => Rule::paint,
-            "alpha" => Rule::alpha,
-            k => {
-                return Err(value_error(format!(
-                    "rule kind '{k}': expected hide, paint or alpha"
-                )));
-            }
-        };
-        let value = parse(&text).map_err(|e| value_error(format!("--{kind}: {e}")))?;
-        let o = Ordered {
-            seq: seq as u64,
-            value,
-        };
-        match kind.as_str() {
-            "hide" => args.hide.push(o),
-            "paint" => args.paint.push(o),
-            _ => args.alpha.push(o),
-        }
+    for (kind, text) in all {
+        args.add_rule(&kind, &text).map_err(value_error)?;
     }
     let args = sphereshade::run::SceneArgs {
         expand: true,

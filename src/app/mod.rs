@@ -141,8 +141,7 @@ struct App<'c> {
     drag_times: Vec<f64>,
     player: Option<player::Player>,
     /// T's see-through presets: the colours as loaded, each sphere record's
-    /// group (outermost differing hierarchy level, or molecule type), and
-    /// the preset shown.
+    /// hierarchy group (`paint::hierarchy_groups`), and the preset shown.
     loaded_colors: Vec<[u8; 4]>,
     groups: Vec<u32>,
     preset: usize,
@@ -154,32 +153,6 @@ const PRESETS: [&str; 3] = [
     "first group opaque, the others at alpha 0.3",
     "every sphere at alpha 0.5",
 ];
-
-/// Each sphere record's group for the presets: the molecule type of an
-/// instanced scene, else the region at the outermost hierarchy level
-/// whose regions differ (the chains of a protein).
-fn preset_groups(scene: &Scene) -> Vec<u32> {
-    if let Some(inst) = &scene.instancing {
-        let mut g = vec![0; scene.spheres.len()];
-        for (m, mol) in inst.molecules.iter().enumerate() {
-            let r = mol.first as usize..(mol.first + mol.atoms) as usize;
-            g[r].iter_mut().for_each(|x| *x = m as u32);
-        }
-        return g;
-    }
-    let levels = scene.level_names.len().min(4);
-    let first = scene.spheres.first().map(|s| s.region);
-    let level = (0..levels).find(|&l| {
-        scene
-            .spheres
-            .iter()
-            .any(|s| Some(s.region[l]) != first.map(|f| f[l]))
-    });
-    match level {
-        Some(l) => scene.spheres.iter().map(|s| s.region[l]).collect(),
-        None => vec![0; scene.spheres.len()],
-    }
-}
 
 fn preset_colors(preset: usize, loaded: &[[u8; 4]], groups: &[u32]) -> Vec<[u8; 4]> {
     let first = groups.first().copied().unwrap_or(0);
@@ -367,7 +340,7 @@ impl<'c> App<'c> {
             self.renderer = Some(r);
             self.loading = Loading::Done;
             self.loaded_colors = scene.spheres.iter().map(|s| s.color).collect();
-            self.groups = preset_groups(&scene);
+            self.groups = crate::scene::paint::hierarchy_groups(&scene);
             drop(scene);
         }
         if let Some(a) = self.actions.pop_front() {

@@ -160,6 +160,24 @@ fn parse_list<T: std::str::FromStr + Clone>(
     }
 }
 
+/// A comma list of two words meaning false and true (`--instancing on,off`).
+fn switch_list(s: &str, flag: &str, words: [(&str, bool); 2]) -> Result<Vec<bool>> {
+    s.split(',')
+        .map(|p| {
+            words
+                .iter()
+                .find(|(w, _)| *w == p.trim())
+                .map(|&(_, v)| v)
+                .ok_or_else(|| {
+                    Error::Input(format!(
+                        "{flag} {s}: '{p}' is not {} or {}",
+                        words[0].0, words[1].0
+                    ))
+                })
+        })
+        .collect()
+}
+
 fn parse_size(s: &str) -> Result<(u32, u32)> {
     let (w, h) = s
         .split_once(['x', 'X'])
@@ -383,18 +401,9 @@ pub fn run(a: &BenchArgs) -> Result<BenchReport> {
     } else {
         default_techniques()
     };
-    let instancing: Vec<bool> = match &a.instancing {
+    let instancing = match &a.instancing {
         None => vec![true],
-        Some(s) => s
-            .split(',')
-            .map(|p| match p.trim() {
-                "on" => Ok(true),
-                "off" => Ok(false),
-                _ => Err(Error::Input(format!(
-                    "--instancing {s}: '{p}' is not on or off"
-                ))),
-            })
-            .collect::<Result<_>>()?,
+        Some(s) => switch_list(s, "--instancing", [("on", true), ("off", false)])?,
     };
     let techniques: Vec<Technique> = instancing
         .iter()
@@ -408,16 +417,7 @@ pub fn run(a: &BenchArgs) -> Result<BenchReport> {
     let techniques: Vec<Technique> = match &a.see_through {
         None => techniques,
         Some(s) => {
-            let halves: Vec<bool> = s
-                .split(',')
-                .map(|p| match p.trim() {
-                    "off" => Ok(false),
-                    "half" => Ok(true),
-                    _ => Err(Error::Input(format!(
-                        "--see-through {s}: '{p}' is not off or half"
-                    ))),
-                })
-                .collect::<Result<_>>()?;
+            let halves = switch_list(s, "--see-through", [("off", false), ("half", true)])?;
             let mut v: Vec<Technique> = Vec::new();
             for t in techniques.iter().filter(|t| !t.half) {
                 for &half in &halves {

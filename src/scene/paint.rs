@@ -253,6 +253,33 @@ fn rgb(s: &mut Sphere, c: [u8; 3]) {
     s.color[..3].copy_from_slice(&c);
 }
 
+/// Each sphere record's group at the outermost level of the hierarchy
+/// that tells them apart: the molecule type of an instanced scene's atoms,
+/// else the region at the outermost level whose regions differ (the
+/// chains of a protein); 0 where nothing differs. `--color hierarchy`
+/// colours by it, the viewer's see-through presets pick by it.
+pub fn hierarchy_groups(scene: &Scene) -> Vec<u32> {
+    let mut g = vec![0; scene.spheres.len()];
+    if let Some(inst) = &scene.instancing {
+        for (m, mol) in inst.molecules.iter().enumerate() {
+            let r = mol.first as usize..(mol.first + mol.atoms) as usize;
+            g[r].iter_mut().for_each(|x| *x = m as u32);
+        }
+        return g;
+    }
+    let levels = scene.level_names.len().min(MAX_LEVELS);
+    let level = (0..levels).find(|&l| {
+        let first = scene.spheres.first().map(|s| s.region[l]);
+        scene.spheres.iter().any(|s| Some(s.region[l]) != first)
+    });
+    if let Some(l) = level {
+        for (x, s) in g.iter_mut().zip(&scene.spheres) {
+            *x = s.region[l];
+        }
+    }
+    g
+}
+
 /// Colours the scene's sphere records by `scheme` (alpha kept).
 pub fn color_scheme(scene: &mut Scene, scheme: Scheme, map: Colormap) -> Result<(), String> {
     let n = scene.spheres.len();
@@ -345,26 +372,10 @@ pub fn color_scheme(scene: &mut Scene, scheme: Scheme, map: Colormap) -> Result<
             }
         }
         Scheme::Hierarchy => {
-            if let Some(inst) = &scene.instancing {
-                // molecule types
-                for (m, mol) in inst.molecules.iter().enumerate() {
-                    let c = palette_color(m as u32);
-                    let r = mol.first as usize..(mol.first + mol.atoms) as usize;
-                    scene.spheres[r]
-                        .iter_mut()
-                        .for_each(|s| rgb(s, [c[0], c[1], c[2]]));
-                }
-            } else {
-                // the outermost level whose regions differ
-                let levels = scene.level_names.len().min(MAX_LEVELS);
-                let level = (0..levels).find(|&l| {
-                    let first = scene.spheres.first().map(|s| s.region[l]);
-                    scene.spheres.iter().any(|s| Some(s.region[l]) != first)
-                });
-                for s in &mut scene.spheres {
-                    let c = palette_color(level.map_or(0, |l| s.region[l]));
-                    rgb(s, [c[0], c[1], c[2]]);
-                }
+            let groups = hierarchy_groups(scene);
+            for (s, g) in scene.spheres.iter_mut().zip(groups) {
+                let c = palette_color(g);
+                rgb(s, [c[0], c[1], c[2]]);
             }
         }
     }

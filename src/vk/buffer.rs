@@ -111,8 +111,6 @@ impl Buffer {
         Ok(buffer)
     }
 
-    /// A device-local storage buffer (also readable as a uniform texel
-    /// buffer and writable as a storage texel buffer, through views).
     /// A device-local buffer of `words` u32 followed by `guard` words of
     /// `pattern` that no pass may touch (GPU-AV does not check atomics:
     /// tests read the guards instead).
@@ -140,6 +138,8 @@ impl Buffer {
         Ok(buf)
     }
 
+    /// A device-local storage buffer (also readable as a uniform texel
+    /// buffer and writable as a storage texel buffer, through views).
     pub fn storage(ctx: &Context, name: &str, size: u64) -> Result<Self> {
         Self::new(
             ctx,

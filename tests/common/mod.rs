@@ -166,26 +166,15 @@ pub fn compare_ids(name: &str, gpu: &[Option<u32>], reference: &RefImage) -> IdM
 /// Loads `file` as the CLI does with rules (kind "hide", "paint" or
 /// "alpha", and the text after the flag), applied in the order given.
 pub fn load_with_rules(file: &std::path::Path, rules: &[(&str, &str)], expand: bool) -> Scene {
-    use sphereshade::run::{Ordered, SceneArgs, load_scene};
-    use sphereshade::scene::paint::Rule;
-    let mut a = SceneArgs {
+    let mut a = sphereshade::run::SceneArgs {
         input: Some(file.to_path_buf()),
         expand,
         ..Default::default()
     };
-    for (seq, (kind, text)) in rules.iter().enumerate() {
-        let o = |value| Ordered {
-            seq: seq as u64,
-            value,
-        };
-        match *kind {
-            "hide" => a.hide.push(o(Rule::hide(text).unwrap())),
-            "alpha" => a.alpha.push(o(Rule::alpha(text).unwrap())),
-            "paint" => a.paint.push(o(Rule::paint(text).unwrap())),
-            k => panic!("rule kind {k}"),
-        }
+    for (kind, text) in rules {
+        a.add_rule(kind, text).unwrap();
     }
-    load_scene(&a)
+    sphereshade::run::load_scene(&a)
         .unwrap_or_else(|e| panic!("{} {rules:?}: {e}", file.display()))
         .0
 }
