@@ -10,7 +10,7 @@
 // batches would leave most lanes idle, up to 6.
 //
 // Needs `Globals g` before inclusion (scene_region reads g.scene). Define
-// SCENE_ATTRIBUTES first for colours and regions. Bindings 24-29 are the
+// SCENE_ATTRIBUTES first for colours and regions. Bindings 24-30 are the
 // scene's (by name in Rust: SCENE_GEOMETRY, SCENE_ATTRIBUTES).
 #ifndef SCENE_GLSL
 #define SCENE_GLSL
@@ -30,6 +30,11 @@ layout(set = 0, binding = 25) uniform usamplerBuffer batchTex;
 // Instanced: 2 texels (rigid: quaternion xyzw, translation) or 3 (affine:
 // the rows m_i0 m_i1 m_i2 v_i) per instance.
 layout(set = 0, binding = 26) uniform samplerBuffer instanceTex;
+// Instanced with levels of detail: per stored atom of a coarse level, the
+// index within its molecule of the atom it stands for (what the id AOV
+// names); a coarse batch's third word is its instance's first expanded
+// index.
+layout(set = 0, binding = 30) uniform usamplerBuffer originTex;
 #ifdef SCENE_ATTRIBUTES
 // Plain: 4 region words per sphere (R32UI). Instanced: the atom's chain
 // within its molecule.
@@ -76,8 +81,8 @@ vec4 scene_sphere(uint id) {
     uvec4 b = scene_batch(id);
     uint lane = scene_lane(id), count = b.w & 0xFFu;
     // (a slot past the batch's atoms reads its last atom: no fetch past
-    // the molecule table's end)
-    vec4 a = texelFetch(sphereTex, int(b.y + min(lane, count - 1u)));
+    // the molecule table's end; the LOD lists' empty batch has none)
+    vec4 a = texelFetch(sphereTex, int(b.y + min(lane, max(count, 1u) - 1u)));
     return vec4(instance_apply(b.x, a.xyz), lane < count ? a.w : -1.0);
 }
 
@@ -85,7 +90,9 @@ vec4 scene_sphere(uint id) {
 // names, and what per-sphere noise is seeded with.
 uint scene_index(uint id) {
     if (!scene_instanced()) return id;
-    return scene_batch(id).z + scene_lane(id);
+    uvec4 b = scene_batch(id);
+    uint lane = scene_lane(id);
+    return b.z + ((b.w & BATCH_COARSE) != 0u ? texelFetch(originTex, int(b.y + lane)).x : lane);
 }
 
 #ifdef SCENE_ATTRIBUTES
@@ -110,7 +117,7 @@ float scene_alpha(uint id) {
 uint scene_region(uint id, uint level) {
     if (!scene_instanced()) return texelFetch(attrTex, int(4u * id + level)).x;
     uvec4 b = scene_batch(id);
-    uint tree = texelFetch(moleculeTex, int(4u * (b.w >> 8) + min(level, 3u))).x;
+    uint tree = texelFetch(moleculeTex, int(4u * ((b.w >> 8) & BATCH_TYPE_MASK) + min(level, 3u))).x;
     uint chain = texelFetch(attrTex, int(b.y + scene_lane(id))).x;
     return level < g.scene.x ? tree : (level == g.scene.z ? b.x : b.x * g.scene.y + chain);
 }

@@ -104,6 +104,28 @@ gpu_push! {
         sphere_count: u32,
     }
 
+    /// `lod_cull` (glsl/lod_cull.comp): one invocation per instance.
+    LodCullPush "lod_cull" {
+        /// 0 camera (chooses the levels), 1 key light (takes them).
+        view_index: u32,
+        instances: u32,
+        /// Entries of the view's batch list.
+        capacity: u32,
+        pad: u32,
+    }
+
+    /// `lod_args` (glsl/lod_args.comp): the cull's counts into indirect
+    /// dispatch arguments.
+    LodArgsPush "lod_args" {
+        /// Slots per batch (2^shift).
+        per: u32,
+        /// Entries of a view's batch list.
+        capacity: u32,
+        /// Invocations per workgroup of the rasterizer.
+        local_size: u32,
+        pad: u32,
+    }
+
     /// A band sequence's counter words (glsl/band_args.comp): where they
     /// live in the pass's counter buffer.
     BandCounters "band_args" {

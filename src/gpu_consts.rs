@@ -111,6 +111,21 @@ gpu_constants! {
     /// Batch shifts an instanced scene may use (8 to 64 slots a batch).
     MIN_BATCH_SHIFT: u32 = 3;
     MAX_BATCH_SHIFT: u32 = 6;
+    /// A batch's last word: atom count (bits 0-7) | molecule type << 8
+    /// (types below 2^23) | BATCH_COARSE, set on a batch of a coarse level
+    /// of detail, whose lanes name their atoms through originTex
+    /// (glsl/scene.glsl `scene_index`).
+    BATCH_COARSE: u32 = 0x8000_0000;
+    BATCH_TYPE_MASK: u32 = 0x7F_FFFF;
+    /// Levels of detail a molecule type may have (src/scene/instanced/lod.rs:
+    /// 4^15 atoms is beyond any molecule).
+    MAX_LOD_LEVELS: u32 = 16;
+    /// Counter words per view of the LOD cull (glsl/lod_cull.comp): batches
+    /// listed, spheres drawn, then the three indirect dispatch words.
+    LOD_WORDS: u32 = 8;
+    LOD_BATCHES: u32 = 0;
+    LOD_SPHERES: u32 = 1;
+    LOD_ARGS: u32 = 2;
     /// Globals.scene.zw: no molecule / chain level.
     NO_LEVEL: u32 = 0xFFFF_FFFF;
 }

@@ -1104,7 +1104,11 @@ pub fn run_stats(
         molecules: counts.map(|c| c.molecules),
         unique_atoms: counts.map(|c| c.unique_atoms),
         expanded: r.inspect().expanded(),
-        spheres_drawn: r.inspect().represented(),
+        // (a failed read-back of the cull's counters leaves the bound)
+        spheres_drawn: r.inspect().spheres_drawn().unwrap_or_else(|e| {
+            log::warn!("spheres drawn: {e}");
+            r.inspect().represented()
+        }),
         camera: output::CameraStats::of(&s.camera),
         width: s.camera.width,
         height: s.camera.height,

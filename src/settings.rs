@@ -223,6 +223,8 @@ pub struct RenderSettings {
     pub raster: RasterMode,
     /// The deep lists' knobs.
     pub deep: DeepParams,
+    /// Levels of detail and culling of instanced scenes.
+    pub lod: LodParams,
     /// Keep the shadow and ao AOVs (4 B/px more) for `read_shadow` and
     /// `read_ambient`; off, frames write colour only.
     pub aovs: bool,
@@ -556,6 +558,48 @@ pub struct DeepParams {
 
 default_from_args!(DeepParams);
 
+/// Levels of detail (instanced scenes): `auto` or every atom.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum LodMode {
+    Auto,
+    Off,
+}
+
+/// The LOD stage's knobs (src/stages/lod.rs): how much detail an instance
+/// of an instanced scene draws for its size on screen, and which are
+/// culled.
+#[derive(Clone, Copy, Debug, PartialEq, clap::Args)]
+pub struct LodParams {
+    /// Level of detail per instance of an instanced scene, chosen from its
+    /// size on screen, with the instances outside the view culled
+    /// (`auto`); `off` draws every atom of every instance.
+    #[arg(long, value_enum, default_value_t = LodMode::Auto)]
+    pub lod: LodMode,
+    /// Largest radius in pixels a coarse level's spheres are drawn at (a
+    /// level is also kept only where its outline matches the molecule's);
+    /// 0: full detail everywhere, culling only.
+    #[arg(long, default_value_t = 2.0, allow_negative_numbers = true)]
+    pub lod_pixels: f32,
+}
+
+default_from_args!(LodParams);
+
+impl LodParams {
+    /// `--lod-pixels` with `--lod auto`; None with `--lod off`.
+    pub fn pixels(&self) -> Option<f32> {
+        (self.lod == LodMode::Auto).then_some(self.lod_pixels)
+    }
+
+    pub fn validate(&self) -> Result<()> {
+        if !(0.0..=1000.0).contains(&self.lod_pixels) {
+            return Err(Error::Input(
+                "--lod-pixels must be between 0 and 1000".into(),
+            ));
+        }
+        Ok(())
+    }
+}
+
 /// `--semantic-levels T0,T1,...`: positive, descending.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Levels(pub Vec<f64>);
@@ -648,6 +692,8 @@ pub struct Options {
     pub ssdo_knobs: SsdoKnobs,
     #[command(flatten)]
     pub deep: DeepParams,
+    #[command(flatten)]
+    pub lod: LodParams,
     /// Enable validation (GPU-assisted + synchronization); exit 3 on any message.
     #[arg(long)]
     pub validate: bool,
@@ -679,6 +725,7 @@ impl Default for Options {
             shadow_maps: ShadowMapParams::default(),
             ssdo_knobs: SsdoKnobs::default(),
             deep: DeepParams::default(),
+            lod: LodParams::default(),
             validate: false,
             device: None,
             ssaa: 1,
@@ -716,6 +763,7 @@ impl Options {
         }
         self.issm.validate()?;
         self.shadow_maps.validate()?;
+        self.lod.validate()?;
         if !(1..=4).contains(&self.ssaa) {
             return input("--ssaa must be between 1 and 4".into());
         }
@@ -736,6 +784,7 @@ impl Options {
             ssdo_knobs: self.ssdo_knobs.clone(),
             raster: axes.raster,
             deep: self.deep,
+            lod: self.lod,
             aovs: false,
             window: None,
             ssaa: self.ssaa,

@@ -557,7 +557,9 @@ fn frame(ctx: &Context, scene: &Scene, s: RenderSettings) -> Frame {
 }
 
 /// The instanced scene and its expansion render the same bytes (colour,
-/// ids, depth, shadow, ambient) in each mode.
+/// ids, depth, shadow, ambient) in each mode; the instanced one through
+/// the LOD cull with every instance at full detail (`--lod-pixels 0`),
+/// so culling never drops a visible sphere.
 fn same_as_expanded(
     ctx: &Context,
     name: &str,
@@ -565,11 +567,22 @@ fn same_as_expanded(
     modes: &[(ShadowMode, SsdoMode)],
     size: (u32, u32),
 ) {
+    same_as_expanded_from(ctx, name, s, modes, camera(s, size.0, size.1, None));
+}
+
+fn same_as_expanded_from(
+    ctx: &Context,
+    name: &str,
+    s: &Scene,
+    modes: &[(ShadowMode, SsdoMode)],
+    cam: sphereshade::camera::Camera,
+) {
     let e = s.expand().unwrap();
     for &(shadows, ssdo) in modes {
-        let mut st = settings(camera(s, size.0, size.1, None), shadows);
+        let mut st = settings(cam, shadows);
         st.ssdo = ssdo;
         st.ssdo_knobs.blur = true;
+        st.lod.lod_pixels = 0.0;
         let a = frame(ctx, s, st.clone());
         let b = frame(ctx, &e, st);
         let what = format!("{name} {shadows:?} {ssdo:?}");
@@ -656,6 +669,48 @@ fn real_models_render_as_their_expansion() {
         &both,
         (64, 48),
     );
+}
+
+/// Culling: a camera that sees a corner of the motor (a quarter of its
+/// height, off centre, and a perspective one inside it) draws a part of
+/// the instances through the LOD cull at full detail, and its image, ids
+/// and depths are the expansion's, byte for byte.
+#[test]
+fn culled_instances_are_never_visible() {
+    let ctx = validated_context();
+    let s = meso("flagellarmotor_2-no_bonds.bcif");
+    let (c, r) = s.bounding_sphere();
+    let whole = camera(&s, 64, 48, None);
+    let mut near = whole;
+    near.view_height = whole.view_height / 4.0;
+    near.center = whole.center + whole.right * (r as f64 * 0.4) + whole.up * (r as f64 * 0.2);
+    // (the eye a third of the scene's radius in front of a point inside it)
+    let mut persp = camera(&s, 64, 48, Some(50.0));
+    persp.view_height = r as f64 / 3.0;
+    persp.center = c.as_dvec3() + persp.right * (r as f64 * 0.3);
+    for (what, cam) in [("corner", near), ("perspective", persp)] {
+        let mut st = settings(cam, ShadowMode::IssmSoft);
+        st.lod.lod_pixels = 0.0;
+        let mut rd = Renderer::new(&ctx, &s, st).expect("renderer");
+        rd.render_frame().expect("frame");
+        let counts = rd.inspect().lod_counts().unwrap().expect("the cull ran");
+        let all = s.represented();
+        assert!(
+            (counts.camera_spheres as u64) < all * 3 / 4 && counts.camera_spheres > 0,
+            "{what}: the camera drew {} of {all} spheres",
+            counts.camera_spheres
+        );
+        // the light's view holds the whole scene
+        assert_eq!(counts.light_spheres as u64, all, "{what}");
+        drop(rd);
+        same_as_expanded_from(
+            &ctx,
+            &format!("motor {what}"),
+            &s,
+            &[(ShadowMode::IssmSoft, SsdoMode::Semantic)],
+            cam,
+        );
+    }
 }
 
 /// A scene of more than 2^24 spheres (262,145 instances of a 64-atom

@@ -36,6 +36,9 @@ pub struct BandJob<'a, 'b, P> {
     pub push: &'a P,
     pub bindings: &'a [(&'static str, &'b Buffer)],
     pub sphere_count: u32,
+    /// The per-sphere dispatch's group counts from a buffer (at a byte
+    /// offset) instead of `sphere_count` invocations: the LOD cull's lists.
+    pub indirect: Option<(&'b Buffer, u64)>,
     pub counters: &'b Buffer,
     pub layout: &'a BandCounters,
 }
@@ -102,12 +105,11 @@ impl BandArgs {
     /// Adds the per-sphere dispatch, the args step and the indirect band
     /// dispatch of `job` to a pass.
     pub fn steps<'b, P: Pod>(&'b self, p: &mut PassBuilder<'b>, job: &BandJob<'_, 'b, P>) {
-        p.dispatch(
-            &job.pipes.spheres,
-            job.push,
-            Grid::Invocations(job.sphere_count as u64),
-            job.bindings,
-        );
+        let grid = match job.indirect {
+            Some((b, offset)) => Grid::Indirect(b, offset),
+            None => Grid::Invocations(job.sphere_count as u64),
+        };
+        p.dispatch(&job.pipes.spheres, job.push, grid, job.bindings);
         self.step(p, job.counters, job.layout);
         p.dispatch(
             &job.pipes.bands,

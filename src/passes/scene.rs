@@ -10,10 +10,12 @@
 
 use crate::error::{Error, Result};
 use crate::gpu::consts::{
-    MAX_BATCH_SHIFT, MIN_BATCH_SHIFT, NO_LEVEL, SCENE_AFFINE, SCENE_PLAIN, SCENE_RIGID,
+    BATCH_COARSE, BATCH_TYPE_MASK, MAX_BATCH_SHIFT, MAX_LOD_LEVELS, MIN_BATCH_SHIFT, NO_LEVEL,
+    SCENE_AFFINE, SCENE_PLAIN, SCENE_RIGID,
 };
 use crate::gpu::{GpuBatch, GpuSphere, SphereAttr};
 use crate::scene::Scene;
+use crate::scene::instanced::lod::MoleculeLod;
 use crate::scene::instanced::{LevelKind, Transforms};
 use crate::vk::pipeline::{Binding, texel};
 use crate::vk::{Buffer, Context};
@@ -21,10 +23,11 @@ use ash::vk::Format;
 use glam::DVec3;
 
 /// What scene.glsl reads for geometry: `scene_sphere`, `scene_index`.
-pub const SCENE_GEOMETRY: [Binding; 3] = [
+pub const SCENE_GEOMETRY: [Binding; 4] = [
     texel("sphereTex", Format::R32G32B32A32_SFLOAT),
     texel("batchTex", Format::R32G32B32A32_UINT),
     texel("instanceTex", Format::R32G32B32A32_SFLOAT),
+    texel("originTex", Format::R32_UINT),
 ];
 
 /// What scene.glsl reads for colours and regions (SCENE_ATTRIBUTES).
@@ -55,18 +58,53 @@ pub struct SceneBuffers {
     pub instances: Buffer,
     /// Instanced: the tree regions of each molecule type (16 B each).
     pub molecules: Buffer,
+    /// Instanced with levels of detail: the origin of each coarse atom
+    /// (4 B per stored atom; 16 B unread otherwise).
+    pub origins: Buffer,
     /// Ids a per-sphere dispatch covers: the spheres, or every slot of the
     /// batches.
     pub slots: u32,
+    /// The slots of level 0 (every atom of every instance, expanded
+    /// order): what a pass that draws full detail covers. `slots` less the
+    /// coarse levels' batches.
+    pub base_slots: u32,
+    /// The levels of detail (instanced scenes, `--lod auto`).
+    pub lod: Option<LodBuffers>,
+    /// Atoms of the scene's own (`Scene::spheres`); the colour buffer holds
+    /// them, then the coarse copies (`coarse_source`).
+    base_atoms: u32,
+    /// Per coarse stored atom: the stored atom it copies.
+    coarse_source: Vec<u32>,
+}
+
+/// The tables of the LOD cull (glsl/lod_cull.comp).
+pub struct LodBuffers {
+    /// Per (molecule type, level < MAX_LOD_LEVELS), RGBA32UI: first batch
+    /// of the level within an instance's coarse batches (level 0: the
+    /// number of levels), its batches, its switch size (f32 bits: most
+    /// pixels per world unit it is drawn at), its spheres.
+    pub levels: Buffer,
+    /// Per molecule type, RGBA32F: bounding sphere in its frame.
+    pub bounds: Buffer,
+    /// Per instance, RGBA32UI: molecule type, first level-0 batch, first
+    /// coarse batch, 0.
+    pub instances: Buffer,
+    pub instance_count: u32,
+    /// The batch with no atoms (what unused list entries name).
+    pub empty_batch: u32,
+    /// Level-0 batches: the most a view lists (an instance draws one
+    /// level).
+    pub base_batches: u32,
 }
 
 impl SceneBuffers {
     /// The geometry buffers, by the names of [`SCENE_GEOMETRY`].
-    pub fn geometry(&self) -> [(&'static str, &Buffer); 3] {
+    pub fn geometry(&self) -> [(&'static str, &Buffer); 4] {
         [
             ("sphereTex", &self.spheres),
             ("batchTex", &self.batches),
             ("instanceTex", &self.instances),
+            ("originTex", &self.origins),
         ]
     }
 
@@ -91,21 +129,49 @@ impl SceneBuffers {
         if self.kind() == SCENE_PLAIN {
             return vec![("scene", atoms)];
         }
+        let (lod_mol, lod_inst) = self.lod.as_ref().map_or((0, 0), |l| {
+            (
+                l.levels.size + l.bounds.size + self.origins.size,
+                l.instances.size,
+            )
+        });
         vec![
-            ("molecules", atoms + self.molecules.size),
-            ("instances", self.instances.size),
+            ("molecules", atoms + self.molecules.size + lod_mol),
+            ("instances", self.instances.size + lod_inst),
             ("scene", self.batches.size),
         ]
     }
 
-    /// Uploads `scene`: its buffers and the CPU copy of its geometry.
-    pub fn new(ctx: &Context, scene: &Scene) -> Result<(Self, SceneGeom)> {
-        let geom: Vec<GpuSphere> = scene
+    /// The colour buffer's words for the scene's atom colours (`colors`,
+    /// one per `Scene::spheres` record): those, then the coarse copies'.
+    pub fn colour_words(&self, colors: &[[u8; 4]]) -> Result<Vec<u32>> {
+        if colors.len() as u64 != self.base_atoms as u64 {
+            return Err(Error::Input(format!(
+                "{} colours for {} sphere records",
+                colors.len(),
+                self.base_atoms
+            )));
+        }
+        let mut out: Vec<u32> = colors.iter().map(|c| u32::from_le_bytes(*c)).collect();
+        let coarse: Vec<u32> = self
+            .coarse_source
+            .iter()
+            .map(|&i| out[i as usize])
+            .collect();
+        out.extend(coarse);
+        Ok(out)
+    }
+
+    /// Uploads `scene`: its buffers and the CPU copy of its geometry;
+    /// with `lod_pixels` (`--lod auto`) an instanced scene's levels of
+    /// detail too.
+    pub fn new(ctx: &Context, scene: &Scene, lod_pixels: Option<f32>) -> Result<(Self, SceneGeom)> {
+        let mut geom: Vec<GpuSphere> = scene
             .spheres
             .iter()
             .map(|s| [s.center[0], s.center[1], s.center[2], s.radius])
             .collect();
-        let colors: Vec<u32> = scene
+        let mut colors: Vec<u32> = scene
             .spheres
             .iter()
             .map(|s| u32::from_le_bytes(s.color))
@@ -117,7 +183,7 @@ impl SceneBuffers {
                 .map(|s| SphereAttr { region: s.region })
                 .collect();
             // (batches, instances and molecules: bound, never read)
-            let buffers = Self::upload(
+            let mut buffers = Self::upload(
                 ctx,
                 SCENE_PLAIN,
                 geom.len() as u64,
@@ -128,19 +194,105 @@ impl SceneBuffers {
                     ("scene batches (unused)", &[]),
                     ("scene instances (unused)", &[]),
                     ("scene molecules (unused)", &[]),
+                    ("atom origins (unused)", &[]),
                 ],
             )?;
+            buffers.base_slots = buffers.slots;
+            buffers.base_atoms = geom.len() as u32;
             return Ok((buffers, SceneGeom::Plain(geom)));
         };
         let shift = batch_shift(scene);
-        let batches = batches_of(scene, shift)?;
-        let chains: Vec<u32> = scene.spheres.iter().map(|s| s.region[0]).collect();
+        let mut batches = batches_of(scene, shift)?;
+        let base_batches = batches.len() as u32;
+        let base_atoms = geom.len() as u32;
+        let mut chains: Vec<u32> = scene.spheres.iter().map(|s| s.region[0]).collect();
+        let lod = match lod_pixels {
+            Some(p) => Some(lod_of(scene, &geom, p)?),
+            None => None,
+        };
+        // The coarse levels' atoms after the scene's own, their batches
+        // after level 0's, then the empty batch.
+        let mut origins: Vec<u32> = Vec::new();
+        let mut coarse_source: Vec<u32> = Vec::new();
+        let mut lod_tables = None;
+        if let Some(lod) = &lod {
+            origins = vec![0; geom.len()];
+            let per = 1u32 << shift;
+            // per molecule type: per level >= 1, its first stored atom
+            let mut level_first: Vec<Vec<u32>> = Vec::with_capacity(inst.molecules.len());
+            for (m, mol) in inst.molecules.iter().enumerate() {
+                let mut firsts = vec![mol.first];
+                for l in 1..lod[m].levels() {
+                    firsts.push(geom.len() as u32);
+                    let r = lod[m].radius_scale(l);
+                    for &a in &lod[m].order[..lod[m].counts[l] as usize] {
+                        let src = mol.first + a;
+                        let g = geom[src as usize];
+                        geom.push([g[0], g[1], g[2], g[3] * r]);
+                        chains.push(chains[src as usize]);
+                        colors.push(colors[src as usize]);
+                        origins.push(a);
+                        coarse_source.push(src);
+                    }
+                }
+                level_first.push(firsts);
+            }
+            // the level table: per (type, level) first batch within the
+            // instance's coarse batches, batches, switch size, spheres
+            let mut levels = vec![[0u32; 4]; inst.molecules.len() * MAX_LOD_LEVELS as usize];
+            let mut coarse_batches = vec![0u32; inst.molecules.len()];
+            for (m, ml) in lod.iter().enumerate() {
+                let mut off = 0u32;
+                for l in 0..ml.levels() {
+                    let nb = ml.counts[l].div_ceil(per);
+                    let first = if l == 0 { ml.levels() as u32 } else { off };
+                    levels[m * MAX_LOD_LEVELS as usize + l] =
+                        [first, nb, ml.switch[l].to_bits(), ml.counts[l]];
+                    if l > 0 {
+                        off += nb;
+                    }
+                }
+                coarse_batches[m] = off;
+            }
+            let mut inst_rows = Vec::with_capacity(inst.instances());
+            let mut first0 = 0u32;
+            for (k, &m) in inst.instance_molecule.iter().enumerate() {
+                let mu = m as usize;
+                inst_rows.push([m, first0, batches.len() as u32, 0]);
+                first0 += inst.molecules[mu].atoms.div_ceil(per);
+                for (&n, &at) in lod[mu].counts.iter().zip(&level_first[mu]).skip(1) {
+                    let mut a = 0;
+                    while a < n {
+                        let c = (n - a).min(per);
+                        batches.push([
+                            k as u32,
+                            at + a,
+                            inst.first[k] as u32,
+                            c | (m << 8) | BATCH_COARSE,
+                        ]);
+                        a += c;
+                    }
+                }
+                debug_assert_eq!(batches.len() as u32, inst_rows[k][2] + coarse_batches[mu]);
+            }
+            let empty_batch = batches.len() as u32;
+            batches.push([0, 0, 0, 0]);
+            if (batches.len() as u64) << shift > MAX_SLOTS {
+                return Err(Error::Input(format!(
+                    "{}: the levels of detail need more than the 2^32 sphere ids sphereshade has \
+                     (--lod off draws without them)",
+                    scene.source
+                )));
+            }
+            let bounds: Vec<[f32; 4]> = lod.iter().map(|l| l.bound).collect();
+            lod_tables = Some((levels, bounds, inst_rows, empty_batch));
+        }
         let tree: Vec<u32> = inst.tree_regions.iter().flatten().copied().collect();
         let (kind, transform_bytes): (u32, &[u8]) = match &inst.transforms {
             Transforms::Rigid(v) => (SCENE_RIGID, bytemuck::cast_slice(v)),
             Transforms::Affine(v) => (SCENE_AFFINE, bytemuck::cast_slice(v)),
         };
-        let buffers = Self::upload(
+        let mut buffers = Self::upload(
             ctx,
             kind | (shift << 8),
             (batches.len() as u64) << shift,
@@ -151,8 +303,36 @@ impl SceneBuffers {
                 ("scene batches", bytemuck::cast_slice(&batches)),
                 ("instances", transform_bytes),
                 ("molecule regions", bytemuck::cast_slice(&tree)),
+                ("atom origins", bytemuck::cast_slice(&origins)),
             ],
         )?;
+        buffers.base_slots = base_batches << shift;
+        buffers.base_atoms = base_atoms;
+        buffers.coarse_source = coarse_source;
+        if let Some((levels, bounds, rows, empty_batch)) = lod_tables {
+            let mut made = ctx.guard(Vec::new());
+            for (name, bytes) in [
+                ("LOD levels", bytemuck::cast_slice::<[u32; 4], u8>(&levels)),
+                ("LOD bounds", bytemuck::cast_slice(&bounds)),
+                ("LOD instances", bytemuck::cast_slice(&rows)),
+            ] {
+                let b = ctx.guard(Buffer::storage(ctx, name, bytes.len().max(16) as u64)?);
+                b.upload(ctx, 0, bytes)?;
+                made.push(b.keep());
+            }
+            let [levels, bounds, instances]: [Buffer; 3] = made
+                .keep()
+                .try_into()
+                .map_err(|_| Error::Internal("LOD buffers".into()))?;
+            buffers.lod = Some(LodBuffers {
+                levels,
+                bounds,
+                instances,
+                instance_count: inst.instances() as u32,
+                empty_batch,
+                base_batches,
+            });
+        }
         let geom = SceneGeom::Instanced(Box::new(InstancedGeom {
             atoms: geom,
             transforms: inst.transforms.clone(),
@@ -160,6 +340,8 @@ impl SceneBuffers {
             molecules: inst.molecules.iter().map(|m| (m.first, m.atoms)).collect(),
             first: inst.first.clone(),
             batches,
+            base_batches: base_batches as usize,
+            origins,
             shift,
         }));
         Ok((buffers, geom))
@@ -167,7 +349,7 @@ impl SceneBuffers {
 
     /// The six buffers (named, with their bytes) in field order; an error
     /// part way destroys what was made.
-    fn upload(ctx: &Context, spec: u32, slots: u64, data: [(&str, &[u8]); 6]) -> Result<Self> {
+    fn upload(ctx: &Context, spec: u32, slots: u64, data: [(&str, &[u8]); 7]) -> Result<Self> {
         let mut made = ctx.guard(Vec::new());
         for (name, bytes) in data {
             let b = ctx.guard(Buffer::storage(ctx, name, bytes.len().max(16) as u64)?);
@@ -176,7 +358,15 @@ impl SceneBuffers {
             }
             made.push(b.keep());
         }
-        let [spheres, attrs, colors, batches, instances, molecules]: [Buffer; 6] = made
+        let [
+            spheres,
+            attrs,
+            colors,
+            batches,
+            instances,
+            molecules,
+            origins,
+        ]: [Buffer; 7] = made
             .keep()
             .try_into()
             .map_err(|_| Error::Internal("scene buffers".into()))?;
@@ -188,7 +378,12 @@ impl SceneBuffers {
             batches,
             instances,
             molecules,
+            origins,
             slots: slots as u32,
+            base_slots: slots as u32,
+            lod: None,
+            base_atoms: 0,
+            coarse_source: Vec::new(),
         })
     }
 
@@ -200,8 +395,14 @@ impl SceneBuffers {
             &mut self.batches,
             &mut self.instances,
             &mut self.molecules,
+            &mut self.origins,
         ] {
             b.destroy(ctx);
+        }
+        if let Some(l) = &mut self.lod {
+            l.levels.destroy(ctx);
+            l.bounds.destroy(ctx);
+            l.instances.destroy(ctx);
         }
     }
 }
@@ -267,9 +468,9 @@ fn batches_of(scene: &Scene, shift: u32) -> Result<Vec<GpuBatch>> {
             inst.represented()
         )));
     }
-    if inst.molecules.len() >= 1 << 24 {
+    if inst.molecules.len() > BATCH_TYPE_MASK as usize {
         return Err(Error::Input(format!(
-            "{}: {} molecule types, more than 2^24",
+            "{}: {} molecule types, more than 2^23",
             scene.source,
             inst.molecules.len()
         )));
@@ -308,6 +509,11 @@ pub struct InstancedGeom {
     /// Expanded index of each instance's first atom (+ the total).
     pub first: Vec<u64>,
     pub batches: Vec<GpuBatch>,
+    /// Level 0's batches (the coarse levels' follow).
+    pub base_batches: usize,
+    /// Per stored atom of a coarse level: the atom it stands for (index
+    /// within its molecule); empty without levels of detail.
+    pub origins: Vec<u32>,
     /// Slots a batch: 2^shift.
     pub shift: u32,
 }
@@ -332,11 +538,12 @@ impl SceneGeom {
         self.len() == 0
     }
 
-    /// Ids a per-sphere dispatch covers (as `SceneBuffers::slots`).
+    /// Ids a per-sphere dispatch of every atom at full detail covers (as
+    /// `SceneBuffers::base_slots`: the coarse levels' batches follow).
     pub fn slots(&self) -> u32 {
         match self {
             SceneGeom::Plain(g) => g.len() as u32,
-            SceneGeom::Instanced(i) => (i.batches.len() as u32) << i.shift,
+            SceneGeom::Instanced(i) => (i.base_batches as u32) << i.shift,
         }
     }
 
@@ -389,7 +596,15 @@ impl SceneGeom {
             SceneGeom::Instanced(i) => {
                 let b = i.batches.get((id >> i.shift) as usize)?;
                 let lane = id & ((1 << i.shift) - 1);
-                (lane < (b[3] & 0xFF)).then_some(b[2] as u64 + lane as u64)
+                if lane >= (b[3] & 0xFF) {
+                    return None;
+                }
+                let atom = if b[3] & BATCH_COARSE != 0 {
+                    *i.origins.get((b[1] + lane) as usize)?
+                } else {
+                    lane
+                };
+                Some(b[2] as u64 + atom as u64)
             }
         }
     }
@@ -433,11 +648,16 @@ impl SceneGeom {
                             .collect(),
                     );
                 }
-                i.batches
+                // (level 0's batches: the coarse ones are listed by the LOD
+                // cull, never by a view order)
+                i.batches[..i.base_batches]
                     .iter()
                     .enumerate()
                     .map(|(b, batch)| {
-                        let (k, m) = (batch[0] as usize, (batch[3] >> 8) as usize);
+                        let (k, m) = (
+                            batch[0] as usize,
+                            ((batch[3] >> 8) & BATCH_TYPE_MASK) as usize,
+                        );
                         let run = (batch[1] - i.molecules[m].0) as usize / per;
                         let c = i.transforms.apply(k, local[m][run]);
                         let first = (b << i.shift) as u32;
@@ -474,4 +694,74 @@ impl SceneGeom {
             .fold(0.0f32, f32::max);
         (c.as_dvec3(), r as f64)
     }
+}
+
+/// A molecule type's levels of detail as the cull reads them.
+struct Lod {
+    order: Vec<u32>,
+    counts: Vec<u32>,
+    radius: Vec<f32>,
+    /// Per level: most pixels per world unit it is drawn at.
+    switch: Vec<f32>,
+    /// Bounding sphere in the molecule's frame.
+    bound: [f32; 4],
+}
+
+impl Lod {
+    fn levels(&self) -> usize {
+        self.counts.len()
+    }
+    fn radius_scale(&self, l: usize) -> f32 {
+        self.radius[l]
+    }
+}
+
+/// Every molecule type's levels (`pixels`: `--lod-pixels`).
+fn lod_of(scene: &Scene, geom: &[GpuSphere], pixels: f32) -> Result<Vec<Lod>> {
+    let Some(inst) = &scene.instancing else {
+        return Ok(Vec::new());
+    };
+    let mut out = Vec::with_capacity(inst.molecules.len());
+    for mol in &inst.molecules {
+        let atoms = &geom[mol.first as usize..(mol.first + mol.atoms) as usize];
+        let ml = MoleculeLod::new(atoms);
+        if ml.levels() > MAX_LOD_LEVELS as usize {
+            return Err(Error::Internal(format!(
+                "{}: {} levels of detail",
+                mol.label,
+                ml.levels()
+            )));
+        }
+        let switch = ml.switch_ppu(atoms, pixels);
+        let bound = bounding_sphere(atoms);
+        out.push(Lod {
+            order: ml.order,
+            counts: ml.counts,
+            radius: ml.radius,
+            switch,
+            bound,
+        });
+    }
+    Ok(out)
+}
+
+/// A sphere holding every sphere of `atoms` (box centre, farthest
+/// surface), a little grown against the f32 rounding of the transforms.
+fn bounding_sphere(atoms: &[GpuSphere]) -> [f32; 4] {
+    let mut lo = [f32::MAX; 3];
+    let mut hi = [f32::MIN; 3];
+    for a in atoms {
+        for k in 0..3 {
+            lo[k] = lo[k].min(a[k]);
+            hi[k] = hi[k].max(a[k]);
+        }
+    }
+    let c: [f32; 3] = std::array::from_fn(|k| 0.5 * (lo[k] + hi[k]));
+    let r = atoms
+        .iter()
+        .map(|a| {
+            ((a[0] - c[0]).powi(2) + (a[1] - c[1]).powi(2) + (a[2] - c[2]).powi(2)).sqrt() + a[3]
+        })
+        .fold(0.0f32, f32::max);
+    [c[0], c[1], c[2], r * 1.001 + 1e-3]
 }

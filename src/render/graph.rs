@@ -7,7 +7,7 @@
 use super::Resources;
 use crate::error::Result;
 use crate::passes::screen::ScreenInputs;
-use crate::settings::{RasterMode, RenderSettings};
+use crate::settings::{RasterMode, RenderSettings, ShadowMode};
 use crate::stages::raster::compute::ViewIndex;
 use crate::stages::raster::{RasterInputs, RasterStage};
 use crate::stages::see_through::{SeeThrough, SeeThroughInputs};
@@ -19,6 +19,10 @@ use crate::vk::{Buffer, Context, Recorder};
 /// Every pass a frame may record: its name (= debug label = timestamp
 /// scope = JSON name) and what it does.
 pub const PASSES: &[(&str, &str)] = &[
+    (
+        "lod_cull",
+        "instanced scenes with levels of detail (`--lod auto`): one invocation per instance places its molecule's bounding sphere and tests it against the camera's pixel window, chooses the coarsest level whose switch size the instance is within (a prefix of the molecule's atoms in a spatial order, radii grown; kept only where its outline keeps 95 % of the molecule's), then tests it against the key light's view with the camera's level; each view lists the kept (instance, level) batches with one `atomicAdd`, and the rasterizer visits its list, dispatched indirectly, instead of the view's order",
+    ),
     (
         "raster",
         "one invocation per sphere, the spheres visited in runs of 64, the dispatch's two halves on the two sides of the view and each sorted front to back (sorted again when the camera turns more than 30° or the spheres move): exact ray-sphere test per pixel of the footprint's rectangle (one flat loop; orthographic/perspective a specialization constant), the stored depth read first (a 4-byte texel gather through an R32UI view of the buffer) and the 64-bit `atomicMin(depth<<32 \\| id)` only where nearer; footprints above 1024 px (CPU) / 256 px (GPU) are split into 8-row bands that whole workgroups process (indirect dispatch); `--raster graphics`: the vertex/fragment impostor baseline, same output",
@@ -135,10 +139,11 @@ impl Stages {
         settings: &RenderSettings,
         levels: Vec<u32>,
         thresholds: Vec<f64>,
-        scene: u32,
+        scene_buffers: &crate::passes::scene::SceneBuffers,
     ) -> Result<Self> {
+        let scene = scene_buffers.spec;
         Ok(Stages {
-            raster: RasterStage::new(ctx, settings.raster == RasterMode::Graphics, scene)?,
+            raster: RasterStage::new(ctx, settings.raster == RasterMode::Graphics, scene_buffers)?,
             see_through: None,
             shadows: ShadowStage::new(),
             ssdo: SsdoStage::new(levels, thresholds, scene),
@@ -178,6 +183,22 @@ impl Resources {
             .as_ref()
             .filter(|_| params.see_through);
 
+        // Levels of detail and culling, where every pass that draws the
+        // spheres can take the lists: the compute rasterizer's views (the
+        // deep lists, opacity maps and see-through fragments draw every
+        // atom).
+        self.stages.raster.no_cull();
+        let lod = settings.raster == RasterMode::Compute
+            && see.is_none()
+            && !matches!(settings.shadows, ShadowMode::Deep | ShadowMode::Osm)
+            && self.stages.raster.record_cull(
+                rec,
+                globals,
+                &self.scene,
+                cam.fov_deg.is_some(),
+                settings.shadows.draws_light_view(),
+            )?;
+
         self.stages.raster.record(
             rec,
             &RasterInputs {
@@ -187,6 +208,7 @@ impl Resources {
                 image: (cam.width, cam.height),
                 size,
                 see_through: see.is_some(),
+                lod,
             },
             &t.raster,
         )?;
@@ -218,6 +240,11 @@ impl Resources {
                 opacity: settings.opacity,
                 pixels: t.pixels,
                 raster: &self.stages.raster.compute,
+                lod: if lod {
+                    self.stages.raster.lod_view(ViewIndex::Light)
+                } else {
+                    None
+                },
             },
         )?;
 

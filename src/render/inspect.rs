@@ -39,6 +39,25 @@ impl<'r> Inspect<'r, '_> {
         self.r.res.geom.len()
     }
 
+    /// Spheres the last frame's camera drew: after culling and level of
+    /// detail when its LOD cull ran, else every represented sphere.
+    pub fn spheres_drawn(&self) -> Result<u64> {
+        let raster = &self.r.res.stages.raster;
+        match &raster.lod {
+            Some(l) if raster.lod_used() => Ok(l.counts(self.r.ctx)?.camera_spheres as u64),
+            _ => Ok(self.represented()),
+        }
+    }
+
+    /// What the last frame's LOD cull kept (None: it did not run).
+    pub fn lod_counts(&self) -> Result<Option<crate::stages::raster::lod::LodCounts>> {
+        let raster = &self.r.res.stages.raster;
+        match &raster.lod {
+            Some(l) if raster.lod_used() => Ok(Some(l.counts(self.r.ctx)?)),
+            _ => Ok(None),
+        }
+    }
+
     /// Scene ids to input indices (None: the same; rules hid nothing).
     pub fn id_map(&self) -> Option<std::sync::Arc<crate::scene::paint::IdMap>> {
         self.r.res.ids.clone()
@@ -56,7 +75,8 @@ impl<'r> Inspect<'r, '_> {
             SceneGeom::Instanced(i) => Some(InstancingCounts {
                 instances: i.instance_molecule.len() as u64,
                 molecules: i.molecules.len() as u64,
-                unique_atoms: i.atoms.len() as u64,
+                // (the scene's own atoms, not the coarse levels' copies)
+                unique_atoms: i.molecules.iter().map(|m| m.1 as u64).sum(),
             }),
         }
     }

@@ -137,8 +137,11 @@ impl Resources {
             settings.check_see_through(self.translucent)?;
             self.stages.raster.enable_see_through(ctx)?;
             if self.stages.see_through.is_none() {
-                self.stages.see_through =
-                    Some(SeeThrough::new(ctx, self.scene.spec, self.scene.slots)?);
+                self.stages.see_through = Some(SeeThrough::new(
+                    ctx,
+                    self.scene.spec,
+                    self.scene.base_slots,
+                )?);
             }
             if let Some(s) = &mut self.stages.see_through {
                 s.prepare(
@@ -229,7 +232,7 @@ impl<'c> Renderer<'c> {
         let cam = settings.camera;
         // Each object is guarded until the renderer owns it: an error part
         // way (a buffer over the device limit) destroys what was made.
-        let (scene_buffers, geom) = SceneBuffers::new(ctx, scene)?;
+        let (scene_buffers, geom) = SceneBuffers::new(ctx, scene, settings.lod.pixels())?;
         let scene_buffers = ctx.guard(scene_buffers);
         let win = checked_window(&cam, settings.window, settings.raster)?;
         let targets = ctx.guard(Targets::new(
@@ -262,7 +265,7 @@ impl<'c> Renderer<'c> {
             &settings,
             levels,
             thresholds,
-            scene_buffers.spec,
+            &scene_buffers,
         )?);
         let mut res = Resources {
             geom,
@@ -550,20 +553,13 @@ impl<'c> Renderer<'c> {
     /// viewer's colour and see-through presets. Alpha changes the shadows
     /// (deep lists) and whether the see-through passes run.
     pub fn set_colors(&mut self, colors: &[[u8; 4]]) -> Result<()> {
-        // (16 B per sphere record: the colour buffer may be padded)
-        let n = self.res.scene.spheres.size / 16;
-        if colors.len() as u64 != n {
-            return Err(Error::Input(format!(
-                "{} colours for {n} sphere records",
-                colors.len()
-            )));
-        }
+        let words = self.res.scene.colour_words(colors)?;
         // Frames in flight read the colour buffer.
         self.wait_idle()?;
         self.res
             .scene
             .colors
-            .upload(self.ctx, 0, bytemuck::cast_slice(colors))?;
+            .upload(self.ctx, 0, bytemuck::cast_slice(&words))?;
         self.res.translucent = colors.iter().any(|c| c[3] < 255);
         self.res.light_changed(self.ctx, &self.settings)?;
         Ok(())
@@ -574,7 +570,12 @@ impl<'c> Renderer<'c> {
     /// they are: only the camera then costs (the viewer's orbit, the
     /// bench's cached runs). Off by default.
     pub fn set_light_cache(&mut self, on: bool) {
-        self.res.stages.shadows.set_cache(on);
+        // (with levels of detail the light's list follows the camera's
+        // choice: its map is drawn every frame)
+        self.res
+            .stages
+            .shadows
+            .set_cache(on && self.res.scene.lod.is_none());
     }
 
     /// Writes the colour buffer as BGRA from the next frame on.

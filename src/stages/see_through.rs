@@ -348,6 +348,7 @@ impl SeeThrough {
             push: &push,
             bindings: &bufs,
             sphere_count: self.sphere_count,
+            indirect: None,
             counters: &self.counters,
             layout: &LAYOUT,
         };

@@ -92,6 +92,7 @@ pub fn settings(camera: Camera, shadows: ShadowMode) -> RenderSettings {
         },
         raster: RasterMode::Compute,
         deep: Default::default(),
+        lod: Default::default(),
         aovs: true,
         window: None,
         look: Default::default(),

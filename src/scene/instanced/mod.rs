@@ -689,5 +689,7 @@ pub fn run_center(atoms: &[Sphere]) -> Vec3 {
     atoms.iter().map(|s| Vec3::from(s.center)).sum::<Vec3>() / n
 }
 
+pub mod lod;
+
 #[cfg(test)]
 mod tests;

@@ -52,6 +52,9 @@ pub struct RasterIo<'b> {
     pub target: &'b Buffer,
     /// Texels of `target` (cleared first).
     pub texels: u64,
+    /// The view's list from the LOD cull (this frame's), visited in place
+    /// of its order; None: every atom, in the view's order.
+    pub lod: Option<super::lod::LodView<'b>>,
 }
 
 pub struct RasterPass {
@@ -316,10 +319,16 @@ impl RasterPass {
             scene,
             target: vis,
             texels: pixels,
+            ref lod,
         } = *io;
-        let sphere_count = scene.slots;
+        // (a view order lists level 0's batches; a LOD list any level's)
+        let sphere_count = if lod.is_some() {
+            scene.slots
+        } else {
+            scene.base_slots
+        };
         let order = &self.orders[view as usize];
-        if !self.order_ready(view) {
+        if lod.is_none() && !self.order_ready(view) {
             return Err(crate::error::Error::Internal(format!(
                 "the {} was not sorted",
                 order.name
@@ -349,7 +358,7 @@ impl RasterPass {
             ("Jobs", &self.jobs),
             ("Counters", &self.counters),
             ("visWordTex", vis),
-            ("orderTex", &order.buf),
+            ("orderTex", lod.as_ref().map_or(&order.buf, |l| l.list)),
         ];
         bindings.extend(scene.geometry());
         bindings.extend(scene.attributes());
@@ -360,6 +369,7 @@ impl RasterPass {
                 push: &push,
                 bindings: &bindings,
                 sphere_count,
+                indirect: lod.as_ref().map(|l| (l.counters, l.args_offset)),
                 counters: &self.counters,
                 layout: &RASTER_COUNTERS,
             },

@@ -7,6 +7,7 @@
 pub mod compute;
 pub mod coverage;
 pub mod graphics;
+pub mod lod;
 
 use crate::error::{Error, Result};
 use crate::passes::scene::SceneBuffers;
@@ -16,6 +17,7 @@ use crate::vk::{Buffer, Context, Recorder};
 use compute::{RasterIo, RasterPass, ViewIndex};
 use coverage::CoveragePass;
 use graphics::GraphicsRasterPass;
+use lod::{LodCull, LodView};
 
 /// The stage's screen targets: the visibility buffer (8 B/px + guard
 /// words) and the tile lists (4 B per 256 pixels).
@@ -58,6 +60,8 @@ pub struct RasterInputs<'a> {
     pub size: (u32, u32),
     /// See-through spheres are drawn by the fragment lists, not here.
     pub see_through: bool,
+    /// The LOD cull's camera list (this frame's) in place of the order.
+    pub lod: bool,
 }
 
 pub struct RasterStage {
@@ -66,11 +70,16 @@ pub struct RasterStage {
     coverage: CoveragePass,
     /// The vertex/fragment baseline, when `--raster graphics`.
     graphics: Option<GraphicsRasterPass>,
+    /// The views' lists of an instanced scene with levels of detail.
+    pub lod: Option<LodCull>,
+    /// Whether the last frame recorded ran the LOD cull.
+    lod_used: std::cell::Cell<bool>,
 }
 
 impl RasterStage {
-    /// The stage for a scene of this SCENE_SPEC (passes::scene).
-    pub fn new(ctx: &Context, graphics: bool, scene: u32) -> Result<Self> {
+    /// The stage for a scene (its SCENE_SPEC and levels of detail).
+    pub fn new(ctx: &Context, graphics: bool, scene_buffers: &SceneBuffers) -> Result<Self> {
+        let scene = scene_buffers.spec;
         if graphics && scene & 0xFF != crate::gpu::consts::SCENE_PLAIN {
             return Err(Error::Input(
                 "--raster graphics draws plain scenes only: an instanced scene needs --raster compute"
@@ -83,12 +92,54 @@ impl RasterStage {
             None
         });
         let compute = ctx.guard(RasterPass::new(ctx, scene)?);
-        let coverage = CoveragePass::new(ctx)?;
+        let coverage = ctx.guard(CoveragePass::new(ctx)?);
+        let lod = match &scene_buffers.lod {
+            Some(l) => Some(LodCull::new(ctx, scene, l)?),
+            None => None,
+        };
         Ok(RasterStage {
             compute: compute.keep(),
-            coverage,
+            coverage: coverage.keep(),
             graphics: graphics.keep(),
+            lod,
+            lod_used: std::cell::Cell::new(false),
         })
+    }
+
+    /// `lod_cull`: this frame's lists (the camera's; the light's with
+    /// `light`), when the scene has levels of detail. Returns whether it
+    /// was recorded.
+    pub fn record_cull(
+        &self,
+        rec: &mut Recorder,
+        globals: &Buffer,
+        scene: &SceneBuffers,
+        perspective: bool,
+        light: bool,
+    ) -> Result<bool> {
+        let Some(l) = &self.lod else {
+            return Ok(false);
+        };
+        self.lod_used.set(true);
+        rec.pass(LodCull::NAME, |p| {
+            l.steps(p, globals, scene, perspective, light)
+        })?;
+        Ok(true)
+    }
+
+    /// Whether the last frame recorded ran the LOD cull.
+    pub fn lod_used(&self) -> bool {
+        self.lod_used.get()
+    }
+
+    /// A frame is recorded without the LOD cull.
+    pub fn no_cull(&self) {
+        self.lod_used.set(false);
+    }
+
+    /// `view`'s LOD list, when the scene has levels of detail.
+    pub fn lod_view(&self, view: ViewIndex) -> Option<LodView<'_>> {
+        self.lod.as_ref().map(|l| l.view(view))
     }
 
     /// Makes the pipelines that leave see-through spheres to the fragment
@@ -107,6 +158,11 @@ impl RasterStage {
             scene: io.scene,
             target: &t.vis,
             texels: w as u64 * h as u64,
+            lod: if io.lod {
+                self.lod_view(ViewIndex::Camera)
+            } else {
+                None
+            },
         };
         rec.pass(RasterPass::NAME, |p| {
             match &self.graphics {
@@ -147,12 +203,17 @@ impl RasterStage {
     /// Device memory of the sphere orders (scene) and the rasterizer's
     /// band buffers (visibility).
     pub fn memory(&self) -> (u64, u64) {
-        (self.compute.order_bytes(), self.compute.memory_bytes())
+        let lists = self.lod.as_ref().map_or(0, |l| l.memory_bytes());
+        (
+            self.compute.order_bytes() + lists,
+            self.compute.memory_bytes(),
+        )
     }
 
     pub fn destroy(&mut self, ctx: &Context) {
         self.compute.destroy(ctx);
         self.coverage.destroy(ctx);
         self.graphics.destroy_with(ctx);
+        self.lod.destroy_with(ctx);
     }
 }

@@ -37,6 +37,9 @@ pub struct ShadowInputs<'a> {
     pub pixels: u64,
     /// The compute rasterizer (light-space maps are rasterized with it).
     pub raster: &'a crate::stages::raster::compute::RasterPass,
+    /// The LOD cull's light list (this frame's), drawn in place of the
+    /// light's order.
+    pub lod: Option<crate::stages::raster::lod::LodView<'a>>,
 }
 
 impl<'a> ShadowInputs<'a> {
@@ -51,6 +54,7 @@ impl<'a> ShadowInputs<'a> {
             scene: self.scene,
             target: map,
             texels,
+            lod: self.lod,
         }
     }
 }

@@ -293,6 +293,7 @@ impl ShadowTechnique for OpacityShadows {
                     push: &push,
                     bindings: &bindings,
                     sphere_count: self.sphere_count,
+                    indirect: None,
                     counters: &self.counters,
                     layout: &OSM_COUNTERS,
                 },
