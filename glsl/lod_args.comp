@@ -1,5 +1,5 @@
 #version 460
-// The LOD cull's batch counts (both views) into the rasterizer's indirect
+// The LOD cull's batch counts (camera early, light, camera late) into the rasterizer's indirect
 // dispatch arguments: enough workgroups for every slot of the listed
 // batches, 2D as band_args.comp makes them.
 #include "constants.glsl"
@@ -9,7 +9,7 @@ layout(set = 0, binding = 0) buffer Counters { uint counters[]; };
 #include "push/lod_args.glsl"
 
 void main() {
-    for (uint v = 0u; v < 2u; ++v) {
+    for (uint v = 0u; v < LOD_VIEWS; ++v) {
         uint w = v * LOD_WORDS;
         uint n = min(counters[w + LOD_BATCHES], pc.capacity);
         uint groups = (n * pc.per + pc.local_size - 1u) / pc.local_size;

@@ -1,15 +1,25 @@
 #version 460
 // Levels of detail and culling of an instanced scene, one invocation per
-// instance, for one view (pc.view_index): the instance's bounding sphere
-// is placed with its transform and tested against the view's pixel
-// window (sphere_rect: the frustum, and a tile's window when tiling); the
-// camera's pass chooses its level from its size on screen (the coarsest
-// whose switch size it is within, src/scene/instanced/lod.rs) and keeps
-// it for the light's pass, so both views draw the same (instance, atom)
-// slots and the ISSM's self-shadow test stays exact. A kept instance
-// appends its level's batches to the view's list, which the rasterizer
-// visits instead of the view order (dispatched indirectly, lod_args.comp).
-// Entries past the count name the empty batch (the host fills them).
+// instance, in three phases (pc.view_index):
+//   0 camera, early: the instance's bounding sphere, placed with its
+//     transform, is tested against the camera's pixel window (sphere_rect:
+//     the frustum, and a tile's window when tiling); its level is chosen
+//     from its size on screen (the coarsest whose switch size it is within,
+//     src/scene/instanced/lod.rs) and kept for the other phases, so every
+//     view draws the same (instance, atom) slots and the ISSM's self-shadow
+//     test stays exact. Listed if it passed the occlusion test last frame.
+//   1 key light: the light's view, the camera's level.
+//   2 camera, late (after the early list was rasterized and the depth
+//     tiles built, lod_hiz.comp): an instance in the window whose nearest
+//     point is farther than the farthest depth of every pixel tile its
+//     rectangle touches is hidden (two-phase occlusion culling, as niagara
+//     and Mol* do it: exact, what it drops could not win a pixel); a
+//     visible one not drawn early is listed; the result is the next
+//     frame's history.
+// A kept instance appends its level's batches to the view's list, which
+// the rasterizer visits instead of the view order (dispatched indirectly,
+// lod_args.comp). Entries past the count name the empty batch (the host
+// fills them).
 #include "raster_common.glsl"
 
 layout(local_size_x = 64) in;
@@ -27,10 +37,38 @@ layout(set = 0, binding = 3) uniform usamplerBuffer lodInstanceTex;
 layout(set = 0, binding = 4) buffer Levels { uint levels[]; };
 layout(set = 0, binding = 5) buffer List { uint list[]; };
 layout(set = 0, binding = 6) buffer Counters { uint counters[]; };
+// Per instance: it passed the occlusion test last frame.
+layout(set = 0, binding = 7) buffer Visible { uint visible[]; };
+// Farthest depth word per 16x16 and per 128x128 pixels of the window.
+layout(set = 0, binding = 8) uniform usamplerBuffer hizTex;
 #include "scene.glsl"
 #include "push/lod_cull.glsl"
 
 layout(constant_id = 1) const bool PERSP = false;
+
+// Whether every pixel the sphere (view coordinates cv, radius r) could
+// cover already holds a surface nearer than its nearest point: its
+// rectangle's tiles, 16-pixel ones while they are few, else 128-pixel ones.
+bool hidden(View v, vec3 cv, float r, ivec4 rc) {
+    // (less a margin for the f32 rounding of the atoms' keys: a grazing
+    // ray's perspective key may lose ~|cv| * 3e-4 to cancellation)
+    float zmin = PERSP ? length(cv) - r - 1e-3 * (length(cv) + r)
+                       : cv.z - r + v.depth.x - 1e-4 * (abs(cv.z) + abs(v.depth.x) + r) - 1e-3;
+    uint near = floatBitsToUint(max(zmin, 0.0));
+    ivec2 o = ivec2(v.dims.zw);
+    ivec4 b = rc - ivec4(o, o); // window pixels
+    uvec2 t16 = (v.dims.xy + 15u) / 16u;
+    bool fine = (b.z >> 4) - (b.x >> 4) < 8 && (b.w >> 4) - (b.y >> 4) < 8;
+    int sh = fine ? 4 : 7;
+    uint base = fine ? 0u : t16.x * t16.y;
+    uint tw = fine ? t16.x : (v.dims.x + 127u) / 128u;
+    for (int y = b.y >> sh; y <= (b.w >> sh); ++y) {
+        for (int x = b.x >> sh; x <= (b.z >> sh); ++x) {
+            if (texelFetch(hizTex, int(base + uint(y) * tw + uint(x))).x >= near) return false;
+        }
+    }
+    return true;
+}
 
 void main() {
     uint k = FLAT_ID;
@@ -38,12 +76,12 @@ void main() {
     uvec4 ik = texelFetch(lodInstanceTex, int(k));
     uint m = ik.x;
     vec4 bs = texelFetch(lodBoundTex, int(m));
-    bool cam = pc.view_index == 0u;
+    bool cam = pc.view_index != 1u;
     View v = cam ? g.cam : g.light;
     vec3 cv = view_space(v, instance_apply(k, bs.xyz), PERSP && cam);
     uint base = m * MAX_LOD_LEVELS;
     uint level;
-    if (cam) {
+    if (pc.view_index == 0u) {
         // pixels per world unit at the instance's nearest point
         float ppu = v.center.w;
         if (PERSP) {
@@ -60,7 +98,15 @@ void main() {
         level = levels[k];
     }
     ivec4 rc = sphere_rect(v, cv, bs.w, PERSP && cam);
-    if (rc.x > rc.z || rc.y > rc.w) return;
+    bool inside = rc.x <= rc.z && rc.y <= rc.w;
+    if (pc.view_index == 2u) {
+        bool seen = inside && !hidden(v, cv, bs.w, rc);
+        bool drawn = visible[k] != 0u;
+        visible[k] = seen ? 1u : 0u;
+        if (!seen || drawn) return;
+    } else if (!inside || (pc.view_index == 0u && visible[k] == 0u)) {
+        return;
+    }
     uvec4 e = texelFetch(lodLevelTex, int(base + level));
     uint first = level == 0u ? ik.y : ik.z + e.x;
     uint w = pc.view_index * LOD_WORDS;

@@ -120,9 +120,11 @@ gpu_constants! {
     /// Levels of detail a molecule type may have (src/scene/instanced/lod.rs:
     /// 4^15 atoms is beyond any molecule).
     MAX_LOD_LEVELS: u32 = 16;
-    /// Counter words per view of the LOD cull (glsl/lod_cull.comp): batches
-    /// listed, spheres drawn, then the three indirect dispatch words.
+    /// Counter words per list of the LOD cull (glsl/lod_cull.comp): batches
+    /// listed, spheres drawn, then the three indirect dispatch words; lists
+    /// camera (early), light, camera (late).
     LOD_WORDS: u32 = 8;
+    LOD_VIEWS: u32 = 3;
     LOD_BATCHES: u32 = 0;
     LOD_SPHERES: u32 = 1;
     LOD_ARGS: u32 = 2;

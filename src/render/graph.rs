@@ -28,6 +28,14 @@ pub const PASSES: &[(&str, &str)] = &[
         "one invocation per sphere, the spheres visited in runs of 64, the dispatch's two halves on the two sides of the view and each sorted front to back (sorted again when the camera turns more than 30° or the spheres move): exact ray-sphere test per pixel of the footprint's rectangle (one flat loop; orthographic/perspective a specialization constant), the stored depth read first (a 4-byte texel gather through an R32UI view of the buffer) and the 64-bit `atomicMin(depth<<32 \\| id)` only where nearer; footprints above 1024 px (CPU) / 256 px (GPU) are split into 8-row bands that whole workgroups process (indirect dispatch); `--raster graphics`: the vertex/fragment impostor baseline, same output",
     ),
     (
+        "lod_occlusion",
+        "instanced scenes with levels of detail: the farthest depth of each 16x16 and 128x128 pixels of the early camera image (the instances that passed last frame's test), then one invocation per instance in the window: hidden if its bounding sphere's nearest point lies behind every tile its rectangle touches (exact: it could not win a pixel); the visible ones not drawn early are listed, and the results are the next frame's history (two-phase occlusion culling, as niagara and Mol* do it)",
+    ),
+    (
+        "raster_late",
+        "the rasterizer over the late list, into the same visibility buffer",
+    ),
+    (
         "issm_raster",
         "the same rasterizer from the key light into the ISSM (nearest sphere id per light texel), light view fitted to the spheres; like `raster` it visits the spheres in runs of 64, each half of the dispatch on one side of its view and front to back, so the early-depth test rejects more visits before their atomics and lavapipe's two threads get alike halves on different cache lines",
     ),
@@ -199,19 +207,19 @@ impl Resources {
                 settings.shadows.draws_light_view(),
             )?;
 
-        self.stages.raster.record(
-            rec,
-            &RasterInputs {
-                globals,
-                scene: &self.scene,
-                perspective: cam.fov_deg.is_some(),
-                image: (cam.width, cam.height),
-                size,
-                see_through: see.is_some(),
-                lod,
-            },
-            &t.raster,
-        )?;
+        let raster_in = RasterInputs {
+            globals,
+            scene: &self.scene,
+            perspective: cam.fov_deg.is_some(),
+            image: (cam.width, cam.height),
+            size,
+            see_through: see.is_some(),
+            lod,
+        };
+        self.stages.raster.record(rec, &raster_in, &t.raster)?;
+        if lod {
+            self.stages.raster.record_late(rec, &raster_in, &t.raster)?;
+        }
 
         let see_out = match see {
             Some(s) => {

@@ -55,6 +55,9 @@ pub struct RasterIo<'b> {
     /// The view's list from the LOD cull (this frame's), visited in place
     /// of its order; None: every atom, in the view's order.
     pub lod: Option<super::lod::LodView<'b>>,
+    /// Clear `target` first (not for the camera's late phase, which adds
+    /// to the early one's image).
+    pub clear: bool,
 }
 
 pub struct RasterPass {
@@ -320,6 +323,7 @@ impl RasterPass {
             target: vis,
             texels: pixels,
             ref lod,
+            clear,
         } = *io;
         // (a view order lists level 0's batches; a LOD list any level's)
         let sphere_count = if lod.is_some() {
@@ -334,7 +338,9 @@ impl RasterPass {
                 order.name
             )));
         }
-        p.fill(vis, pixels * 8, u32::MAX);
+        if clear {
+            p.fill(vis, pixels * 8, u32::MAX);
+        }
         p.fill(&self.counters, 32, 0);
         let push = RasterPush {
             view_index: view as u32,

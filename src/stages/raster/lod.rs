@@ -1,15 +1,19 @@
-//! `lod_cull`: the views' sphere lists of an instanced scene with levels of
-//! detail (glsl/lod_cull.comp, glsl/lod_args.comp). One invocation per
-//! instance tests its bounding sphere against the camera's window and
-//! chooses its level from its size on screen, then against the key
-//! light's view with the camera's level; the kept instances' batches of
-//! that level are listed per view, and the rasterizer visits a list in
-//! place of the view's order, dispatched indirectly. Culled instances cost
-//! one invocation of this pass and nothing after it.
+//! `lod_cull`, `lod_occlusion`: the views' sphere lists of an instanced
+//! scene with levels of detail (glsl/lod_cull.comp, glsl/lod_hiz.comp,
+//! glsl/lod_args.comp). One invocation per instance tests its bounding
+//! sphere against the camera's window and chooses its level from its size
+//! on screen, then against the key light's view with the camera's level;
+//! the kept instances' batches of that level are listed per view, and the
+//! rasterizer visits a list in place of the view's order, dispatched
+//! indirectly. The camera's list is drawn in two phases: first the
+//! instances that passed the occlusion test last frame, then, against the
+//! depth tiles of that early image, the others that are not hidden
+//! (`raster_late`). Culled instances cost one invocation of this pass and
+//! nothing after it.
 
 use crate::error::Result;
 use crate::gpu::blocks::{LodArgsPush, LodCullPush};
-use crate::gpu::consts::{LOD_ARGS, LOD_SPHERES, LOD_WORDS};
+use crate::gpu::consts::{LOD_ARGS, LOD_SPHERES, LOD_VIEWS, LOD_WORDS};
 use crate::passes::scene::{LodBuffers, SCENE_GEOMETRY, SceneBuffers};
 use crate::passes::{LOCAL_SIZE, spirv};
 use crate::vk::pipeline::{Binding, PipelineDesc, rw, texel, uniform};
@@ -18,7 +22,7 @@ use ash::vk::Format;
 
 use super::compute::ViewIndex;
 
-const BINDINGS: [Binding; 7] = [
+const BINDINGS: [Binding; 9] = [
     uniform("GlobalsBlock"),
     texel("lodLevelTex", Format::R32G32B32A32_UINT),
     texel("lodBoundTex", Format::R32G32B32A32_SFLOAT),
@@ -26,23 +30,48 @@ const BINDINGS: [Binding; 7] = [
     rw("Levels"),
     rw("List"),
     rw("Counters"),
+    rw("Visible"),
+    texel("hizTex", Format::R32_UINT),
 ];
+
+const HIZ_BINDINGS: [Binding; 3] = [
+    uniform("GlobalsBlock"),
+    texel("visWordTex", Format::R32_UINT),
+    rw("Hiz"),
+];
+
+/// Depth tile words for the largest window (16384 pixels a side): one per
+/// 16x16 and one per 128x128 pixels.
+const HIZ_WORDS: u64 = (1024 * 1024) + (128 * 128);
+
+/// The camera's late list (index in `lists` and the counter words).
+const LATE: usize = 2;
 
 /// Spheres and batches a frame's cull kept, per view.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct LodCounts {
+    /// The camera's two phases together.
     pub camera_batches: u32,
     pub camera_spheres: u32,
     pub light_batches: u32,
     pub light_spheres: u32,
+    /// Of the camera's: drawn late (not seen last frame, not hidden).
+    pub late_spheres: u32,
 }
 
 pub struct LodCull {
     /// Orthographic and perspective cameras (constant 1).
     cull: [ComputePipeline; 2],
     args: ComputePipeline,
-    /// Per view (camera, light): its batch list.
-    lists: [Buffer; 2],
+    /// The depth tiles (16 and 128 px).
+    hiz: [ComputePipeline; 2],
+    /// Camera (early), light, camera (late): the batch lists.
+    lists: [Buffer; 3],
+    /// Per instance: it passed the occlusion test last frame.
+    visible: Buffer,
+    hiz_tiles: Buffer,
+    /// `visible` holds a frame's result (cleared before the first).
+    history: std::cell::Cell<bool>,
     /// Per view LOD_WORDS words: batches, spheres, dispatch arguments.
     counters: Buffer,
     /// Per instance: the camera's level.
@@ -64,6 +93,8 @@ pub struct LodView<'b> {
 
 impl LodCull {
     pub const NAME: &'static str = "lod_cull";
+    pub const OCCLUSION: &'static str = "lod_occlusion";
+    pub const LATE: &'static str = "raster_late";
 
     /// The pass for a scene with levels of detail (`lod`, its SCENE_SPEC
     /// `scene`).
@@ -97,21 +128,45 @@ impl LodCull {
                 scene: 0,
             },
         )?);
+        let hiz = |name: &str, mode: u32| {
+            ComputePipeline::new(
+                ctx,
+                &PipelineDesc {
+                    name,
+                    shader: spirv::LOD_HIZ_COMP,
+                    bindings: &HIZ_BINDINGS,
+                    push_size: 0,
+                    local_size: 64,
+                    constants: &[mode],
+                    scene: 0,
+                },
+            )
+        };
+        let hiz16 = ctx.guard(hiz("lod depth tiles", 0)?);
+        let hiz128 = ctx.guard(hiz("lod depth tiles 128", 1)?);
         // (room past the count for the last workgroup's lanes)
         let capacity = lod.base_batches + 64;
         let list = |name| Buffer::storage(ctx, name, capacity as u64 * 4);
         let camera = ctx.guard(list("camera LOD list")?);
         let light = ctx.guard(list("light LOD list")?);
+        let late = ctx.guard(list("camera late LOD list")?);
         let counters = ctx.guard(crate::passes::bands::counters_buffer(
             ctx,
             "LOD counters",
-            2 * LOD_WORDS as u64 * 4,
+            (LOD_VIEWS * LOD_WORDS) as u64 * 4,
         )?);
-        let levels = Buffer::storage(ctx, "LOD levels", lod.instance_count.max(1) as u64 * 4)?;
+        let instances = lod.instance_count.max(1) as u64 * 4;
+        let visible = ctx.guard(Buffer::storage(ctx, "LOD visible", instances)?);
+        let hiz_tiles = ctx.guard(Buffer::storage(ctx, "LOD depth tiles", HIZ_WORDS * 4)?);
+        let levels = Buffer::storage(ctx, "LOD levels", instances)?;
         Ok(LodCull {
             cull: [ortho.keep(), persp.keep()],
             args: args.keep(),
-            lists: [camera.keep(), light.keep()],
+            hiz: [hiz16.keep(), hiz128.keep()],
+            lists: [camera.keep(), light.keep(), late.keep()],
+            visible: visible.keep(),
+            hiz_tiles: hiz_tiles.keep(),
+            history: std::cell::Cell::new(false),
             counters: counters.keep(),
             levels,
             capacity,
@@ -121,8 +176,45 @@ impl LodCull {
         })
     }
 
-    /// The steps of the pass: both views' lists (the light's when
-    /// `light`) and their dispatch arguments.
+    /// The bindings of a cull phase writing `list`.
+    fn cull_bindings<'b>(
+        &'b self,
+        globals: &'b Buffer,
+        lod: &'b LodBuffers,
+        scene: &'b SceneBuffers,
+        list: &'b Buffer,
+    ) -> Vec<(&'static str, &'b Buffer)> {
+        let mut bindings = vec![
+            ("GlobalsBlock", globals),
+            ("lodLevelTex", &lod.levels),
+            ("lodBoundTex", &lod.bounds),
+            ("lodInstanceTex", &lod.instances),
+            ("Levels", &self.levels),
+            ("List", list),
+            ("Counters", &self.counters),
+            ("Visible", &self.visible),
+            ("hizTex", &self.hiz_tiles),
+        ];
+        bindings.extend(scene.geometry());
+        bindings
+    }
+
+    fn args_step<'b>(&'b self, p: &mut PassBuilder<'b>) {
+        p.dispatch(
+            &self.args,
+            &LodArgsPush {
+                per: self.per,
+                capacity: self.capacity,
+                local_size: LOCAL_SIZE,
+                pad: 0,
+            },
+            Grid::Groups([1, 1, 1]),
+            &[("Counters", &self.counters)],
+        );
+    }
+
+    /// The steps of `lod_cull`: the camera's early list and the light's
+    /// (when `light`), and their dispatch arguments.
     pub fn steps<'b>(
         &'b self,
         p: &mut PassBuilder<'b>,
@@ -135,6 +227,9 @@ impl LodCull {
             crate::error::Error::Internal("the scene has no levels of detail".into())
         })?;
         p.fill(&self.counters, self.counters.size, 0);
+        if !self.history.replace(true) {
+            p.fill(&self.visible, self.visible.size, 0);
+        }
         let views: &[ViewIndex] = if light {
             &[ViewIndex::Camera, ViewIndex::Light]
         } else {
@@ -143,16 +238,7 @@ impl LodCull {
         for &v in views {
             let list = &self.lists[v as usize];
             p.fill(list, list.size, self.empty_batch);
-            let mut bindings = vec![
-                ("GlobalsBlock", globals),
-                ("lodLevelTex", &lod.levels),
-                ("lodBoundTex", &lod.bounds),
-                ("lodInstanceTex", &lod.instances),
-                ("Levels", &self.levels),
-                ("List", list),
-                ("Counters", &self.counters),
-            ];
-            bindings.extend(scene.geometry());
+            let bindings = self.cull_bindings(globals, lod, scene, list);
             let pipe = &self.cull[(v == ViewIndex::Camera && perspective) as usize];
             p.dispatch(
                 pipe,
@@ -166,44 +252,90 @@ impl LodCull {
                 &bindings,
             );
         }
-        p.dispatch(
-            &self.args,
-            &LodArgsPush {
-                per: self.per,
-                capacity: self.capacity,
-                local_size: LOCAL_SIZE,
-                pad: 0,
-            },
-            Grid::Groups([1, 1, 1]),
-            &[("Counters", &self.counters)],
-        );
+        self.args_step(p);
         Ok(())
     }
 
-    /// `view`'s list.
+    /// The steps of `lod_occlusion`: the depth tiles of the camera's early
+    /// image `vis` (a `size` window), the late list and its arguments.
+    pub fn occlusion_steps<'b>(
+        &'b self,
+        p: &mut PassBuilder<'b>,
+        globals: &'b Buffer,
+        scene: &'b SceneBuffers,
+        vis: &'b Buffer,
+        perspective: bool,
+        (w, h): (u32, u32),
+    ) -> Result<()> {
+        let lod = scene.lod.as_ref().ok_or_else(|| {
+            crate::error::Error::Internal("the scene has no levels of detail".into())
+        })?;
+        let hb = [
+            ("GlobalsBlock", globals),
+            ("visWordTex", vis),
+            ("Hiz", &self.hiz_tiles),
+        ];
+        let tiles = |t: u32| (w.div_ceil(t) as u64) * (h.div_ceil(t) as u64);
+        p.dispatch(&self.hiz[0], &(), Grid::Invocations(tiles(16)), &hb);
+        p.dispatch(&self.hiz[1], &(), Grid::Invocations(tiles(128)), &hb);
+        let list = &self.lists[LATE];
+        p.fill(list, list.size, self.empty_batch);
+        let bindings = self.cull_bindings(globals, lod, scene, list);
+        p.dispatch(
+            &self.cull[perspective as usize],
+            &LodCullPush {
+                view_index: LATE as u32,
+                instances: self.instances,
+                capacity: self.capacity,
+                pad: 0,
+            },
+            Grid::Invocations(self.instances as u64),
+            &bindings,
+        );
+        self.args_step(p);
+        Ok(())
+    }
+
+    /// The camera's late list.
+    pub fn late(&self) -> LodView<'_> {
+        self.list_view(LATE)
+    }
+
+    /// `view`'s list (the camera's early one).
     pub fn view(&self, view: ViewIndex) -> LodView<'_> {
+        self.list_view(view as usize)
+    }
+
+    fn list_view(&self, i: usize) -> LodView<'_> {
         LodView {
-            list: &self.lists[view as usize],
+            list: &self.lists[i],
             counters: &self.counters,
-            args_offset: ((view as u32 * LOD_WORDS + LOD_ARGS) * 4) as u64,
+            args_offset: ((i as u32 * LOD_WORDS + LOD_ARGS) * 4) as u64,
         }
     }
 
     /// What the last frame's cull kept (after the frame).
     pub fn counts(&self, ctx: &Context) -> Result<LodCounts> {
-        let w: Vec<u32> = self.counters.download_pod(ctx, 0, 2 * LOD_WORDS as u64)?;
-        let l = LOD_WORDS as usize;
+        let w: Vec<u32> = self
+            .counters
+            .download_pod(ctx, 0, (LOD_VIEWS * LOD_WORDS) as u64)?;
+        let word = |list: usize, k: u32| w[list * LOD_WORDS as usize + k as usize];
         Ok(LodCounts {
-            camera_batches: w[0],
-            camera_spheres: w[LOD_SPHERES as usize],
-            light_batches: w[l],
-            light_spheres: w[l + LOD_SPHERES as usize],
+            camera_batches: word(0, 0) + word(LATE, 0),
+            camera_spheres: word(0, LOD_SPHERES) + word(LATE, LOD_SPHERES),
+            light_batches: word(1, 0),
+            light_spheres: word(1, LOD_SPHERES),
+            late_spheres: word(LATE, LOD_SPHERES),
         })
     }
 
     /// Device memory: the lists, counters and levels.
     pub fn memory_bytes(&self) -> u64 {
-        self.lists.iter().map(|b| b.size).sum::<u64>() + self.counters.size + self.levels.size
+        self.lists.iter().map(|b| b.size).sum::<u64>()
+            + self.counters.size
+            + self.levels.size
+            + self.visible.size
+            + self.hiz_tiles.size
     }
 
     pub fn destroy(&mut self, ctx: &Context) {
@@ -211,9 +343,14 @@ impl LodCull {
             p.destroy(ctx);
         }
         self.args.destroy(ctx);
+        for p in &mut self.hiz {
+            p.destroy(ctx);
+        }
         for b in &mut self.lists {
             b.destroy(ctx);
         }
+        self.visible.destroy(ctx);
+        self.hiz_tiles.destroy(ctx);
         self.counters.destroy(ctx);
         self.levels.destroy(ctx);
     }

@@ -127,6 +127,36 @@ impl RasterStage {
         Ok(true)
     }
 
+    /// `lod_occlusion` and `raster_late`: the camera's instances that were
+    /// not drawn early and are not hidden behind what was, added to its
+    /// visibility buffer (after `record` with `io.lod`).
+    pub fn record_late(
+        &self,
+        rec: &mut Recorder,
+        io: &RasterInputs,
+        t: &RasterTargets,
+    ) -> Result<()> {
+        let Some(l) = &self.lod else {
+            return Ok(());
+        };
+        rec.pass(LodCull::OCCLUSION, |p| {
+            l.occlusion_steps(p, io.globals, io.scene, &t.vis, io.perspective, io.size)
+        })?;
+        let (w, h) = io.size;
+        let target = RasterIo {
+            globals: io.globals,
+            scene: io.scene,
+            target: &t.vis,
+            texels: w as u64 * h as u64,
+            lod: Some(l.late()),
+            clear: false,
+        };
+        rec.pass(LodCull::LATE, |p| {
+            self.compute
+                .steps(p, &target, ViewIndex::Camera, io.perspective, false)
+        })
+    }
+
     /// Whether the last frame recorded ran the LOD cull.
     pub fn lod_used(&self) -> bool {
         self.lod_used.get()
@@ -163,6 +193,7 @@ impl RasterStage {
             } else {
                 None
             },
+            clear: true,
         };
         rec.pass(RasterPass::NAME, |p| {
             match &self.graphics {

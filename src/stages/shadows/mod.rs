@@ -55,6 +55,7 @@ impl<'a> ShadowInputs<'a> {
             target: map,
             texels,
             lod: self.lod,
+            clear: true,
         }
     }
 }
