@@ -1,6 +1,6 @@
 #version 460
 // Levels of detail and culling of an instanced scene, one invocation per
-// instance, in three phases (pc.view_index):
+// instance, in phases (pc.view_index):
 //   0 camera, early: the instance's bounding sphere, placed with its
 //     transform, is tested against the camera's pixel window (sphere_rect:
 //     the frustum, and a tile's window when tiling); its level is chosen
@@ -8,7 +8,8 @@
 //     src/scene/instanced/lod.rs) and kept for the other phases, so every
 //     view draws the same (instance, atom) slots and the ISSM's self-shadow
 //     test stays exact. Listed if it passed the occlusion test last frame.
-//   1 key light: the light's view, the camera's level.
+//   1 key light, early: the light's view, the camera's level, listed if it
+//     passed the light's occlusion test last frame.
 //   2 camera, late (after the early list was rasterized and the depth
 //     tiles built, lod_hiz.comp): an instance in the window whose nearest
 //     point is farther than the farthest depth of every pixel tile its
@@ -16,6 +17,7 @@
 //     and Mol* do it: exact, what it drops could not win a pixel); a
 //     visible one not drawn early is listed; the result is the next
 //     frame's history.
+//   3 key light, late: the same against the light map.
 // A kept instance appends its level's batches to the view's list, which
 // the rasterizer visits instead of the view order (dispatched indirectly,
 // lod_args.comp). Entries past the count name the empty batch (the host
@@ -37,9 +39,10 @@ layout(set = 0, binding = 3) uniform usamplerBuffer lodInstanceTex;
 layout(set = 0, binding = 4) buffer Levels { uint levels[]; };
 layout(set = 0, binding = 5) buffer List { uint list[]; };
 layout(set = 0, binding = 6) buffer Counters { uint counters[]; };
-// Per instance: it passed the occlusion test last frame.
+// Per instance and view (2k + view): it passed the occlusion test last
+// frame.
 layout(set = 0, binding = 7) buffer Visible { uint visible[]; };
-// Farthest depth word per 16x16 and per 128x128 pixels of the window.
+// The view's farthest depth word per 16x16 and per 128x128 pixels.
 layout(set = 0, binding = 8) uniform usamplerBuffer hizTex;
 #include "scene.glsl"
 #include "push/lod_cull.glsl"
@@ -49,10 +52,10 @@ layout(constant_id = 1) const bool PERSP = false;
 // Whether every pixel the sphere (view coordinates cv, radius r) could
 // cover already holds a surface nearer than its nearest point: its
 // rectangle's tiles, 16-pixel ones while they are few, else 128-pixel ones.
-bool hidden(View v, vec3 cv, float r, ivec4 rc) {
+bool hidden(View v, vec3 cv, float r, ivec4 rc, bool persp) {
     // (less a margin for the f32 rounding of the atoms' keys: a grazing
     // ray's perspective key may lose ~|cv| * 3e-4 to cancellation)
-    float zmin = PERSP ? length(cv) - r - 1e-3 * (length(cv) + r)
+    float zmin = persp ? length(cv) - r - 1e-3 * (length(cv) + r)
                        : cv.z - r + v.depth.x - 1e-4 * (abs(cv.z) + abs(v.depth.x) + r) - 1e-3;
     uint near = floatBitsToUint(max(zmin, 0.0));
     ivec2 o = ivec2(v.dims.zw);
@@ -76,7 +79,9 @@ void main() {
     uvec4 ik = texelFetch(lodInstanceTex, int(k));
     uint m = ik.x;
     vec4 bs = texelFetch(lodBoundTex, int(m));
-    bool cam = pc.view_index != 1u;
+    uint view = pc.view_index & 1u;
+    bool late = pc.view_index >= 2u;
+    bool cam = view == 0u;
     View v = cam ? g.cam : g.light;
     vec3 cv = view_space(v, instance_apply(k, bs.xyz), PERSP && cam);
     uint base = m * MAX_LOD_LEVELS;
@@ -99,12 +104,13 @@ void main() {
     }
     ivec4 rc = sphere_rect(v, cv, bs.w, PERSP && cam);
     bool inside = rc.x <= rc.z && rc.y <= rc.w;
-    if (pc.view_index == 2u) {
-        bool seen = inside && !hidden(v, cv, bs.w, rc);
-        bool drawn = visible[k] != 0u;
-        visible[k] = seen ? 1u : 0u;
+    uint h = 2u * k + view;
+    if (late) {
+        bool seen = inside && !hidden(v, cv, bs.w, rc, PERSP && cam);
+        bool drawn = visible[h] != 0u;
+        visible[h] = seen ? 1u : 0u;
         if (!seen || drawn) return;
-    } else if (!inside || (pc.view_index == 0u && visible[k] == 0u)) {
+    } else if (!inside || visible[h] == 0u) {
         return;
     }
     uvec4 e = texelFetch(lodLevelTex, int(base + level));

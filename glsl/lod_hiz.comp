@@ -1,5 +1,6 @@
 #version 460
-// The depth tiles of the camera's early raster for the late occlusion test
+// The depth tiles of a view's early raster (pc.view_index: the camera's
+// visibility buffer or the light map) for the late occlusion test
 // (lod_cull.comp): MODE 0, one invocation per 16x16 pixels of the window,
 // the farthest depth word of its pixels (an empty pixel's word is all
 // ones: nothing behind it is hidden); MODE 1, one per 128x128, the
@@ -14,9 +15,11 @@ layout(set = 0, binding = 1) uniform usamplerBuffer visWordTex;
 layout(set = 0, binding = 2) buffer Hiz { uint hiz[]; };
 
 layout(constant_id = 1) const uint MODE = 0u;
+#include "push/lod_hiz.glsl"
 
 void main() {
-    uint w = g.cam.dims.x, h = g.cam.dims.y;
+    uvec4 dims = pc.view_index == 0u ? g.cam.dims : g.light.dims;
+    uint w = dims.x, h = dims.y;
     uvec2 t16 = (uvec2(w, h) + 15u) / 16u;
     uint i = FLAT_ID;
     uint far = 0u;

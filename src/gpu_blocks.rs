@@ -106,12 +106,20 @@ gpu_push! {
 
     /// `lod_cull` (glsl/lod_cull.comp): one invocation per instance.
     LodCullPush "lod_cull" {
-        /// 0 camera (chooses the levels), 1 key light (takes them).
+        /// 0 camera (chooses the levels), 1 key light (takes them); + 2:
+        /// the late phase of that view.
         view_index: u32,
         instances: u32,
         /// Entries of the view's batch list.
         capacity: u32,
         pad: u32,
+    }
+
+    /// `lod_hiz` (glsl/lod_hiz.comp).
+    LodHizPush "lod_hiz" {
+        /// 0 camera, 1 key light.
+        view_index: u32,
+        pad: [u32; 3],
     }
 
     /// `lod_args` (glsl/lod_args.comp): the cull's counts into indirect

@@ -122,9 +122,9 @@ gpu_constants! {
     MAX_LOD_LEVELS: u32 = 16;
     /// Counter words per list of the LOD cull (glsl/lod_cull.comp): batches
     /// listed, spheres drawn, then the three indirect dispatch words; lists
-    /// camera (early), light, camera (late).
+    /// camera (early), light (early), camera (late), light (late).
     LOD_WORDS: u32 = 8;
-    LOD_VIEWS: u32 = 3;
+    LOD_VIEWS: u32 = 4;
     LOD_BATCHES: u32 = 0;
     LOD_SPHERES: u32 = 1;
     LOD_ARGS: u32 = 2;

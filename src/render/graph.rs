@@ -40,6 +40,14 @@ pub const PASSES: &[(&str, &str)] = &[
         "the same rasterizer from the key light into the ISSM (nearest sphere id per light texel), light view fitted to the spheres; like `raster` it visits the spheres in runs of 64, each half of the dispatch on one side of its view and front to back, so the early-depth test rejects more visits before their atomics and lavapipe's two threads get alike halves on different cache lines",
     ),
     (
+        "light_occlusion",
+        "the same two-phase occlusion culling in the key light's view (instanced scenes with levels of detail): depth tiles of its early map, the instances not drawn early and not hidden listed",
+    ),
+    (
+        "light_raster_late",
+        "the rasterizer over the light's late list, into the same light map",
+    ),
+    (
         "issm_resolve",
         "per light texel, its sphere's light-space centre and radius (16 bytes): the lookup reads one texel per patch texel instead of an id and the sphere it names",
     ),
@@ -249,7 +257,7 @@ impl Resources {
                 pixels: t.pixels,
                 raster: &self.stages.raster.compute,
                 lod: if lod {
-                    self.stages.raster.lod_view(ViewIndex::Light)
+                    self.stages.raster.lod.as_ref()
                 } else {
                     None
                 },

@@ -5,14 +5,15 @@
 //! on screen, then against the key light's view with the camera's level;
 //! the kept instances' batches of that level are listed per view, and the
 //! rasterizer visits a list in place of the view's order, dispatched
-//! indirectly. The camera's list is drawn in two phases: first the
-//! instances that passed the occlusion test last frame, then, against the
+//! indirectly. Each view's list is drawn in two phases: first the
+//! instances that passed its occlusion test last frame, then, against the
 //! depth tiles of that early image, the others that are not hidden
-//! (`raster_late`). Culled instances cost one invocation of this pass and
-//! nothing after it.
+//! (`lod_occlusion`, `raster_late`; `light_occlusion`,
+//! `light_raster_late`). Culled instances cost one invocation of this pass
+//! and nothing after it.
 
 use crate::error::Result;
-use crate::gpu::blocks::{LodArgsPush, LodCullPush};
+use crate::gpu::blocks::{LodArgsPush, LodCullPush, LodHizPush};
 use crate::gpu::consts::{LOD_ARGS, LOD_SPHERES, LOD_VIEWS, LOD_WORDS};
 use crate::passes::scene::{LodBuffers, SCENE_GEOMETRY, SceneBuffers};
 use crate::passes::{LOCAL_SIZE, spirv};
@@ -44,7 +45,8 @@ const HIZ_BINDINGS: [Binding; 3] = [
 /// 16x16 and one per 128x128 pixels.
 const HIZ_WORDS: u64 = (1024 * 1024) + (128 * 128);
 
-/// The camera's late list (index in `lists` and the counter words).
+/// A view's late list is `LATE + view` (index in `lists` and the counter
+/// words).
 const LATE: usize = 2;
 
 /// Spheres and batches a frame's cull kept, per view.
@@ -53,10 +55,13 @@ pub struct LodCounts {
     /// The camera's two phases together.
     pub camera_batches: u32,
     pub camera_spheres: u32,
+    /// The light's two phases together.
     pub light_batches: u32,
     pub light_spheres: u32,
     /// Of the camera's: drawn late (not seen last frame, not hidden).
     pub late_spheres: u32,
+    /// Of the light's: drawn late.
+    pub light_late_spheres: u32,
 }
 
 pub struct LodCull {
@@ -65,11 +70,12 @@ pub struct LodCull {
     args: ComputePipeline,
     /// The depth tiles (16 and 128 px).
     hiz: [ComputePipeline; 2],
-    /// Camera (early), light, camera (late): the batch lists.
-    lists: [Buffer; 3],
-    /// Per instance: it passed the occlusion test last frame.
+    /// Camera, light (early), camera, light (late): the batch lists.
+    lists: [Buffer; 4],
+    /// Per instance and view: it passed the occlusion test last frame.
     visible: Buffer,
-    hiz_tiles: Buffer,
+    /// Per view: its depth tiles.
+    hiz_tiles: [Buffer; 2],
     /// `visible` holds a frame's result (cleared before the first).
     history: std::cell::Cell<bool>,
     /// Per view LOD_WORDS words: batches, spheres, dispatch arguments.
@@ -95,6 +101,8 @@ impl LodCull {
     pub const NAME: &'static str = "lod_cull";
     pub const OCCLUSION: &'static str = "lod_occlusion";
     pub const LATE: &'static str = "raster_late";
+    pub const LIGHT_OCCLUSION: &'static str = "light_occlusion";
+    pub const LIGHT_LATE: &'static str = "light_raster_late";
 
     /// The pass for a scene with levels of detail (`lod`, its SCENE_SPEC
     /// `scene`).
@@ -135,7 +143,7 @@ impl LodCull {
                     name,
                     shader: spirv::LOD_HIZ_COMP,
                     bindings: &HIZ_BINDINGS,
-                    push_size: 0,
+                    push_size: std::mem::size_of::<LodHizPush>() as u32,
                     local_size: 64,
                     constants: &[mode],
                     scene: 0,
@@ -150,22 +158,32 @@ impl LodCull {
         let camera = ctx.guard(list("camera LOD list")?);
         let light = ctx.guard(list("light LOD list")?);
         let late = ctx.guard(list("camera late LOD list")?);
+        let light_late = ctx.guard(list("light late LOD list")?);
         let counters = ctx.guard(crate::passes::bands::counters_buffer(
             ctx,
             "LOD counters",
             (LOD_VIEWS * LOD_WORDS) as u64 * 4,
         )?);
         let instances = lod.instance_count.max(1) as u64 * 4;
-        let visible = ctx.guard(Buffer::storage(ctx, "LOD visible", instances)?);
-        let hiz_tiles = ctx.guard(Buffer::storage(ctx, "LOD depth tiles", HIZ_WORDS * 4)?);
+        let visible = ctx.guard(Buffer::storage(ctx, "LOD visible", 2 * instances)?);
+        let hiz_camera = ctx.guard(Buffer::storage(
+            ctx,
+            "LOD camera depth tiles",
+            HIZ_WORDS * 4,
+        )?);
+        let hiz_light = ctx.guard(Buffer::storage(
+            ctx,
+            "LOD light depth tiles",
+            HIZ_WORDS * 4,
+        )?);
         let levels = Buffer::storage(ctx, "LOD levels", instances)?;
         Ok(LodCull {
             cull: [ortho.keep(), persp.keep()],
             args: args.keep(),
             hiz: [hiz16.keep(), hiz128.keep()],
-            lists: [camera.keep(), light.keep(), late.keep()],
+            lists: [camera.keep(), light.keep(), late.keep(), light_late.keep()],
             visible: visible.keep(),
-            hiz_tiles: hiz_tiles.keep(),
+            hiz_tiles: [hiz_camera.keep(), hiz_light.keep()],
             history: std::cell::Cell::new(false),
             counters: counters.keep(),
             levels,
@@ -176,13 +194,14 @@ impl LodCull {
         })
     }
 
-    /// The bindings of a cull phase writing `list`.
+    /// The bindings of a cull phase of `view` writing `list`.
     fn cull_bindings<'b>(
         &'b self,
         globals: &'b Buffer,
         lod: &'b LodBuffers,
         scene: &'b SceneBuffers,
         list: &'b Buffer,
+        view: ViewIndex,
     ) -> Vec<(&'static str, &'b Buffer)> {
         let mut bindings = vec![
             ("GlobalsBlock", globals),
@@ -193,7 +212,7 @@ impl LodCull {
             ("List", list),
             ("Counters", &self.counters),
             ("Visible", &self.visible),
-            ("hizTex", &self.hiz_tiles),
+            ("hizTex", &self.hiz_tiles[view as usize]),
         ];
         bindings.extend(scene.geometry());
         bindings
@@ -238,7 +257,7 @@ impl LodCull {
         for &v in views {
             let list = &self.lists[v as usize];
             p.fill(list, list.size, self.empty_batch);
-            let bindings = self.cull_bindings(globals, lod, scene, list);
+            let bindings = self.cull_bindings(globals, lod, scene, list, v);
             let pipe = &self.cull[(v == ViewIndex::Camera && perspective) as usize];
             p.dispatch(
                 pipe,
@@ -256,14 +275,17 @@ impl LodCull {
         Ok(())
     }
 
-    /// The steps of `lod_occlusion`: the depth tiles of the camera's early
-    /// image `vis` (a `size` window), the late list and its arguments.
+    /// The steps of `lod_occlusion` (`light_occlusion`): the depth tiles
+    /// of `view`'s early image `vis` (`w` x `h`), its late list and the
+    /// arguments.
+    #[allow(clippy::too_many_arguments)]
     pub fn occlusion_steps<'b>(
         &'b self,
         p: &mut PassBuilder<'b>,
         globals: &'b Buffer,
         scene: &'b SceneBuffers,
         vis: &'b Buffer,
+        view: ViewIndex,
         perspective: bool,
         (w, h): (u32, u32),
     ) -> Result<()> {
@@ -273,18 +295,24 @@ impl LodCull {
         let hb = [
             ("GlobalsBlock", globals),
             ("visWordTex", vis),
-            ("Hiz", &self.hiz_tiles),
+            ("Hiz", &self.hiz_tiles[view as usize]),
         ];
         let tiles = |t: u32| (w.div_ceil(t) as u64) * (h.div_ceil(t) as u64);
-        p.dispatch(&self.hiz[0], &(), Grid::Invocations(tiles(16)), &hb);
-        p.dispatch(&self.hiz[1], &(), Grid::Invocations(tiles(128)), &hb);
-        let list = &self.lists[LATE];
+        let push = LodHizPush {
+            view_index: view as u32,
+            pad: [0; 3],
+        };
+        p.dispatch(&self.hiz[0], &push, Grid::Invocations(tiles(16)), &hb);
+        p.dispatch(&self.hiz[1], &push, Grid::Invocations(tiles(128)), &hb);
+        let late = LATE + view as usize;
+        let list = &self.lists[late];
         p.fill(list, list.size, self.empty_batch);
-        let bindings = self.cull_bindings(globals, lod, scene, list);
+        let bindings = self.cull_bindings(globals, lod, scene, list, view);
+        let persp = view == ViewIndex::Camera && perspective;
         p.dispatch(
-            &self.cull[perspective as usize],
+            &self.cull[persp as usize],
             &LodCullPush {
-                view_index: LATE as u32,
+                view_index: late as u32,
                 instances: self.instances,
                 capacity: self.capacity,
                 pad: 0,
@@ -296,9 +324,9 @@ impl LodCull {
         Ok(())
     }
 
-    /// The camera's late list.
-    pub fn late(&self) -> LodView<'_> {
-        self.list_view(LATE)
+    /// `view`'s late list.
+    pub fn late(&self, view: ViewIndex) -> LodView<'_> {
+        self.list_view(LATE + view as usize)
     }
 
     /// `view`'s list (the camera's early one).
@@ -323,9 +351,10 @@ impl LodCull {
         Ok(LodCounts {
             camera_batches: word(0, 0) + word(LATE, 0),
             camera_spheres: word(0, LOD_SPHERES) + word(LATE, LOD_SPHERES),
-            light_batches: word(1, 0),
-            light_spheres: word(1, LOD_SPHERES),
+            light_batches: word(1, 0) + word(LATE + 1, 0),
+            light_spheres: word(1, LOD_SPHERES) + word(LATE + 1, LOD_SPHERES),
             late_spheres: word(LATE, LOD_SPHERES),
+            light_late_spheres: word(LATE + 1, LOD_SPHERES),
         })
     }
 
@@ -335,7 +364,7 @@ impl LodCull {
             + self.counters.size
             + self.levels.size
             + self.visible.size
-            + self.hiz_tiles.size
+            + self.hiz_tiles.iter().map(|b| b.size).sum::<u64>()
     }
 
     pub fn destroy(&mut self, ctx: &Context) {
@@ -350,7 +379,9 @@ impl LodCull {
             b.destroy(ctx);
         }
         self.visible.destroy(ctx);
-        self.hiz_tiles.destroy(ctx);
+        for b in &mut self.hiz_tiles {
+            b.destroy(ctx);
+        }
         self.counters.destroy(ctx);
         self.levels.destroy(ctx);
     }

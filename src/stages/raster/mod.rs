@@ -140,7 +140,15 @@ impl RasterStage {
             return Ok(());
         };
         rec.pass(LodCull::OCCLUSION, |p| {
-            l.occlusion_steps(p, io.globals, io.scene, &t.vis, io.perspective, io.size)
+            l.occlusion_steps(
+                p,
+                io.globals,
+                io.scene,
+                &t.vis,
+                ViewIndex::Camera,
+                io.perspective,
+                io.size,
+            )
         })?;
         let (w, h) = io.size;
         let target = RasterIo {
@@ -148,7 +156,7 @@ impl RasterStage {
             scene: io.scene,
             target: &t.vis,
             texels: w as u64 * h as u64,
-            lod: Some(l.late()),
+            lod: Some(l.late(ViewIndex::Camera)),
             clear: false,
         };
         rec.pass(LodCull::LATE, |p| {

@@ -172,10 +172,11 @@ impl ShadowTechnique for Issm {
 
     /// `issm_raster`, then `issm_resolve`.
     fn record_light<'b>(&'b self, rec: &mut Recorder, f: &ShadowInputs<'b>) -> Result<()> {
-        f.raster.record_light_map(
+        f.record_light_map(
             rec,
             Self::RASTER_NAME,
-            &f.light_map(&self.map, self.texels()),
+            &self.map,
+            (self.light.width, self.light.height),
         )?;
         let mut bindings = vec![
             ("GlobalsBlock", f.globals),

@@ -37,26 +37,44 @@ pub struct ShadowInputs<'a> {
     pub pixels: u64,
     /// The compute rasterizer (light-space maps are rasterized with it).
     pub raster: &'a crate::stages::raster::compute::RasterPass,
-    /// The LOD cull's light list (this frame's), drawn in place of the
-    /// light's order.
-    pub lod: Option<crate::stages::raster::lod::LodView<'a>>,
+    /// The LOD cull, when it ran this frame: the light's lists are drawn
+    /// in place of its order.
+    pub lod: Option<&'a crate::stages::raster::lod::LodCull>,
 }
 
 impl<'a> ShadowInputs<'a> {
-    /// The spheres rasterized from the light into `map` (`texels` of it).
-    pub fn light_map(
+    /// The pass `name`: the spheres rasterized from the light into `map`
+    /// (`size` texels); with the LOD cull, then `light_occlusion` and
+    /// `light_raster_late` (the instances not drawn first and not hidden
+    /// behind what was).
+    pub fn record_light_map(
         &self,
+        rec: &mut crate::vk::Recorder,
+        name: &'static str,
         map: &'a Buffer,
-        texels: u64,
-    ) -> crate::stages::raster::compute::RasterIo<'a> {
-        crate::stages::raster::compute::RasterIo {
+        (w, h): (u32, u32),
+    ) -> Result<()> {
+        use crate::stages::raster::compute::{RasterIo, ViewIndex};
+        use crate::stages::raster::lod::LodCull;
+        let io = |lod, clear| RasterIo {
             globals: self.globals,
             scene: self.scene,
             target: map,
-            texels,
-            lod: self.lod,
-            clear: true,
-        }
+            texels: w as u64 * h as u64,
+            lod,
+            clear,
+        };
+        let light = ViewIndex::Light;
+        self.raster
+            .record_light_map(rec, name, &io(self.lod.map(|l| l.view(light)), true))?;
+        let Some(l) = self.lod else {
+            return Ok(());
+        };
+        rec.pass(LodCull::LIGHT_OCCLUSION, |p| {
+            l.occlusion_steps(p, self.globals, self.scene, map, light, false, (w, h))
+        })?;
+        self.raster
+            .record_light_map(rec, LodCull::LIGHT_LATE, &io(Some(l.late(light)), false))
     }
 }
 
