@@ -20,7 +20,8 @@ use std::time::Instant;
 pub struct SceneArgs {
     /// Structure file: .pdb .cif/.mmcif .gro .xyz .xyzr, optionally .gz.
     pub input: Option<PathBuf>,
-    /// Procedural scene: capsid (default), lattice, random.
+    /// Procedural scene: capsid (default), lattice, random; meso (an HIV
+    /// virion in plasma, instanced, --atoms up to ~4.2e9).
     #[arg(long)]
     pub scene: Option<String>,
     /// Sphere count of the procedural scene.
@@ -244,13 +245,32 @@ pub fn load_scene_with_progress(
             }
             let name = name.as_deref().unwrap_or(scene::DEFAULT_SCENE);
             let atoms = args.atoms.unwrap_or(scene::DEFAULT_ATOMS);
-            if atoms == 0 || atoms > scene::MAX_SPHERES {
+            if name.eq_ignore_ascii_case("meso") {
+                // instanced: as many atoms as 32-bit sphere ids name
+                let most = scene::instanced::MAX_REPRESENTED;
+                if atoms == 0 || atoms as u64 > most {
+                    return Err(Error::Input(format!(
+                        "--atoms {atoms}: the meso scene holds between 1 and {most} atoms \
+                         (32-bit sphere ids)"
+                    )));
+                }
+                let t = std::time::Instant::now();
+                let s = scene::meso::meso(atoms as u64, 1)?;
+                log::info!(
+                    "meso scene: {} atoms in {} instances, built in {:.0} ms",
+                    s.represented(),
+                    s.instancing.as_ref().map_or(0, |i| i.instances()),
+                    t.elapsed().as_secs_f64() * 1e3
+                );
+                s
+            } else if atoms == 0 || atoms > scene::MAX_SPHERES {
                 return Err(Error::Input(format!(
                     "--atoms {atoms}: must be between 1 and {}, the most sphereshade renders",
                     scene::MAX_SPHERES
                 )));
+            } else {
+                scene::procedural(name, atoms, 1)?
             }
-            scene::procedural(name, atoms, 1)?
         }
     };
     // Colours and rules first: on an instanced scene they apply per

@@ -17,6 +17,7 @@ pub mod select;
 mod cif;
 mod gro;
 pub(crate) mod lammps;
+pub mod meso;
 pub mod meso_json;
 mod molecule;
 mod pdb;
