@@ -277,7 +277,7 @@ mod tests {
         let vr = virion.bounding_sphere().1 as f64;
         // each plasma protein's bounding sphere: centre and radius
         let mut spheres = Vec::new();
-        for k in 0..inst.instances() {
+        for (k, tk) in t.iter().enumerate() {
             let m = &inst.molecules[inst.instance_molecule[k] as usize];
             if m.label != "1TII" && m.label != "3P3W" {
                 continue;
@@ -287,7 +287,7 @@ mod tests {
                 .map(|a| DVec3::from(a.center.map(|x| x as f64)).length() + a.radius as f64)
                 .fold(0.0f64, f64::max);
             spheres.push((
-                DVec3::new(t[k].t[0] as f64, t[k].t[1] as f64, t[k].t[2] as f64),
+                DVec3::new(tk.t[0] as f64, tk.t[1] as f64, tk.t[2] as f64),
                 r,
             ));
         }

@@ -27,10 +27,14 @@ fn advice(name: &str) -> &'static str {
         "sphere colours",
         "raster jobs",
     ];
+    // an instanced scene's per-batch and per-atom tables
+    let instanced = ["scene batches", "molecule atoms", "atom ", "LOD "];
     if light.iter().any(|k| name.contains(k)) {
         "lower the light-map size (--issm-size, --sm-size or --osm-size)"
     } else if scene.iter().any(|k| name.starts_with(k)) {
         "render fewer spheres"
+    } else if instanced.iter().any(|k| name.starts_with(k)) {
+        "represent fewer atoms (its batch table holds 16 bytes per 64 atoms of every instance)"
     } else {
         "lower the image size (--width/--height)"
     }
