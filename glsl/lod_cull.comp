@@ -93,11 +93,21 @@ void main() {
             float z = cv.z - bs.w;
             ppu = z > 0.0 ? ppu * v.dir.w / z : 1e30;
         }
+        // The coarsest level whose switch size the instance is within; a
+        // coarser one than last frame's only below its switch size by the
+        // band LOD_BAND, so a level never flickers at its switch (no
+        // popping while a viewer zooms). Never above a switch size: the
+        // silhouette guarantee holds at every size a level is drawn at.
         uint n = texelFetch(lodLevelTex, int(base)).x;
+        uint prev = levels[k];
         level = 0u;
+        uint banded = 0u;
         for (uint l = 1u; l < n; ++l) {
-            if (ppu <= uintBitsToFloat(texelFetch(lodLevelTex, int(base + l)).z)) level = l;
+            float sw = uintBitsToFloat(texelFetch(lodLevelTex, int(base + l)).z);
+            if (ppu <= sw) level = l;
+            if (ppu * LOD_BAND <= sw) banded = l;
         }
+        if (prev != NO_LEVEL_YET && prev <= level) level = max(prev, banded);
         levels[k] = level;
     } else {
         level = levels[k];

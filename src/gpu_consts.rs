@@ -125,6 +125,11 @@ gpu_constants! {
     /// camera (early), light (early), camera (late), light (late).
     LOD_WORDS: u32 = 8;
     LOD_VIEWS: u32 = 4;
+    /// A level coarser than last frame's is taken only below its switch
+    /// size divided by this (glsl/lod_cull.comp).
+    LOD_BAND: f32 = 1.15;
+    /// The cull's per-instance level before any frame chose one.
+    NO_LEVEL_YET: u32 = 0xFFFF_FFFF;
     LOD_BATCHES: u32 = 0;
     LOD_SPHERES: u32 = 1;
     LOD_ARGS: u32 = 2;

@@ -240,6 +240,19 @@ fn cases(d: &Path) -> Vec<Case> {
             "--opacity must be between 0 and 1",
         ),
         c(
+            "--lod-pixels -1",
+            render(procedural.clone(), &["--lod-pixels", "-1"]),
+            "--lod-pixels must be between 0 and 1000",
+        ),
+        c(
+            "--scene meso --atoms 5e9",
+            render(
+                vec!["--scene".into(), "meso".into(), "--atoms".into(), "5000000000".into()],
+                &[],
+            ),
+            "the meso scene holds between 1 and",
+        ),
+        c(
             "--deep-pool-chunks 4e9",
             render(
                 procedural.clone(),

@@ -755,6 +755,76 @@ fn culled_instances_are_never_visible() {
     }
 }
 
+/// Levels of detail: each instance's level follows its size on screen
+/// (the coarsest whose switch size it is within: level 0 close up), and a
+/// level coarser than last frame's is taken only once the size is a band
+/// (LOD_BAND) below its switch size, so a viewer zooming across a switch
+/// does not flicker; never a level above its switch size.
+#[test]
+fn levels_follow_the_size_on_screen_with_a_band() {
+    use sphereshade::gpu::consts::LOD_BAND;
+    use sphereshade::scene::instanced::lod::{MoleculeLod, level_for};
+    let ctx = validated_context();
+    let s = meso("sarscov2_2-no_bonds.bcif");
+    let inst = s.instancing.as_ref().unwrap();
+    let switch: Vec<Vec<f32>> = inst
+        .molecules
+        .iter()
+        .map(|m| {
+            let atoms: Vec<[f32; 4]> = s.spheres[m.first as usize..(m.first + m.atoms) as usize]
+                .iter()
+                .map(|a| [a.center[0], a.center[1], a.center[2], a.radius])
+                .collect();
+            MoleculeLod::new(&atoms).switch_ppu(&atoms, 2.0)
+        })
+        .collect();
+    // the CPU twin of the cull's choice
+    let expect = |prev: Option<&[u32]>, ppu: f32| -> Vec<u32> {
+        (0..inst.instances())
+            .map(|k| {
+                let sw = &switch[inst.instance_molecule[k] as usize];
+                let level = level_for(sw, ppu) as u32;
+                let banded = level_for(sw, ppu * LOD_BAND) as u32;
+                match prev {
+                    Some(p) if p[k] <= level => p[k].max(banded),
+                    _ => level,
+                }
+            })
+            .collect()
+    };
+    // a switch size most types share (the first type's level 1)
+    let sw1 = switch[0][1];
+    let at = |ppu: f32| {
+        let mut cam = camera(&s, 64, 48, None);
+        cam.view_height = 48.0 / ppu as f64;
+        cam
+    };
+    let levels = |r: &Renderer| r.inspect().lod_levels().unwrap().expect("the cull ran");
+    let st = settings(at(sw1 * 1.3), ShadowMode::Issm);
+    let mut r = Renderer::new(&ctx, &s, st.clone()).expect("renderer");
+    let mut prev: Option<Vec<u32>> = None;
+    for (f, ppu) in [1.3f32, 0.95, 0.95, 0.8, 1.02, 2.0].into_iter().enumerate() {
+        r.update(|x| x.camera = at(sw1 * ppu)).expect("camera");
+        r.render_frame().expect("frame");
+        let got = levels(&r);
+        let want = expect(prev.as_deref(), sw1 * ppu);
+        assert_eq!(got, want, "frame {f} at {ppu} x the switch size");
+        // never coarser than the level its size allows
+        let most = expect(None, sw1 * ppu);
+        assert!(got.iter().zip(&most).all(|(g, m)| g <= m), "frame {f}");
+        prev = Some(got);
+    }
+    // the band held level 0 at 0.95 x the switch size, where a fresh
+    // renderer takes level 1
+    let mut fresh = Renderer::new(&ctx, &s, settings(at(sw1 * 0.95), ShadowMode::Issm)).unwrap();
+    fresh.render_frame().unwrap();
+    let f = levels(&fresh);
+    let k0 = inst.instance_molecule.iter().position(|&m| m == 0).unwrap();
+    assert_eq!(f[k0], 1, "a fresh renderer at 0.95 x the switch size");
+    assert_eq!(prev.unwrap()[k0], 0);
+    assert_no_validation_messages(&ctx);
+}
+
 /// A scene of more than 2^24 spheres (262,145 instances of a 64-atom
 /// molecule, 16,777,280 represented): the id AOV is RGBA16 (DESIGN.md),
 /// index + 1 in R, G, B, and names expanded indices past 2^24.

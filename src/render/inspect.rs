@@ -58,6 +58,16 @@ impl<'r> Inspect<'r, '_> {
         }
     }
 
+    /// Each instance's level of detail in the last frame (None: the cull
+    /// did not run).
+    pub fn lod_levels(&self) -> Result<Option<Vec<u32>>> {
+        let raster = &self.r.res.stages.raster;
+        match &raster.lod {
+            Some(l) if raster.lod_used() => Ok(Some(l.levels(self.r.ctx)?)),
+            _ => Ok(None),
+        }
+    }
+
     /// Scene ids to input indices (None: the same; rules hid nothing).
     pub fn id_map(&self) -> Option<std::sync::Arc<crate::scene::paint::IdMap>> {
         self.r.res.ids.clone()

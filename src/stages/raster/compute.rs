@@ -43,6 +43,16 @@ pub enum ViewIndex {
     Light = 1,
 }
 
+/// A list of batches the rasterizer visits in place of a view's order
+/// (the LOD cull's, src/stages/raster/lod.rs), dispatched indirectly.
+#[derive(Clone, Copy)]
+pub struct LodView<'b> {
+    pub list: &'b Buffer,
+    pub counters: &'b Buffer,
+    /// Byte offset of its indirect dispatch arguments in `counters`.
+    pub args_offset: u64,
+}
+
 /// What one rasterization reads and writes: the scene, and the
 /// depth|id target (the camera's visibility buffer or a light map).
 #[derive(Clone, Copy)]
@@ -54,7 +64,7 @@ pub struct RasterIo<'b> {
     pub texels: u64,
     /// The view's list from the LOD cull (this frame's), visited in place
     /// of its order; None: every atom, in the view's order.
-    pub lod: Option<super::lod::LodView<'b>>,
+    pub lod: Option<LodView<'b>>,
     /// Clear `target` first (not for the camera's late phase, which adds
     /// to the early one's image).
     pub clear: bool,

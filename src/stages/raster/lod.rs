@@ -14,13 +14,14 @@
 
 use crate::error::Result;
 use crate::gpu::blocks::{LodArgsPush, LodCullPush, LodHizPush};
-use crate::gpu::consts::{LOD_ARGS, LOD_SPHERES, LOD_VIEWS, LOD_WORDS};
+use crate::gpu::consts::{LOD_ARGS, LOD_SPHERES, LOD_VIEWS, LOD_WORDS, NO_LEVEL_YET};
 use crate::passes::scene::{LodBuffers, SCENE_GEOMETRY, SceneBuffers};
 use crate::passes::{LOCAL_SIZE, spirv};
 use crate::vk::pipeline::{Binding, PipelineDesc, rw, texel, uniform};
 use crate::vk::{Buffer, ComputePipeline, Context, Grid, PassBuilder};
 use ash::vk::Format;
 
+pub use super::compute::LodView;
 use super::compute::ViewIndex;
 
 const BINDINGS: [Binding; 9] = [
@@ -86,15 +87,6 @@ pub struct LodCull {
     instances: u32,
     empty_batch: u32,
     per: u32,
-}
-
-/// A view's list as the rasterizer takes it.
-#[derive(Clone, Copy)]
-pub struct LodView<'b> {
-    pub list: &'b Buffer,
-    pub counters: &'b Buffer,
-    /// Byte offset of its indirect dispatch arguments in `counters`.
-    pub args_offset: u64,
 }
 
 impl LodCull {
@@ -248,6 +240,7 @@ impl LodCull {
         p.fill(&self.counters, self.counters.size, 0);
         if !self.history.replace(true) {
             p.fill(&self.visible, self.visible.size, 0);
+            p.fill(&self.levels, self.levels.size, NO_LEVEL_YET);
         }
         let views: &[ViewIndex] = if light {
             &[ViewIndex::Camera, ViewIndex::Light]
@@ -340,6 +333,11 @@ impl LodCull {
             counters: &self.counters,
             args_offset: ((i as u32 * LOD_WORDS + LOD_ARGS) * 4) as u64,
         }
+    }
+
+    /// Each instance's level in the last frame (after the frame).
+    pub fn levels(&self, ctx: &Context) -> Result<Vec<u32>> {
+        self.levels.download_pod(ctx, 0, self.instances as u64)
     }
 
     /// What the last frame's cull kept (after the frame).
