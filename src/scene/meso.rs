@@ -4,8 +4,9 @@
 //! README): the HIV-1 cellPACK model (tests/data/meso, 91,956 beads in
 //! 11,681 instances of 26 types: envelope, matrix, capsid, interior) as the
 //! virion at the centre, and around it plasma proteins (1TII and 3P3W, all
-//! atoms, waters dropped) on a jittered cubic grid in random orientations,
-//! at about 20 % volume fraction, as many as bring the scene to N atoms
+//! atoms, waters dropped) on a jittered cubic lattice in random orientations,
+//! at about 20 % volume fraction, filling the lattice cells nearest the
+//! virion first (a shell that thickens with N), as many as bring the scene to N atoms
 //! represented. Hierarchy: plasma | virion, then the model's own tree (or
 //! the plasma protein), molecule, chain. Every copy is an instance: the
 //! scene stores 91,956 + 16,953 atoms whatever N is.
@@ -106,50 +107,42 @@ pub fn meso(atoms: u64, seed: u64) -> Result<Scene, SceneError> {
         // (the jitter moves a centre at most half a cell's diagonal)
         let keep_out = vr as f64 + largest + cell * 0.87;
         // the smallest cube of cells outside the virion holding them all
-        let mut side = 1i64;
-        while cells_outside(side, cell, keep_out) < copies {
-            side += 1;
-        }
-        let mut rng = Rng(seed ^ 0x6D65_736F);
-        let mut total = 0u64;
-        let half = side as f64 / 2.0;
-        'fill: for z in 0..side {
-            for y in 0..side {
-                for x in 0..side {
-                    let c = (DVec3::new(x as f64, y as f64, z as f64) - (half - 0.5)) * cell;
-                    if c.length() < keep_out {
-                        continue;
+        // The cells of a lattice through the centre outside the keep-out
+        // sphere, nearest first (ties in lattice order): the plasma is a
+        // shell around the virion, thicker as N grows.
+        let outer = (3.0 * copies as f64 * cell.powi(3) / (4.0 * std::f64::consts::PI)
+            + keep_out.powi(3))
+        .cbrt()
+            + 2.0 * cell;
+        let reach = (outer / cell).ceil() as i64;
+        let mut cells: Vec<(f64, [i64; 3])> = Vec::new();
+        for z in -reach..=reach {
+            for y in -reach..=reach {
+                for x in -reach..=reach {
+                    let d = (DVec3::new(x as f64, y as f64, z as f64) * cell).length();
+                    if d >= keep_out && d <= outer {
+                        cells.push((d, [x, y, z]));
                     }
-                    let (m, n, r) = types[(rng.next() % types.len() as u64) as usize];
-                    if 2 * (total + n) > 2 * want + n {
-                        break 'fill;
-                    }
-                    total += n;
-                    let slack = (cell / 2.0 - r).max(0.0);
-                    let jitter = DVec3::new(rng.unit() - 0.5, rng.unit() - 0.5, rng.unit() - 0.5);
-                    let q = random_rotation(&mut rng);
-                    b.instance_quat(NAME, m, q, (c + jitter * 2.0 * slack).into())?;
                 }
             }
         }
-    }
-    b.finish(NAME)
-}
-
-/// Grid cells of a `side`^3 cube (centred, `cell` wide) whose centres lie
-/// at least `keep_out` from the centre.
-fn cells_outside(side: i64, cell: f64, keep_out: f64) -> u64 {
-    let half = side as f64 / 2.0 - 0.5;
-    let mut n = 0;
-    for z in 0..side {
-        for y in 0..side {
-            for x in 0..side {
-                let c = DVec3::new(x as f64 - half, y as f64 - half, z as f64 - half) * cell;
-                n += (c.length() >= keep_out) as u64;
+        cells.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        let mut rng = Rng(seed ^ 0x6D65_736F);
+        let mut total = 0u64;
+        for (_, [x, y, z]) in cells {
+            let c = DVec3::new(x as f64, y as f64, z as f64) * cell;
+            let (m, n, r) = types[(rng.next() % types.len() as u64) as usize];
+            if 2 * (total + n) > 2 * want + n {
+                break;
             }
+            total += n;
+            let slack = (cell / 2.0 - r).max(0.0);
+            let jitter = DVec3::new(rng.unit() - 0.5, rng.unit() - 0.5, rng.unit() - 0.5);
+            let q = random_rotation(&mut rng);
+            b.instance_quat(NAME, m, q, (c + jitter * 2.0 * slack).into())?;
         }
     }
-    n
+    b.finish(NAME)
 }
 
 /// A loaded protein's atoms as a molecule: centred on their centroid,
