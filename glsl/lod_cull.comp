@@ -9,7 +9,10 @@
 //     view draws the same (instance, atom) slots and the ISSM's self-shadow
 //     test stays exact. Listed if it passed the occlusion test last frame.
 //   1 key light, early: the light's view, the camera's level, listed if it
-//     passed the light's occlusion test last frame.
+//     passed the light's occlusion test last frame; only instances over
+//     the light texels a visible point's lookup may read (pc.region: the
+//     camera's view volume in light space, grown by the lookup's reach):
+//     the others cannot shadow anything the camera sees.
 //   2 camera, late (after the early list was rasterized and the depth
 //     tiles built, lod_hiz.comp): an instance in the window whose nearest
 //     point is farther than the farthest depth of every pixel tile its
@@ -114,6 +117,11 @@ void main() {
     }
     ivec4 rc = sphere_rect(v, cv, bs.w, PERSP && cam);
     bool inside = rc.x <= rc.z && rc.y <= rc.w;
+    // (a light view: only what can shadow a point the camera sees)
+    if (!cam) {
+        inside = inside && float(rc.z) >= pc.region_x0 && float(rc.x) <= pc.region_x1
+                        && float(rc.w) >= pc.region_y0 && float(rc.y) <= pc.region_y1;
+    }
     uint h = 2u * k + view;
     if (late) {
         bool seen = inside && !hidden(v, cv, bs.w, rc, PERSP && cam);

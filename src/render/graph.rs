@@ -212,7 +212,10 @@ impl Resources {
                 globals,
                 &self.scene,
                 cam.fov_deg.is_some(),
-                settings.shadows.draws_light_view(),
+                settings
+                    .shadows
+                    .draws_light_view()
+                    .then(|| self.shadow_region(settings)),
             )?;
 
         let raster_in = RasterInputs {

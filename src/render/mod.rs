@@ -105,6 +105,73 @@ impl Resources {
         self.globals.light_dir = normalized(settings.light);
     }
 
+    /// The light-map texels (x0, y0, x1, y1) whose shadows a point the
+    /// camera sees may read: its view volume within the scene's bounding
+    /// sphere, in the light's pixels, grown by the farthest any lookup
+    /// reaches (ISSM's largest patch half-size, 32 texels, and PCF's, 2
+    /// more). Unbounded without a light view.
+    pub(crate) fn shadow_region(&self, settings: &RenderSettings) -> [f32; 4] {
+        let all = [f32::MIN, f32::MIN, f32::MAX, f32::MAX];
+        let Some(light) = self.stages.shadows.light() else {
+            return all;
+        };
+        let cam = &settings.camera;
+        let (c, r) = self.bounds;
+        let hw = 0.5 * cam.view_height * cam.width as f64 / cam.height as f64;
+        let hh = 0.5 * cam.view_height;
+        // the view volume's corners at its nearest and farthest depths
+        let mut corners = Vec::with_capacity(8);
+        match cam.fov_deg {
+            None => {
+                let mid = (c - cam.center).dot(cam.dir);
+                for t in [mid - r, mid + r] {
+                    for (x, y) in [(-1.0, -1.0), (1.0, -1.0), (-1.0, 1.0), (1.0, 1.0)] {
+                        corners.push(
+                            cam.center + cam.right * (x * hw) + cam.up * (y * hh) + cam.dir * t,
+                        );
+                    }
+                }
+            }
+            Some(_) => {
+                let eye = cam.eye();
+                let dist = cam.eye_distance();
+                let mid = (c - eye).dot(cam.dir);
+                for z in [(mid - r).max(0.0), (mid + r).max(0.0)] {
+                    let s = z / dist;
+                    for (x, y) in [(-1.0, -1.0), (1.0, -1.0), (-1.0, 1.0), (1.0, 1.0)] {
+                        corners.push(
+                            eye + cam.dir * z + cam.right * (x * hw * s) + cam.up * (y * hh * s),
+                        );
+                    }
+                }
+            }
+        }
+        let ppu = light.pixels_per_unit();
+        let (w, h) = (light.width as f64, light.height as f64);
+        let mut rect = [f64::MAX, f64::MAX, f64::MIN, f64::MIN];
+        for p in corners {
+            let q = p - light.center;
+            let px = q.dot(light.right) * ppu + 0.5 * w - 0.5;
+            let py = 0.5 * h - q.dot(light.up) * ppu - 0.5;
+            rect = [
+                rect[0].min(px),
+                rect[1].min(py),
+                rect[2].max(px),
+                rect[3].max(py),
+            ];
+        }
+        if !rect.iter().all(|v| v.is_finite()) {
+            return all;
+        }
+        let reach = 34.0;
+        [
+            (rect[0] - reach) as f32,
+            (rect[1] - reach) as f32,
+            (rect[2] + reach) as f32,
+            (rect[3] + reach) as f32,
+        ]
+    }
+
     fn scale(&self) -> SceneScale {
         SceneScale {
             typical_radius: self.typical_radius,

@@ -79,6 +79,8 @@ pub struct LodCull {
     hiz_tiles: [Buffer; 2],
     /// `visible` holds a frame's result (cleared before the first).
     history: std::cell::Cell<bool>,
+    /// This frame's light region (light texels x0, y0, x1, y1).
+    region: std::cell::Cell<[f32; 4]>,
     /// Per view LOD_WORDS words: batches, spheres, dispatch arguments.
     counters: Buffer,
     /// Per instance: the camera's level.
@@ -177,6 +179,7 @@ impl LodCull {
             visible: visible.keep(),
             hiz_tiles: [hiz_camera.keep(), hiz_light.keep()],
             history: std::cell::Cell::new(false),
+            region: std::cell::Cell::new([f32::MIN, f32::MIN, f32::MAX, f32::MAX]),
             counters: counters.keep(),
             levels,
             capacity,
@@ -224,16 +227,35 @@ impl LodCull {
         );
     }
 
+    fn push(&self, view_index: u32) -> LodCullPush {
+        let r = self.region.get();
+        LodCullPush {
+            view_index,
+            instances: self.instances,
+            capacity: self.capacity,
+            pad: 0,
+            region_x0: r[0],
+            region_y0: r[1],
+            region_x1: r[2],
+            region_y1: r[3],
+        }
+    }
+
     /// The steps of `lod_cull`: the camera's early list and the light's
-    /// (when `light`), and their dispatch arguments.
+    /// (when `light`: `region`, the light texels a visible point's lookup
+    /// may read), and their dispatch arguments.
     pub fn steps<'b>(
         &'b self,
         p: &mut PassBuilder<'b>,
         globals: &'b Buffer,
         scene: &'b SceneBuffers,
         perspective: bool,
-        light: bool,
+        light: Option<[f32; 4]>,
     ) -> Result<()> {
+        if let Some(r) = light {
+            self.region.set(r);
+        }
+        let light = light.is_some();
         let lod = scene.lod.as_ref().ok_or_else(|| {
             crate::error::Error::Internal("the scene has no levels of detail".into())
         })?;
@@ -254,12 +276,7 @@ impl LodCull {
             let pipe = &self.cull[(v == ViewIndex::Camera && perspective) as usize];
             p.dispatch(
                 pipe,
-                &LodCullPush {
-                    view_index: v as u32,
-                    instances: self.instances,
-                    capacity: self.capacity,
-                    pad: 0,
-                },
+                &self.push(v as u32),
                 Grid::Invocations(self.instances as u64),
                 &bindings,
             );
@@ -304,12 +321,7 @@ impl LodCull {
         let persp = view == ViewIndex::Camera && perspective;
         p.dispatch(
             &self.cull[persp as usize],
-            &LodCullPush {
-                view_index: late as u32,
-                instances: self.instances,
-                capacity: self.capacity,
-                pad: 0,
-            },
+            &self.push(late as u32),
             Grid::Invocations(self.instances as u64),
             &bindings,
         );

@@ -107,15 +107,16 @@ impl RasterStage {
     }
 
     /// `lod_cull`: this frame's lists (the camera's; the light's with
-    /// `light`), when the scene has levels of detail. Returns whether it
-    /// was recorded.
+    /// `light`, the light texels whose shadows a visible point may read),
+    /// when the scene has levels of detail. Returns whether it was
+    /// recorded.
     pub fn record_cull(
         &self,
         rec: &mut Recorder,
         globals: &Buffer,
         scene: &SceneBuffers,
         perspective: bool,
-        light: bool,
+        light: Option<[f32; 4]>,
     ) -> Result<bool> {
         let Some(l) = &self.lod else {
             return Ok(false);
