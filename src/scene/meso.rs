@@ -12,6 +12,7 @@
 //! scene stores 91,956 + 16,953 atoms whatever N is.
 
 use super::instanced::{InstancedBuilder, Transforms};
+use super::procedural::Rng;
 use super::{Format, LoadOptions, Scene, SceneError, Sphere, parse_bytes};
 use glam::{DQuat, DVec3};
 
@@ -127,17 +128,17 @@ pub fn meso(atoms: u64, seed: u64) -> Result<Scene, SceneError> {
             }
         }
         cells.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-        let mut rng = Rng(seed ^ 0x6D65_736F);
+        let mut rng = Rng::new(seed ^ 0x6D65_736F);
         let mut total = 0u64;
         for (_, [x, y, z]) in cells {
             let c = DVec3::new(x as f64, y as f64, z as f64) * cell;
-            let (m, n, r) = types[(rng.next() % types.len() as u64) as usize];
+            let (m, n, r) = types[(rng.next_u64() % types.len() as u64) as usize];
             if 2 * (total + n) > 2 * want + n {
                 break;
             }
             total += n;
             let slack = (cell / 2.0 - r).max(0.0);
-            let jitter = DVec3::new(rng.unit() - 0.5, rng.unit() - 0.5, rng.unit() - 0.5);
+            let jitter = DVec3::new(rng.f64() - 0.5, rng.f64() - 0.5, rng.f64() - 0.5);
             let q = random_rotation(&mut rng);
             b.instance_quat(NAME, m, q, (c + jitter * 2.0 * slack).into())?;
         }
@@ -187,7 +188,7 @@ fn plasma_atoms(s: &Scene) -> Vec<Sphere> {
 
 /// A uniformly random rotation (Shoemake).
 fn random_rotation(rng: &mut Rng) -> DQuat {
-    let (u1, u2, u3) = (rng.unit(), rng.unit(), rng.unit());
+    let (u1, u2, u3) = (rng.f64(), rng.f64(), rng.f64());
     let tau = std::f64::consts::TAU;
     let (a, b) = ((1.0 - u1).sqrt(), u1.sqrt());
     DQuat::from_xyzw(
@@ -197,23 +198,6 @@ fn random_rotation(rng: &mut Rng) -> DQuat {
         b * (tau * u3).cos(),
     )
     .normalize()
-}
-
-/// SplitMix64.
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    fn unit(&mut self) -> f64 {
-        (self.next() >> 11) as f64 / (1u64 << 53) as f64
-    }
 }
 
 #[cfg(test)]

@@ -64,6 +64,24 @@ pub struct RasterInputs<'a> {
     pub lod: bool,
 }
 
+/// The camera's visibility buffer as a rasterization's target.
+fn camera_io<'a>(
+    io: &RasterInputs<'a>,
+    t: &'a RasterTargets,
+    lod: Option<LodView<'a>>,
+    clear: bool,
+) -> RasterIo<'a> {
+    let (w, h) = io.size;
+    RasterIo {
+        globals: io.globals,
+        scene: io.scene,
+        target: &t.vis,
+        texels: w as u64 * h as u64,
+        lod,
+        clear,
+    }
+}
+
 pub struct RasterStage {
     /// The compute rasterizer (also the light views' and its sphere orders).
     pub compute: RasterPass,
@@ -151,15 +169,7 @@ impl RasterStage {
                 io.size,
             )
         })?;
-        let (w, h) = io.size;
-        let target = RasterIo {
-            globals: io.globals,
-            scene: io.scene,
-            target: &t.vis,
-            texels: w as u64 * h as u64,
-            lod: Some(l.late(ViewIndex::Camera)),
-            clear: false,
-        };
+        let target = camera_io(io, t, Some(l.late(ViewIndex::Camera)), false);
         rec.pass(LodCull::LATE, |p| {
             self.compute
                 .steps(p, &target, ViewIndex::Camera, io.perspective, false)
@@ -191,19 +201,12 @@ impl RasterStage {
     /// `raster`: the camera's visibility buffer (with `io.see_through`
     /// the opaque spheres' only).
     pub fn record(&self, rec: &mut Recorder, io: &RasterInputs, t: &RasterTargets) -> Result<()> {
-        let (w, h) = io.size;
-        let target = RasterIo {
-            globals: io.globals,
-            scene: io.scene,
-            target: &t.vis,
-            texels: w as u64 * h as u64,
-            lod: if io.lod {
-                self.lod_view(ViewIndex::Camera)
-            } else {
-                None
-            },
-            clear: true,
+        let lod = if io.lod {
+            self.lod_view(ViewIndex::Camera)
+        } else {
+            None
         };
+        let target = camera_io(io, t, lod, true);
         rec.pass(RasterPass::NAME, |p| {
             match &self.graphics {
                 Some(g) => g.steps(p, &target, io.image),
