@@ -10,9 +10,10 @@
 //     test stays exact. Listed if it passed the occlusion test last frame.
 //   1 key light, early: the light's view, the camera's level, listed if it
 //     passed the light's occlusion test last frame; only instances over
-//     the light texels a visible point's lookup may read (pc.region: the
-//     camera's view volume in light space, grown by the lookup's reach):
-//     the others cannot shadow anything the camera sees.
+//     the light texels a visible point's lookup may read (the rectangle of
+//     the camera's visible points, lod_bounds.comp, grown by LOD_REACH):
+//     the others cannot shadow anything the camera sees. Runs after the
+//     camera's raster.
 //   2 camera, late (after the early list was rasterized and the depth
 //     tiles built, lod_hiz.comp): an instance in the window whose nearest
 //     point is farther than the farthest depth of every pixel tile its
@@ -47,6 +48,8 @@ layout(set = 0, binding = 6) buffer Counters { uint counters[]; };
 layout(set = 0, binding = 7) buffer Visible { uint visible[]; };
 // The view's farthest depth word per 16x16 and per 128x128 pixels.
 layout(set = 0, binding = 8) uniform usamplerBuffer hizTex;
+// The light texels of the camera's visible points (lod_bounds.comp).
+layout(set = 0, binding = 9) readonly buffer Region { int region[]; };
 #include "scene.glsl"
 #include "push/lod_cull.glsl"
 
@@ -119,8 +122,8 @@ void main() {
     bool inside = rc.x <= rc.z && rc.y <= rc.w;
     // (a light view: only what can shadow a point the camera sees)
     if (!cam) {
-        inside = inside && float(rc.z) >= pc.region_x0 && float(rc.x) <= pc.region_x1
-                        && float(rc.w) >= pc.region_y0 && float(rc.y) <= pc.region_y1;
+        inside = inside && rc.z >= region[0] - LOD_REACH && rc.x <= region[2] + LOD_REACH
+                        && rc.w >= region[1] - LOD_REACH && rc.y <= region[3] + LOD_REACH;
     }
     uint h = 2u * k + view;
     if (late) {

@@ -113,13 +113,6 @@ gpu_push! {
         /// Entries of the view's batch list.
         capacity: u32,
         pad: u32,
-        /// The light's texels whose shadow a visible point may read (the
-        /// camera's view volume in light space, grown by the lookup's
-        /// reach): light views keep only instances over them.
-        region_x0: f32,
-        region_y0: f32,
-        region_x1: f32,
-        region_y1: f32,
     }
 
     /// `lod_hiz` (glsl/lod_hiz.comp).

@@ -128,6 +128,9 @@ gpu_constants! {
     /// A level coarser than last frame's is taken only below its switch
     /// size divided by this (glsl/lod_cull.comp).
     LOD_BAND: f32 = 1.15;
+    /// The farthest (texels) a shadow lookup reads from the texel its point
+    /// projects to: ISSM's largest patch half-size (32) and PCF's 2 more.
+    LOD_REACH: i32 = 34;
     /// The cull's per-instance level before any frame chose one.
     NO_LEVEL_YET: u32 = 0xFFFF_FFFF;
     LOD_BATCHES: u32 = 0;

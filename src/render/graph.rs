@@ -21,7 +21,7 @@ use crate::vk::{Buffer, Context, Recorder};
 pub const PASSES: &[(&str, &str)] = &[
     (
         "lod_cull",
-        "instanced scenes with levels of detail (`--lod auto`): one invocation per instance places its molecule's bounding sphere and tests it against the camera's pixel window, chooses the coarsest level whose switch size the instance is within (a prefix of the molecule's atoms in a spatial order, radii grown; kept only where its outline keeps 95 % of the molecule's), then tests it against the key light's view with the camera's level; each view lists the kept (instance, level) batches with one `atomicAdd`, and the rasterizer visits its list, dispatched indirectly, instead of the view's order",
+        "instanced scenes with levels of detail (`--lod auto`): one invocation per instance places its molecule's bounding sphere and tests it against the camera's pixel window, chooses the coarsest level whose switch size the instance is within (a prefix of the molecule's atoms in a spatial order, radii grown; kept only where its outline keeps 95 % of the molecule's; a coarser one than last frame's only a band below its switch size) and keeps the level for the light; the kept (instance, level) batches of those that passed the occlusion test last frame are listed with one `atomicAdd`, and the rasterizer visits the list, dispatched indirectly, instead of the view's order",
     ),
     (
         "raster",
@@ -38,6 +38,10 @@ pub const PASSES: &[(&str, &str)] = &[
     (
         "issm_raster",
         "the same rasterizer from the key light into the ISSM (nearest sphere id per light texel), light view fitted to the spheres; like `raster` it visits the spheres in runs of 64, each half of the dispatch on one side of its view and front to back, so the early-depth test rejects more visits before their atomics and lavapipe's two threads get alike halves on different cache lines",
+    ),
+    (
+        "light_cull",
+        "instanced scenes with levels of detail, after the camera's raster: the light-map rectangle of the points the camera sees (per 16x16 pixels, each hit unprojected, one atomic per tile), then one invocation per instance in the light's view with the camera's level, kept if over that rectangle grown by the farthest any shadow lookup reads (34 texels: nothing else can shadow a visible point) and it passed the light's occlusion test last frame",
     ),
     (
         "light_occlusion",
@@ -207,16 +211,10 @@ impl Resources {
         let lod = settings.raster == RasterMode::Compute
             && see.is_none()
             && !matches!(settings.shadows, ShadowMode::Deep | ShadowMode::Osm)
-            && self.stages.raster.record_cull(
-                rec,
-                globals,
-                &self.scene,
-                cam.fov_deg.is_some(),
-                settings
-                    .shadows
-                    .draws_light_view()
-                    .then(|| self.shadow_region(settings)),
-            )?;
+            && self
+                .stages
+                .raster
+                .record_cull(rec, globals, &self.scene, cam.fov_deg.is_some())?;
 
         let raster_in = RasterInputs {
             globals,
@@ -230,6 +228,11 @@ impl Resources {
         self.stages.raster.record(rec, &raster_in, &t.raster)?;
         if lod {
             self.stages.raster.record_late(rec, &raster_in, &t.raster)?;
+            if settings.shadows.draws_light_view() {
+                self.stages
+                    .raster
+                    .record_light_cull(rec, &raster_in, &t.raster)?;
+            }
         }
 
         let see_out = match see {

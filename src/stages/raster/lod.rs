@@ -17,14 +17,14 @@ use crate::gpu::blocks::{LodArgsPush, LodCullPush, LodHizPush};
 use crate::gpu::consts::{LOD_ARGS, LOD_SPHERES, LOD_VIEWS, LOD_WORDS, NO_LEVEL_YET};
 use crate::passes::scene::{LodBuffers, SCENE_GEOMETRY, SceneBuffers};
 use crate::passes::{LOCAL_SIZE, spirv};
-use crate::vk::pipeline::{Binding, PipelineDesc, rw, texel, uniform};
+use crate::vk::pipeline::{Binding, PipelineDesc, ro, rw, texel, uniform};
 use crate::vk::{Buffer, ComputePipeline, Context, Grid, PassBuilder};
 use ash::vk::Format;
 
 pub use super::compute::LodView;
 use super::compute::ViewIndex;
 
-const BINDINGS: [Binding; 9] = [
+const BINDINGS: [Binding; 10] = [
     uniform("GlobalsBlock"),
     texel("lodLevelTex", Format::R32G32B32A32_UINT),
     texel("lodBoundTex", Format::R32G32B32A32_SFLOAT),
@@ -34,6 +34,13 @@ const BINDINGS: [Binding; 9] = [
     rw("Counters"),
     rw("Visible"),
     texel("hizTex", Format::R32_UINT),
+    ro("Region"),
+];
+
+const BOUNDS_BINDINGS: [Binding; 3] = [
+    uniform("GlobalsBlock"),
+    texel("visWordTex", Format::R32_UINT),
+    rw("Region"),
 ];
 
 const HIZ_BINDINGS: [Binding; 3] = [
@@ -79,8 +86,10 @@ pub struct LodCull {
     hiz_tiles: [Buffer; 2],
     /// `visible` holds a frame's result (cleared before the first).
     history: std::cell::Cell<bool>,
-    /// This frame's light region (light texels x0, y0, x1, y1).
-    region: std::cell::Cell<[f32; 4]>,
+    /// The light texels of the camera's visible points (x0, y0, x1, y1).
+    region: Buffer,
+    /// Orthographic and perspective cameras (constant 1).
+    bounds: [ComputePipeline; 2],
     /// Per view LOD_WORDS words: batches, spheres, dispatch arguments.
     counters: Buffer,
     /// Per instance: the camera's level.
@@ -95,6 +104,7 @@ impl LodCull {
     pub const NAME: &'static str = "lod_cull";
     pub const OCCLUSION: &'static str = "lod_occlusion";
     pub const LATE: &'static str = "raster_late";
+    pub const LIGHT_CULL: &'static str = "light_cull";
     pub const LIGHT_OCCLUSION: &'static str = "light_occlusion";
     pub const LIGHT_LATE: &'static str = "light_raster_late";
 
@@ -170,6 +180,23 @@ impl LodCull {
             "LOD light depth tiles",
             HIZ_WORDS * 4,
         )?);
+        let region = ctx.guard(Buffer::storage(ctx, "LOD light region", 16)?);
+        let bounds = |name: &str, persp: u32| {
+            ComputePipeline::new(
+                ctx,
+                &PipelineDesc {
+                    name,
+                    shader: spirv::LOD_BOUNDS_COMP,
+                    bindings: &BOUNDS_BINDINGS,
+                    push_size: 0,
+                    local_size: 64,
+                    constants: &[persp],
+                    scene: 0,
+                },
+            )
+        };
+        let bounds_o = ctx.guard(bounds("lod light region", 0)?);
+        let bounds_p = ctx.guard(bounds("lod light region perspective", 1)?);
         let levels = Buffer::storage(ctx, "LOD levels", instances)?;
         Ok(LodCull {
             cull: [ortho.keep(), persp.keep()],
@@ -179,7 +206,8 @@ impl LodCull {
             visible: visible.keep(),
             hiz_tiles: [hiz_camera.keep(), hiz_light.keep()],
             history: std::cell::Cell::new(false),
-            region: std::cell::Cell::new([f32::MIN, f32::MIN, f32::MAX, f32::MAX]),
+            region: region.keep(),
+            bounds: [bounds_o.keep(), bounds_p.keep()],
             counters: counters.keep(),
             levels,
             capacity,
@@ -208,6 +236,7 @@ impl LodCull {
             ("Counters", &self.counters),
             ("Visible", &self.visible),
             ("hizTex", &self.hiz_tiles[view as usize]),
+            ("Region", &self.region),
         ];
         bindings.extend(scene.geometry());
         bindings
@@ -228,59 +257,92 @@ impl LodCull {
     }
 
     fn push(&self, view_index: u32) -> LodCullPush {
-        let r = self.region.get();
         LodCullPush {
             view_index,
             instances: self.instances,
             capacity: self.capacity,
             pad: 0,
-            region_x0: r[0],
-            region_y0: r[1],
-            region_x1: r[2],
-            region_y1: r[3],
         }
     }
 
-    /// The steps of `lod_cull`: the camera's early list and the light's
-    /// (when `light`: `region`, the light texels a visible point's lookup
-    /// may read), and their dispatch arguments.
+    /// The steps of `lod_cull`: the camera's early list and its dispatch
+    /// arguments.
     pub fn steps<'b>(
         &'b self,
         p: &mut PassBuilder<'b>,
         globals: &'b Buffer,
         scene: &'b SceneBuffers,
         perspective: bool,
-        light: Option<[f32; 4]>,
     ) -> Result<()> {
-        if let Some(r) = light {
-            self.region.set(r);
-        }
-        let light = light.is_some();
+        self.cull_steps(p, globals, scene, ViewIndex::Camera, perspective, None)
+    }
+
+    /// The steps of `light_cull` (after the camera's raster): the light
+    /// texels of the camera's visible points (from `vis`, a `size` window)
+    /// and the light's early list over them.
+    pub fn light_steps<'b>(
+        &'b self,
+        p: &mut PassBuilder<'b>,
+        globals: &'b Buffer,
+        scene: &'b SceneBuffers,
+        vis: &'b Buffer,
+        perspective: bool,
+        size: (u32, u32),
+    ) -> Result<()> {
+        self.cull_steps(
+            p,
+            globals,
+            scene,
+            ViewIndex::Light,
+            perspective,
+            Some((vis, size)),
+        )
+    }
+
+    fn cull_steps<'b>(
+        &'b self,
+        p: &mut PassBuilder<'b>,
+        globals: &'b Buffer,
+        scene: &'b SceneBuffers,
+        view: ViewIndex,
+        perspective: bool,
+        vis: Option<(&'b Buffer, (u32, u32))>,
+    ) -> Result<()> {
         let lod = scene.lod.as_ref().ok_or_else(|| {
             crate::error::Error::Internal("the scene has no levels of detail".into())
         })?;
-        p.fill(&self.counters, self.counters.size, 0);
-        if !self.history.replace(true) {
-            p.fill(&self.visible, self.visible.size, 0);
-            p.fill(&self.levels, self.levels.size, NO_LEVEL_YET);
+        if view == ViewIndex::Camera {
+            p.fill(&self.counters, self.counters.size, 0);
+            if !self.history.replace(true) {
+                p.fill(&self.visible, self.visible.size, 0);
+                p.fill(&self.levels, self.levels.size, NO_LEVEL_YET);
+            }
         }
-        let views: &[ViewIndex] = if light {
-            &[ViewIndex::Camera, ViewIndex::Light]
-        } else {
-            &[ViewIndex::Camera]
-        };
-        for &v in views {
-            let list = &self.lists[v as usize];
-            p.fill(list, list.size, self.empty_batch);
-            let bindings = self.cull_bindings(globals, lod, scene, list, v);
-            let pipe = &self.cull[(v == ViewIndex::Camera && perspective) as usize];
+        if let Some((vis, (w, h))) = vis {
+            // empty: x0, y0 the largest int, x1, y1 the least
+            p.fill_at(&self.region, 0, 8, i32::MAX as u32);
+            p.fill_at(&self.region, 8, 8, i32::MIN as u32);
             p.dispatch(
-                pipe,
-                &self.push(v as u32),
-                Grid::Invocations(self.instances as u64),
-                &bindings,
+                &self.bounds[perspective as usize],
+                &(),
+                Grid::Invocations(w.div_ceil(16) as u64 * h.div_ceil(16) as u64),
+                &[
+                    ("GlobalsBlock", globals),
+                    ("visWordTex", vis),
+                    ("Region", &self.region),
+                ],
             );
         }
+        let list = &self.lists[view as usize];
+        p.fill(list, list.size, self.empty_batch);
+        let bindings = self.cull_bindings(globals, lod, scene, list, view);
+        let pipe = &self.cull[(view == ViewIndex::Camera && perspective) as usize];
+        p.dispatch(
+            pipe,
+            &self.push(view as u32),
+            Grid::Invocations(self.instances as u64),
+            &bindings,
+        );
         self.args_step(p);
         Ok(())
     }
@@ -374,6 +436,7 @@ impl LodCull {
             + self.counters.size
             + self.levels.size
             + self.visible.size
+            + self.region.size
             + self.hiz_tiles.iter().map(|b| b.size).sum::<u64>()
     }
 
@@ -389,6 +452,10 @@ impl LodCull {
             b.destroy(ctx);
         }
         self.visible.destroy(ctx);
+        self.region.destroy(ctx);
+        for p in &mut self.bounds {
+            p.destroy(ctx);
+        }
         for b in &mut self.hiz_tiles {
             b.destroy(ctx);
         }

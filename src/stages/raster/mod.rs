@@ -124,25 +124,20 @@ impl RasterStage {
         })
     }
 
-    /// `lod_cull`: this frame's lists (the camera's; the light's with
-    /// `light`, the light texels whose shadows a visible point may read),
-    /// when the scene has levels of detail. Returns whether it was
-    /// recorded.
+    /// `lod_cull`: this frame's camera list, when the scene has levels of
+    /// detail. Returns whether it was recorded.
     pub fn record_cull(
         &self,
         rec: &mut Recorder,
         globals: &Buffer,
         scene: &SceneBuffers,
         perspective: bool,
-        light: Option<[f32; 4]>,
     ) -> Result<bool> {
         let Some(l) = &self.lod else {
             return Ok(false);
         };
         self.lod_used.set(true);
-        rec.pass(LodCull::NAME, |p| {
-            l.steps(p, globals, scene, perspective, light)
-        })?;
+        rec.pass(LodCull::NAME, |p| l.steps(p, globals, scene, perspective))?;
         Ok(true)
     }
 
@@ -173,6 +168,22 @@ impl RasterStage {
         rec.pass(LodCull::LATE, |p| {
             self.compute
                 .steps(p, &target, ViewIndex::Camera, io.perspective, false)
+        })
+    }
+
+    /// `light_cull` (after `record_late`): the light's list of what may
+    /// shadow a point the camera sees.
+    pub fn record_light_cull(
+        &self,
+        rec: &mut Recorder,
+        io: &RasterInputs,
+        t: &RasterTargets,
+    ) -> Result<()> {
+        let Some(l) = &self.lod else {
+            return Ok(());
+        };
+        rec.pass(LodCull::LIGHT_CULL, |p| {
+            l.light_steps(p, io.globals, io.scene, &t.vis, io.perspective, io.size)
         })
     }
 

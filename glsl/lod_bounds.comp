@@ -1,0 +1,52 @@
+#version 460
+// The light texels a visible point's shadow lookup is centred on: one
+// invocation per 16x16 pixels of the camera's visibility buffer (after
+// both raster phases) unprojects each covered pixel's hit and takes the
+// light-map rectangle of those points; one atomic per word per tile. The
+// light's cull (lod_cull.comp) keeps only instances over it, grown by the
+// farthest any lookup reaches: nothing else can shadow what the camera
+// sees.
+#include "shared.glsl"
+
+layout(local_size_x = 64) in;
+
+layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
+layout(set = 0, binding = 1) uniform usamplerBuffer visWordTex;
+// x0, y0, x1, y1 in light texels (the host sets them empty first).
+layout(set = 0, binding = 2) buffer Region { int region[]; };
+
+layout(constant_id = 1) const bool PERSP = false;
+
+void main() {
+    uint w = g.cam.dims.x, h = g.cam.dims.y;
+    uvec2 t16 = (uvec2(w, h) + 15u) / 16u;
+    uint i = FLAT_ID;
+    if (i >= t16.x * t16.y) return;
+    uvec2 o = uvec2(i % t16.x, i / t16.x) * 16u;
+    uint x1 = min(o.x + 16u, w), y1 = min(o.y + 16u, h);
+    View L = g.light;
+    float ppu = L.center.w;
+    vec2 lo = vec2(3.0e38), hi = vec2(-3.0e38);
+    for (uint y = o.y; y < y1; ++y) {
+        for (uint x = o.x; x < x1; ++x) {
+            uint key = texelFetch(visWordTex, int(2u * (y * w + x) + 1u)).x;
+            if (key == 0xFFFFFFFFu) continue;
+            vec3 org, dir;
+            view_ray(g.cam, vec2(uvec2(x, y) + g.cam.dims.zw), PERSP, org, dir);
+            float t = PERSP ? uintBitsToFloat(key) : uintBitsToFloat(key) - g.cam.depth.x;
+            vec3 q = org + t * dir - L.center.xyz;
+            vec2 p = vec2(dot(q, L.right.xyz) * ppu + 0.5 * L.right.w - 0.5,
+                          0.5 * L.up.w - dot(q, L.up.xyz) * ppu - 0.5);
+            lo = min(lo, p);
+            hi = max(hi, p);
+        }
+    }
+    if (lo.x > hi.x) return;
+    // (clamped: a point far outside the map stays an int)
+    ivec2 a = ivec2(floor(clamp(lo, vec2(-1e9), vec2(1e9))));
+    ivec2 b = ivec2(ceil(clamp(hi, vec2(-1e9), vec2(1e9))));
+    atomicMin(region[0], a.x);
+    atomicMin(region[1], a.y);
+    atomicMax(region[2], b.x);
+    atomicMax(region[3], b.y);
+}
