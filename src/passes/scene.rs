@@ -221,14 +221,15 @@ impl SceneBuffers {
             // per molecule type: per level >= 1, its first stored atom
             let mut level_first: Vec<Vec<u32>> = Vec::with_capacity(inst.molecules.len());
             for (m, mol) in inst.molecules.iter().enumerate() {
+                let ml = &lod[m].levels;
+                let own = mol.first as usize..(mol.first + mol.atoms) as usize;
                 let mut firsts = vec![mol.first];
-                for l in 1..lod[m].levels() {
+                for l in 1..ml.levels() {
                     firsts.push(geom.len() as u32);
-                    let r = lod[m].radius_scale(l);
-                    for &a in &lod[m].order[..lod[m].counts[l] as usize] {
+                    let spheres = ml.level_spheres(&geom[own.clone()], l);
+                    geom.extend(spheres);
+                    for &a in &ml.order[..ml.counts[l] as usize] {
                         let src = mol.first + a;
-                        let g = geom[src as usize];
-                        geom.push([g[0], g[1], g[2], g[3] * r]);
                         chains.push(chains[src as usize]);
                         colors.push(colors[src as usize]);
                         origins.push(a);
@@ -241,13 +242,19 @@ impl SceneBuffers {
             // instance's coarse batches, batches, switch size, spheres
             let mut levels = vec![[0u32; 4]; inst.molecules.len() * MAX_LOD_LEVELS as usize];
             let mut coarse_batches = vec![0u32; inst.molecules.len()];
-            for (m, ml) in lod.iter().enumerate() {
+            for (
+                m,
+                Lod {
+                    levels: ml, switch, ..
+                },
+            ) in lod.iter().enumerate()
+            {
                 let mut off = 0u32;
                 for l in 0..ml.levels() {
                     let nb = ml.counts[l].div_ceil(per);
                     let first = if l == 0 { ml.levels() as u32 } else { off };
                     levels[m * MAX_LOD_LEVELS as usize + l] =
-                        [first, nb, ml.switch[l].to_bits(), ml.counts[l]];
+                        [first, nb, switch[l].to_bits(), ml.counts[l]];
                     if l > 0 {
                         off += nb;
                     }
@@ -260,7 +267,7 @@ impl SceneBuffers {
                 let mu = m as usize;
                 inst_rows.push([m, first0, batches.len() as u32, 0]);
                 first0 += inst.molecules[mu].atoms.div_ceil(per);
-                for (&n, &at) in lod[mu].counts.iter().zip(&level_first[mu]).skip(1) {
+                for (&n, &at) in lod[mu].levels.counts.iter().zip(&level_first[mu]).skip(1) {
                     let mut a = 0;
                     while a < n {
                         let c = (n - a).min(per);
@@ -679,41 +686,35 @@ impl SceneGeom {
     /// Bounding sphere of the sphere centres' box centre and the farthest
     /// surface (as `Scene::bounding_sphere`).
     pub fn bounding_sphere(&self) -> (DVec3, f64) {
-        let mut b: Option<(glam::Vec3, glam::Vec3)> = None;
-        for (c, _) in self.spheres() {
-            let c = glam::Vec3::from(c);
-            b = Some(b.map_or((c, c), |(lo, hi)| (lo.min(c), hi.max(c))));
-        }
-        let Some((lo, hi)) = b else {
-            return (DVec3::ZERO, 0.0);
-        };
-        let c = (lo + hi) * 0.5;
-        let r = self
-            .spheres()
-            .map(|(p, r)| glam::Vec3::from(p).distance(c) + r)
-            .fold(0.0f32, f32::max);
-        (c.as_dvec3(), r as f64)
+        box_sphere(|| self.spheres()).map_or((DVec3::ZERO, 0.0), |(c, r)| (c.as_dvec3(), r as f64))
     }
+}
+
+/// The sphere centred on the box of `spheres()`' centres that reaches the
+/// farthest surface (as `Scene::bounding_sphere`); None for none.
+fn box_sphere<I: Iterator<Item = ([f32; 3], f32)>>(
+    spheres: impl Fn() -> I,
+) -> Option<(glam::Vec3, f32)> {
+    let mut b: Option<(glam::Vec3, glam::Vec3)> = None;
+    for (c, _) in spheres() {
+        let c = glam::Vec3::from(c);
+        b = Some(b.map_or((c, c), |(lo, hi)| (lo.min(c), hi.max(c))));
+    }
+    let (lo, hi) = b?;
+    let c = (lo + hi) * 0.5;
+    let r = spheres()
+        .map(|(p, r)| glam::Vec3::from(p).distance(c) + r)
+        .fold(0.0f32, f32::max);
+    Some((c, r))
 }
 
 /// A molecule type's levels of detail as the cull reads them.
 struct Lod {
-    order: Vec<u32>,
-    counts: Vec<u32>,
-    radius: Vec<f32>,
+    levels: MoleculeLod,
     /// Per level: most pixels per world unit it is drawn at.
     switch: Vec<f32>,
     /// Bounding sphere in the molecule's frame.
     bound: [f32; 4],
-}
-
-impl Lod {
-    fn levels(&self) -> usize {
-        self.counts.len()
-    }
-    fn radius_scale(&self, l: usize) -> f32 {
-        self.radius[l]
-    }
 }
 
 /// Every molecule type's levels (`pixels`: `--lod-pixels`).
@@ -733,35 +734,14 @@ fn lod_of(scene: &Scene, geom: &[GpuSphere], pixels: f32) -> Result<Vec<Lod>> {
             )));
         }
         let switch = ml.switch_ppu(atoms, pixels);
-        let bound = bounding_sphere(atoms);
+        // (grown a little against the f32 rounding of the transforms)
+        let (c, r) = box_sphere(|| atoms.iter().map(|a| ([a[0], a[1], a[2]], a[3])))
+            .unwrap_or((glam::Vec3::ZERO, 0.0));
         out.push(Lod {
-            order: ml.order,
-            counts: ml.counts,
-            radius: ml.radius,
+            levels: ml,
             switch,
-            bound,
+            bound: [c.x, c.y, c.z, r * 1.001 + 1e-3],
         });
     }
     Ok(out)
-}
-
-/// A sphere holding every sphere of `atoms` (box centre, farthest
-/// surface), a little grown against the f32 rounding of the transforms.
-fn bounding_sphere(atoms: &[GpuSphere]) -> [f32; 4] {
-    let mut lo = [f32::MAX; 3];
-    let mut hi = [f32::MIN; 3];
-    for a in atoms {
-        for k in 0..3 {
-            lo[k] = lo[k].min(a[k]);
-            hi[k] = hi[k].max(a[k]);
-        }
-    }
-    let c: [f32; 3] = std::array::from_fn(|k| 0.5 * (lo[k] + hi[k]));
-    let r = atoms
-        .iter()
-        .map(|a| {
-            ((a[0] - c[0]).powi(2) + (a[1] - c[1]).powi(2) + (a[2] - c[2]).powi(2)).sqrt() + a[3]
-        })
-        .fold(0.0f32, f32::max);
-    [c[0], c[1], c[2], r * 1.001 + 1e-3]
 }

@@ -7,7 +7,7 @@
 use super::Resources;
 use crate::error::Result;
 use crate::passes::screen::ScreenInputs;
-use crate::settings::{RasterMode, RenderSettings, ShadowMode};
+use crate::settings::{RasterMode, RenderSettings};
 use crate::stages::raster::compute::ViewIndex;
 use crate::stages::raster::{RasterInputs, RasterStage};
 use crate::stages::see_through::{SeeThrough, SeeThroughInputs};
@@ -203,14 +203,9 @@ impl Resources {
             .as_ref()
             .filter(|_| params.see_through);
 
-        // Levels of detail and culling, where every pass that draws the
-        // spheres can take the lists: the compute rasterizer's views (the
-        // deep lists, opacity maps and see-through fragments draw every
-        // atom).
+        // Levels of detail and culling (`lod_lists`).
         self.stages.raster.no_cull();
-        let lod = settings.raster == RasterMode::Compute
-            && see.is_none()
-            && !matches!(settings.shadows, ShadowMode::Deep | ShadowMode::Osm)
+        let lod = self.lod_lists(settings)
             && self
                 .stages
                 .raster

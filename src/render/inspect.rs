@@ -42,30 +42,22 @@ impl<'r> Inspect<'r, '_> {
     /// Spheres the last frame's camera drew: after culling and level of
     /// detail when its LOD cull ran, else every represented sphere.
     pub fn spheres_drawn(&self) -> Result<u64> {
-        let raster = &self.r.res.stages.raster;
-        match &raster.lod {
-            Some(l) if raster.lod_used() => Ok(l.counts(self.r.ctx)?.camera_spheres as u64),
-            _ => Ok(self.represented()),
-        }
+        Ok(self
+            .lod_counts()?
+            .map_or(self.represented(), |c| c.camera_spheres as u64))
     }
 
     /// What the last frame's LOD cull kept (None: it did not run).
     pub fn lod_counts(&self) -> Result<Option<crate::stages::raster::lod::LodCounts>> {
-        let raster = &self.r.res.stages.raster;
-        match &raster.lod {
-            Some(l) if raster.lod_used() => Ok(Some(l.counts(self.r.ctx)?)),
-            _ => Ok(None),
-        }
+        let cull = self.r.res.stages.raster.last_cull();
+        cull.map(|l| l.counts(self.r.ctx)).transpose()
     }
 
     /// Each instance's level of detail in the last frame (None: the cull
     /// did not run).
     pub fn lod_levels(&self) -> Result<Option<Vec<u32>>> {
-        let raster = &self.r.res.stages.raster;
-        match &raster.lod {
-            Some(l) if raster.lod_used() => Ok(Some(l.levels(self.r.ctx)?)),
-            _ => Ok(None),
-        }
+        let cull = self.r.res.stages.raster.last_cull();
+        cull.map(|l| l.levels(self.r.ctx)).transpose()
     }
 
     /// Scene ids to input indices (None: the same; rules hid nothing).

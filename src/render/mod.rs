@@ -18,7 +18,7 @@ use crate::gpu::Globals;
 use crate::passes::scene::{SceneBuffers, SceneGeom};
 use crate::scene::Scene;
 use crate::semantic;
-use crate::settings::{RasterMode, RenderSettings, SsdoMode};
+use crate::settings::{RasterMode, RenderSettings, ShadowMode, SsdoMode};
 use crate::stages::see_through::SeeThrough;
 use crate::stages::shading::ShadeFrame;
 use crate::stages::shadows::{Lookup, ShadowSetup};
@@ -193,6 +193,18 @@ impl Resources {
     /// 1, or `--opacity` below 1 (it multiplies every alpha).
     pub(crate) fn see_through(&self, settings: &RenderSettings) -> bool {
         !settings.opaque_view && (self.translucent || settings.opacity < 1.0)
+    }
+
+    /// Whether the views draw the LOD cull's lists this frame: an
+    /// instanced scene with levels of detail, where every pass that draws
+    /// the spheres can take them (the compute rasterizer's views; the deep
+    /// lists, opacity maps and see-through fragments draw every atom, in
+    /// the views' orders).
+    pub(crate) fn lod_lists(&self, settings: &RenderSettings) -> bool {
+        self.scene.lod.is_some()
+            && settings.raster == RasterMode::Compute
+            && !self.see_through(settings)
+            && !matches!(settings.shadows, ShadowMode::Deep | ShadowMode::Osm)
     }
 }
 

@@ -17,8 +17,12 @@ impl Renderer<'_> {
     /// Sorts the views' sphere orders that are stale (the view turned far,
     /// or the spheres moved) before a frame draws them: the camera's when
     /// the compute rasterizer draws it, the light's when the technique
-    /// draws that view (others never pay for it).
+    /// draws that view (others never pay for it), neither when the frame
+    /// draws the LOD cull's lists instead.
     fn ensure_orders(&mut self) -> Result<()> {
+        if self.res.lod_lists(&self.settings) {
+            return Ok(());
+        }
         let views = [
             (
                 ViewIndex::Camera,

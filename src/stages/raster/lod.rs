@@ -1,20 +1,21 @@
-//! `lod_cull`, `lod_occlusion`: the views' sphere lists of an instanced
-//! scene with levels of detail (glsl/lod_cull.comp, glsl/lod_hiz.comp,
-//! glsl/lod_args.comp). One invocation per instance tests its bounding
-//! sphere against the camera's window and chooses its level from its size
-//! on screen, then against the key light's view with the camera's level;
-//! the kept instances' batches of that level are listed per view, and the
-//! rasterizer visits a list in place of the view's order, dispatched
-//! indirectly. Each view's list is drawn in two phases: first the
-//! instances that passed its occlusion test last frame, then, against the
-//! depth tiles of that early image, the others that are not hidden
-//! (`lod_occlusion`, `raster_late`; `light_occlusion`,
-//! `light_raster_late`). Culled instances cost one invocation of this pass
+//! The views' sphere lists of an instanced scene with levels of detail
+//! (glsl/lod_cull.comp, lod_hiz.comp, lod_bounds.comp, lod_args.comp).
+//! `lod_cull`: one invocation per instance tests its bounding sphere
+//! against the camera's window and chooses its level from its size on
+//! screen; `light_cull`, after the camera's raster: the same in the key
+//! light's view with the camera's level, over the light texels the
+//! camera's visible points may read. The kept instances' batches of that
+//! level are listed per view, and the rasterizer visits a list in place of
+//! the view's order, dispatched indirectly. Each view's list is drawn in
+//! two phases: first the instances that passed its occlusion test last
+//! frame, then, against the depth tiles of that early image, the others
+//! that are not hidden (`lod_occlusion`, `raster_late`; `light_occlusion`,
+//! `light_raster_late`). Culled instances cost one invocation of a cull
 //! and nothing after it.
 
 use crate::error::Result;
 use crate::gpu::blocks::{LodArgsPush, LodCullPush, LodHizPush};
-use crate::gpu::consts::{LOD_ARGS, LOD_SPHERES, LOD_VIEWS, LOD_WORDS, NO_LEVEL_YET};
+use crate::gpu::consts::{LOD_ARGS, LOD_BATCHES, LOD_SPHERES, LOD_VIEWS, LOD_WORDS, NO_LEVEL_YET};
 use crate::passes::scene::{LodBuffers, SCENE_GEOMETRY, SceneBuffers};
 use crate::passes::{LOCAL_SIZE, spirv};
 use crate::vk::pipeline::{Binding, PipelineDesc, ro, rw, texel, uniform};
@@ -256,13 +257,38 @@ impl LodCull {
         );
     }
 
-    fn push(&self, view_index: u32) -> LodCullPush {
-        LodCullPush {
-            view_index,
-            instances: self.instances,
-            capacity: self.capacity,
-            pad: 0,
-        }
+    /// The last steps of every cull phase: `list` (of `view`; counter
+    /// words `list` too) emptied, the cull dispatched into it, and the
+    /// dispatch arguments of every list.
+    fn cull_into<'b>(
+        &'b self,
+        p: &mut PassBuilder<'b>,
+        globals: &'b Buffer,
+        scene: &'b SceneBuffers,
+        list: usize,
+        view: ViewIndex,
+        perspective: bool,
+    ) -> Result<()> {
+        let lod = scene.lod.as_ref().ok_or_else(|| {
+            crate::error::Error::Internal("the scene has no levels of detail".into())
+        })?;
+        let buf = &self.lists[list];
+        p.fill(buf, buf.size, self.empty_batch);
+        let bindings = self.cull_bindings(globals, lod, scene, buf, view);
+        let persp = view == ViewIndex::Camera && perspective;
+        p.dispatch(
+            &self.cull[persp as usize],
+            &LodCullPush {
+                view_index: list as u32,
+                instances: self.instances,
+                capacity: self.capacity,
+                pad: 0,
+            },
+            Grid::Invocations(self.instances as u64),
+            &bindings,
+        );
+        self.args_step(p);
+        Ok(())
     }
 
     /// The steps of `lod_cull`: the camera's early list and its dispatch
@@ -308,9 +334,6 @@ impl LodCull {
         perspective: bool,
         vis: Option<(&'b Buffer, (u32, u32))>,
     ) -> Result<()> {
-        let lod = scene.lod.as_ref().ok_or_else(|| {
-            crate::error::Error::Internal("the scene has no levels of detail".into())
-        })?;
         if view == ViewIndex::Camera {
             p.fill(&self.counters, self.counters.size, 0);
             if !self.history.replace(true) {
@@ -333,18 +356,7 @@ impl LodCull {
                 ],
             );
         }
-        let list = &self.lists[view as usize];
-        p.fill(list, list.size, self.empty_batch);
-        let bindings = self.cull_bindings(globals, lod, scene, list, view);
-        let pipe = &self.cull[(view == ViewIndex::Camera && perspective) as usize];
-        p.dispatch(
-            pipe,
-            &self.push(view as u32),
-            Grid::Invocations(self.instances as u64),
-            &bindings,
-        );
-        self.args_step(p);
-        Ok(())
+        self.cull_into(p, globals, scene, view as usize, view, perspective)
     }
 
     /// The steps of `lod_occlusion` (`light_occlusion`): the depth tiles
@@ -361,9 +373,6 @@ impl LodCull {
         perspective: bool,
         (w, h): (u32, u32),
     ) -> Result<()> {
-        let lod = scene.lod.as_ref().ok_or_else(|| {
-            crate::error::Error::Internal("the scene has no levels of detail".into())
-        })?;
         let hb = [
             ("GlobalsBlock", globals),
             ("visWordTex", vis),
@@ -376,19 +385,7 @@ impl LodCull {
         };
         p.dispatch(&self.hiz[0], &push, Grid::Invocations(tiles(16)), &hb);
         p.dispatch(&self.hiz[1], &push, Grid::Invocations(tiles(128)), &hb);
-        let late = LATE + view as usize;
-        let list = &self.lists[late];
-        p.fill(list, list.size, self.empty_batch);
-        let bindings = self.cull_bindings(globals, lod, scene, list, view);
-        let persp = view == ViewIndex::Camera && perspective;
-        p.dispatch(
-            &self.cull[persp as usize],
-            &self.push(late as u32),
-            Grid::Invocations(self.instances as u64),
-            &bindings,
-        );
-        self.args_step(p);
-        Ok(())
+        self.cull_into(p, globals, scene, LATE + view as usize, view, perspective)
     }
 
     /// `view`'s late list.
@@ -421,9 +418,9 @@ impl LodCull {
             .download_pod(ctx, 0, (LOD_VIEWS * LOD_WORDS) as u64)?;
         let word = |list: usize, k: u32| w[list * LOD_WORDS as usize + k as usize];
         Ok(LodCounts {
-            camera_batches: word(0, 0) + word(LATE, 0),
+            camera_batches: word(0, LOD_BATCHES) + word(LATE, LOD_BATCHES),
             camera_spheres: word(0, LOD_SPHERES) + word(LATE, LOD_SPHERES),
-            light_batches: word(1, 0) + word(LATE + 1, 0),
+            light_batches: word(1, LOD_BATCHES) + word(LATE + 1, LOD_BATCHES),
             light_spheres: word(1, LOD_SPHERES) + word(LATE + 1, LOD_SPHERES),
             late_spheres: word(LATE, LOD_SPHERES),
             light_late_spheres: word(LATE + 1, LOD_SPHERES),

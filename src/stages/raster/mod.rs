@@ -187,9 +187,10 @@ impl RasterStage {
         })
     }
 
-    /// Whether the last frame recorded ran the LOD cull.
-    pub fn lod_used(&self) -> bool {
-        self.lod_used.get()
+    /// The LOD cull, when the last frame recorded ran it (what its
+    /// counters and levels then hold).
+    pub fn last_cull(&self) -> Option<&LodCull> {
+        self.lod.as_ref().filter(|_| self.lod_used.get())
     }
 
     /// A frame is recorded without the LOD cull.
