@@ -165,6 +165,53 @@ fn a_leaked_buffer_is_reported_at_teardown() {
     );
 }
 
+/// A scene table the shaders only read as texels is bounded by the texel
+/// limit, not the storage range (an instanced scene's batch table passes
+/// lavapipe's 128 MiB near 10^9 atoms): one a little over the range is
+/// made, filled in pieces and read back; a storage buffer of that size is
+/// refused with a one-line error naming it and the limit.
+#[test]
+fn read_only_tables_pass_the_storage_range() {
+    let ctx = validated_context();
+    let range = ctx.props.limits.max_storage_buffer_range as u64;
+    let texels = ctx.props.limits.max_texel_buffer_elements as u64;
+    let size = range + (5 << 20) + 12;
+    assert!(
+        size / 4 <= texels,
+        "the device's texel limit is below its storage range"
+    );
+    let err = Buffer::storage(&ctx, "too large storage", size)
+        .err()
+        .expect("a storage buffer past the range must be refused")
+        .to_string();
+    assert!(
+        err.contains("too large storage") && err.contains("maxStorageBufferRange"),
+        "{err}"
+    );
+    let mut table = Buffer::table(&ctx, "large table", size).expect("table");
+    table
+        .view(&ctx, ash::vk::Format::R32_UINT)
+        .expect("a texel view of the whole table");
+    let words: Vec<u32> = (0..size / 4)
+        .map(|i| (i as u32).wrapping_mul(2654435761))
+        .collect();
+    table
+        .upload(&ctx, 0, bytemuck::cast_slice(&words))
+        .expect("upload in pieces");
+    // the ends of the first and last pieces, and the tail
+    for first in [0, (32 << 20) / 4 - 2, size / 4 - 3] {
+        let got: Vec<u32> = table.download_pod(&ctx, first, 3).expect("download");
+        assert_eq!(
+            got,
+            words[first as usize..first as usize + 3],
+            "at word {first}"
+        );
+    }
+    table.destroy(&ctx);
+    let (n, msgs) = ctx.finish();
+    assert_eq!(n, 0, "{}", msgs.join("\n---\n"));
+}
+
 /// Declared bindings are checked against the shader's SPIR-V at pipeline
 /// creation: a wrong access qualifier, a missing, an extra or a misnamed
 /// binding and a wrong push-constant size are each an error that names the

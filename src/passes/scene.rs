@@ -261,6 +261,14 @@ impl SceneBuffers {
                 }
                 coarse_batches[m] = off;
             }
+            // (reserved exactly: at 10^9 atoms the table is ~330 MiB, and a
+            // doubling growth would hold twice that for a moment)
+            let coarse_total: u64 = inst
+                .instance_molecule
+                .iter()
+                .map(|&m| coarse_batches[m as usize] as u64)
+                .sum();
+            batches.reserve_exact(coarse_total as usize + 1);
             let mut inst_rows = Vec::with_capacity(inst.instances());
             let mut first0 = 0u32;
             for (k, &m) in inst.instance_molecule.iter().enumerate() {
@@ -323,7 +331,7 @@ impl SceneBuffers {
                 ("LOD bounds", bytemuck::cast_slice(&bounds)),
                 ("LOD instances", bytemuck::cast_slice(&rows)),
             ] {
-                let b = ctx.guard(Buffer::storage(ctx, name, bytes.len().max(16) as u64)?);
+                let b = ctx.guard(Buffer::table(ctx, name, bytes.len().max(16) as u64)?);
                 b.upload(ctx, 0, bytes)?;
                 made.push(b.keep());
             }
@@ -354,12 +362,20 @@ impl SceneBuffers {
         Ok((buffers, geom))
     }
 
-    /// The six buffers (named, with their bytes) in field order; an error
-    /// part way destroys what was made.
+    /// The seven buffers (named, with their bytes) in field order; an
+    /// error part way destroys what was made. An instanced scene's are
+    /// read-only texel tables (not bound by the storage range: its batch
+    /// table passes 128 MiB near 10^9 atoms); a plain scene's spheres are
+    /// also the graphics rasterizer's storage buffer.
     fn upload(ctx: &Context, spec: u32, slots: u64, data: [(&str, &[u8]); 7]) -> Result<Self> {
         let mut made = ctx.guard(Vec::new());
+        let make = if spec & 0xFF == SCENE_PLAIN {
+            Buffer::storage
+        } else {
+            Buffer::table
+        };
         for (name, bytes) in data {
-            let b = ctx.guard(Buffer::storage(ctx, name, bytes.len().max(16) as u64)?);
+            let b = ctx.guard(make(ctx, name, bytes.len().max(16) as u64)?);
             if !bytes.is_empty() {
                 b.upload(ctx, 0, bytes)?;
             }

@@ -59,6 +59,9 @@ pub(crate) struct Resources {
     bounds: (DVec3, f64),
     /// Typical sphere radius (screen-space effect radii).
     typical_radius: f64,
+    /// SSDO may use per-sphere receivers: their flags (a bit per id) fit
+    /// one storage buffer (not so past ~10^9 ids on lavapipe's 128 MiB).
+    sphere_receivers: bool,
     globals: Globals,
     /// Write the colour buffer as BGRA (for BGRA swapchains).
     bgra: bool,
@@ -109,6 +112,7 @@ impl Resources {
         SceneScale {
             typical_radius: self.typical_radius,
             center: self.bounds.0,
+            sphere_receivers: self.sphere_receivers,
         }
     }
 
@@ -286,6 +290,10 @@ impl<'c> Renderer<'c> {
             translucent: scene.has_translucent(),
             bounds: (bs_center.as_dvec3(), bs_radius as f64),
             typical_radius: typical_radius(scene) as f64,
+            sphere_receivers: crate::stages::ssdo::sphere_flags_fit(
+                scene_buffers.slots,
+                ctx.props.limits.max_storage_buffer_range,
+            ),
             globals: Globals {
                 background: background_word(settings.look.background),
                 scene: crate::passes::scene::levels_word(scene),

@@ -40,6 +40,9 @@ fn advice(name: &str) -> &'static str {
     }
 }
 
+/// The most bytes one staging copy of [`Buffer::upload`] holds.
+const UPLOAD_PIECE: usize = 32 << 20;
+
 impl Buffer {
     pub fn new(
         ctx: &Context,
@@ -156,6 +159,20 @@ impl Buffer {
         )
     }
 
+    /// A device-local table the shaders only read, as uniform texels: not
+    /// a storage buffer, so maxTexelBufferElements bounds it, not the
+    /// storage range (lavapipe: 2^27 texels against 128 MiB; an instanced
+    /// scene's batch table at 10^9 atoms is ~330 MiB).
+    pub fn table(ctx: &Context, name: &str, size: u64) -> Result<Self> {
+        Self::new(
+            ctx,
+            name,
+            size,
+            vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER,
+            MemoryLocation::GpuOnly,
+        )
+    }
+
     /// A texel-buffer view of the whole buffer in `format` (made once,
     /// destroyed with the buffer).
     pub fn view(&self, ctx: &Context, format: vk::Format) -> Result<vk::BufferView> {
@@ -227,31 +244,38 @@ impl Buffer {
                 self.name
             )));
         }
+        // (in pieces through one staging buffer: a scene's tables reach
+        // hundreds of MiB, and a whole-size staging copy would double the
+        // peak host memory)
+        let piece = data.len().min(UPLOAD_PIECE);
         let mut staging = Buffer::new(
             ctx,
             &format!("{} upload", self.name),
-            data.len() as u64,
+            piece as u64,
             vk::BufferUsageFlags::TRANSFER_SRC,
             MemoryLocation::CpuToGpu,
         )?;
         let result = (|| {
-            let dst = staging
-                .mapped_mut()
-                .ok_or_else(|| Error::Internal("staging buffer not mapped".into()))?;
-            dst[..data.len()].copy_from_slice(data);
-            ctx.one_shot("upload", |cmd| {
-                let region = [vk::BufferCopy {
-                    src_offset: 0,
-                    dst_offset: offset,
-                    size: data.len() as u64,
-                }];
-                // SAFETY: the command buffer is in the recording state; the handles are live.
-                unsafe {
-                    ctx.device
-                        .cmd_copy_buffer(cmd, staging.raw, self.raw, &region)
-                };
-                Ok(())
-            })
+            for (k, chunk) in data.chunks(piece).enumerate() {
+                let dst = staging
+                    .mapped_mut()
+                    .ok_or_else(|| Error::Internal("staging buffer not mapped".into()))?;
+                dst[..chunk.len()].copy_from_slice(chunk);
+                ctx.one_shot("upload", |cmd| {
+                    let region = [vk::BufferCopy {
+                        src_offset: 0,
+                        dst_offset: offset + (k * piece) as u64,
+                        size: chunk.len() as u64,
+                    }];
+                    // SAFETY: the command buffer is in the recording state; the handles are live.
+                    unsafe {
+                        ctx.device
+                            .cmd_copy_buffer(cmd, staging.raw, self.raw, &region)
+                    };
+                    Ok(())
+                })?;
+            }
+            Ok(())
         })();
         staging.destroy(ctx);
         result

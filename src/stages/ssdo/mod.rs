@@ -188,6 +188,15 @@ impl SsdoParams {
 pub struct SceneScale {
     pub typical_radius: f64,
     pub center: DVec3,
+    /// Per-sphere receivers are possible ([`sphere_flags_fit`]); else
+    /// spheres of a few pixels take the small per-pixel taps.
+    pub sphere_receivers: bool,
+}
+
+/// Whether the per-sphere receivers' flags (a bit per id of `slots`) fit
+/// one storage buffer of `range` bytes.
+pub fn sphere_flags_fit(slots: u32, range: u32) -> bool {
+    (slots as u64).div_ceil(32) * 4 <= range as u64
 }
 
 /// The stage's switches for a frame (from the render settings).
@@ -293,7 +302,7 @@ impl SsdoStage {
         let choice = self.level_choice(cam, scale);
         // the blur's (and the upsample's) region level: the one weighted more
         let level_b = choice.blend >= 0.5;
-        let taps = if r / px < SSDO_SPHERE_RADIUS_PX {
+        let taps = if r / px < SSDO_SPHERE_RADIUS_PX && scale.sphere_receivers {
             SSDO_TAPS_SPHERE
         } else if r / px < SSDO_SMALL_RADIUS_PX {
             SSDO_TAPS_SMALL
@@ -493,6 +502,40 @@ mod tests {
 
     /// The blur pipelines are made for a fixed set of radii: every tap
     /// set's radius must be one of them.
+    /// Per-sphere receivers keep a flag bit per id in one storage buffer:
+    /// past the range (lavapipe's 128 MiB: 2^30 ids, an instanced scene
+    /// near 10^9 atoms) spheres of a few pixels take the per-pixel taps.
+    #[test]
+    fn sphere_receivers_only_where_their_flags_fit() {
+        let range = 128u32 << 20;
+        assert!(sphere_flags_fit(1 << 30, range));
+        assert!(!sphere_flags_fit((1 << 30) + 1, range));
+        assert!(sphere_flags_fit(0, 16));
+        let cam = Camera::new(
+            DVec3::ZERO,
+            DVec3::NEG_Z,
+            DVec3::Y,
+            1000.0,
+            None,
+            1920,
+            1080,
+        )
+        .expect("camera");
+        // spheres of 1.5 units: under a pixel across at 1000 units high
+        let stage = SsdoStage::new(Vec::new(), Vec::new(), 0);
+        for (fit, per_sphere) in [(true, true), (false, false)] {
+            let p = stage.params(
+                &cam,
+                SceneScale {
+                    typical_radius: 1.5,
+                    center: DVec3::ZERO,
+                    sphere_receivers: fit,
+                },
+            );
+            assert_eq!(p.taps.per_sphere(), per_sphere);
+        }
+    }
+
     #[test]
     fn tap_sets_blur_with_a_prepared_radius() {
         for (_, radius) in [SSDO_TAPS_LARGE, SSDO_TAPS_SMALL] {
