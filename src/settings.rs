@@ -580,6 +580,11 @@ pub struct LodParams {
     /// 0: full detail everywhere, culling only.
     #[arg(long, default_value_t = 2.0, allow_negative_numbers = true)]
     pub lod_pixels: f32,
+    /// Initial length of each view's LOD list in batches (grown when a
+    /// frame lists more, and the frame drawn again; default: an eighth of
+    /// the scene's full-detail batches, at least 65,536).
+    #[arg(long, value_name = "BATCHES")]
+    pub lod_list_batches: Option<u32>,
 }
 
 default_from_args!(LodParams);
@@ -595,6 +600,9 @@ impl LodParams {
             return Err(Error::Input(
                 "--lod-pixels must be between 0 and 1000".into(),
             ));
+        }
+        if self.lod_list_batches == Some(0) {
+            return Err(Error::Input("--lod-list-batches must be at least 1".into()));
         }
         Ok(())
     }

@@ -245,6 +245,11 @@ fn cases(d: &Path) -> Vec<Case> {
             "--lod-pixels must be between 0 and 1000",
         ),
         c(
+            "--lod-list-batches 0",
+            render(procedural.clone(), &["--lod-list-batches", "0"]),
+            "--lod-list-batches must be at least 1",
+        ),
+        c(
             "--scene meso --atoms 5e9",
             render(
                 vec!["--scene".into(), "meso".into(), "--atoms".into(), "5000000000".into()],

@@ -829,6 +829,47 @@ fn levels_follow_the_size_on_screen_with_a_band() {
     assert_no_validation_messages(&ctx);
 }
 
+/// The LOD lists told to start one batch long (`--lod-list-batches 1`):
+/// the first frame lists more, the lists grow and the frame is drawn again,
+/// and its image is the one of lists long enough from the start (colour,
+/// ids and depths, shadow AOV); the next frames fit. Under validation.
+#[test]
+fn lod_lists_grow_when_a_frame_overflows() {
+    let ctx = validated_context();
+    let s = meso("flagellarmotor_2-no_bonds.bcif");
+    let st = settings(camera(&s, 64, 48, None), ShadowMode::Issm);
+    let mut short = st.clone();
+    short.lod.lod_list_batches = Some(1);
+    let mut a = Renderer::new(&ctx, &s, st).expect("renderer");
+    let mut b = Renderer::new(&ctx, &s, short).expect("renderer");
+    for f in 0..2 {
+        a.render_frame().expect("frame");
+        b.render_frame().expect("frame");
+        let (ia, ib) = (a.inspect(), b.inspect());
+        let counts = ib.lod_counts().unwrap().expect("the cull ran");
+        let cap = ib.lod_list_capacity().expect("lists");
+        assert!(
+            cap > 1 && cap >= counts.camera_batches.max(counts.light_batches),
+            "frame {f}: {cap} batches for {counts:?}"
+        );
+        // (the counts may differ: the frame drawn again has the first
+        // try's occlusion history, so it draws more early and hides more)
+        assert!(
+            ia.read_vis().unwrap() == ib.read_vis().unwrap(),
+            "frame {f}: ids or depths differ"
+        );
+        assert!(
+            ia.read_color().unwrap() == ib.read_color().unwrap(),
+            "frame {f}: colours differ"
+        );
+        assert!(
+            ia.read_shadow().unwrap() == ib.read_shadow().unwrap(),
+            "frame {f}: shadows differ"
+        );
+    }
+    assert_no_validation_messages(&ctx);
+}
+
 /// A scene of more than 2^24 spheres (262,145 instances of a 64-atom
 /// molecule, 16,777,280 represented): the id AOV is RGBA16 (DESIGN.md),
 /// index + 1 in R, G, B, and names expanded indices past 2^24.

@@ -21,7 +21,7 @@ use crate::vk::{Buffer, Context, Recorder};
 pub const PASSES: &[(&str, &str)] = &[
     (
         "lod_cull",
-        "instanced scenes with levels of detail (`--lod auto`): one invocation per instance places its molecule's bounding sphere and tests it against the camera's pixel window, chooses the coarsest level whose switch size the instance is within (a prefix of the molecule's atoms in a spatial order, radii grown; kept only where its outline keeps 95 % of the molecule's; a coarser one than last frame's only a band below its switch size) and keeps the level for the light; the kept (instance, level) batches of those that passed the occlusion test last frame are listed with one `atomicAdd`, and the rasterizer visits the list, dispatched indirectly, instead of the view's order",
+        "instanced scenes with levels of detail (`--lod auto`): one invocation per instance places its molecule's bounding sphere and tests it against the camera's pixel window, chooses the coarsest level whose switch size the instance is within (a prefix of the molecule's atoms in a spatial order, radii grown; kept only where its outline keeps 95 % of the molecule's, or what half a pixel of motion keeps; a coarser one than last frame's only a band below its switch size) and keeps the level for the light; the kept (instance, level) batches of those that passed the occlusion test last frame are listed with one `atomicAdd`, and the rasterizer visits the list, dispatched indirectly, instead of the view's order",
     ),
     (
         "raster",
@@ -163,7 +163,12 @@ impl Stages {
     ) -> Result<Self> {
         let scene = scene_buffers.spec;
         Ok(Stages {
-            raster: RasterStage::new(ctx, settings.raster == RasterMode::Graphics, scene_buffers)?,
+            raster: RasterStage::new(
+                ctx,
+                settings.raster == RasterMode::Graphics,
+                scene_buffers,
+                settings.lod.lod_list_batches,
+            )?,
             see_through: None,
             shadows: ShadowStage::new(),
             ssdo: SsdoStage::new(levels, thresholds, scene),

@@ -53,6 +53,11 @@ impl<'r> Inspect<'r, '_> {
         cull.map(|l| l.counts(self.r.ctx)).transpose()
     }
 
+    /// Batches each LOD list holds now (None: the last frame drew none).
+    pub fn lod_list_capacity(&self) -> Option<u32> {
+        self.r.res.stages.raster.last_cull().map(|l| l.capacity())
+    }
+
     /// Each instance's level of detail in the last frame (None: the cull
     /// did not run).
     pub fn lod_levels(&self) -> Result<Option<Vec<u32>>> {

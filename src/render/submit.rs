@@ -9,8 +9,8 @@ use crate::stages::shadows::FrameCheck;
 use crate::vk::{PassTimes, Recorder};
 use ash::vk;
 
-/// Frames the deep lists may ask to render again (pool growth) before the
-/// frame fails.
+/// Frames the deep lists, the see-through fragments or the LOD lists may
+/// ask to render again (growth) before the frame fails.
 const MAX_RETRIES: usize = 4;
 
 impl Renderer<'_> {
@@ -67,13 +67,14 @@ impl Renderer<'_> {
             }
         }
         Err(Error::DeviceLimit(
-            "the deep shadow lists' or see-through fragments' pool still overflows after growing it"
+            "the deep shadow lists', see-through fragments' or LOD lists' pool still overflows \
+             after growing it"
                 .into(),
         ))
     }
 
-    /// The deep lists and the see-through fragments check their pools; a
-    /// frame either overflowed is rendered again.
+    /// The deep lists, the see-through fragments and the LOD lists check
+    /// their pools; a frame any of them overflowed is rendered again.
     fn after_frame(&mut self) -> Result<FrameCheck> {
         let shadows = self.res.stages.shadows.after_frame(self.ctx)?;
         let see = self.res.see_through(&self.settings);
@@ -81,12 +82,19 @@ impl Renderer<'_> {
             Some(s) if see => s.after_frame(self.ctx)?,
             _ => false,
         };
-        Ok(if grown { FrameCheck::Retry } else { shadows })
+        let lod = self.res.stages.raster.after_frame(self.ctx)?;
+        Ok(if grown || lod {
+            FrameCheck::Retry
+        } else {
+            shadows
+        })
     }
 
     /// Whether each frame must be checked before the next is recorded.
     fn checks_frames(&self) -> bool {
-        self.res.stages.shadows.checks_frames() || self.res.see_through(&self.settings)
+        self.res.stages.shadows.checks_frames()
+            || self.res.see_through(&self.settings)
+            || self.res.lod_lists(&self.settings)
     }
 
     /// Records and submits the next frame without waiting for it; returns

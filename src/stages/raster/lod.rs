@@ -58,6 +58,10 @@ const HIZ_WORDS: u64 = (1024 * 1024) + (128 * 128);
 /// words).
 const LATE: usize = 2;
 
+/// Entries of a list past its capacity: the empty batch the last
+/// workgroup's lanes read past the count.
+const LIST_TAIL: u64 = 64;
+
 /// Spheres and batches a frame's cull kept, per view.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct LodCounts {
@@ -95,7 +99,11 @@ pub struct LodCull {
     counters: Buffer,
     /// Per instance: the camera's level.
     levels: Buffer,
+    /// Batches a list holds (its buffer has room for [`LIST_TAIL`] more:
+    /// the last workgroup's lanes read past the count).
     capacity: u32,
+    /// The most a list can ever need: the scene's full-detail batches.
+    most: u32,
     instances: u32,
     empty_batch: u32,
     per: u32,
@@ -111,7 +119,16 @@ impl LodCull {
 
     /// The pass for a scene with levels of detail (`lod`, its SCENE_SPEC
     /// `scene`).
-    pub fn new(ctx: &Context, scene: u32, lod: &LodBuffers) -> Result<Self> {
+    /// The cull of a scene (SCENE_SPEC `scene`) with levels `lod`; each
+    /// view's lists start `list_batches` long (default: an eighth of the
+    /// full-detail batches, at least 2^16) and grow on overflow
+    /// ([`LodCull::grow_if_overflowed`]).
+    pub fn new(
+        ctx: &Context,
+        scene: u32,
+        lod: &LodBuffers,
+        list_batches: Option<u32>,
+    ) -> Result<Self> {
         let bindings = [&BINDINGS[..], &SCENE_GEOMETRY].concat();
         let make = |name: &str, persp: u32| {
             ComputePipeline::new(
@@ -157,13 +174,13 @@ impl LodCull {
         };
         let hiz16 = ctx.guard(hiz("lod depth tiles", 0)?);
         let hiz128 = ctx.guard(hiz("lod depth tiles 128", 1)?);
-        // (room past the count for the last workgroup's lanes)
-        let capacity = lod.base_batches + 64;
-        let list = |name| Buffer::storage(ctx, name, capacity as u64 * 4);
-        let camera = ctx.guard(list("camera LOD list")?);
-        let light = ctx.guard(list("light LOD list")?);
-        let late = ctx.guard(list("camera late LOD list")?);
-        let light_late = ctx.guard(list("light late LOD list")?);
+        // (a view lists each instance once, at one level: never more than
+        // the full-detail batches)
+        let most = lod.base_batches.max(1);
+        let capacity = list_batches
+            .unwrap_or((most / 8).max(1 << 16))
+            .clamp(1, most);
+        let lists = ctx.guard(Self::lists(ctx, capacity)?);
         let counters = ctx.guard(crate::passes::bands::counters_buffer(
             ctx,
             "LOD counters",
@@ -203,7 +220,7 @@ impl LodCull {
             cull: [ortho.keep(), persp.keep()],
             args: args.keep(),
             hiz: [hiz16.keep(), hiz128.keep()],
-            lists: [camera.keep(), light.keep(), late.keep(), light_late.keep()],
+            lists: lists.keep(),
             visible: visible.keep(),
             hiz_tiles: [hiz_camera.keep(), hiz_light.keep()],
             history: std::cell::Cell::new(false),
@@ -212,6 +229,7 @@ impl LodCull {
             counters: counters.keep(),
             levels,
             capacity,
+            most,
             instances: lod.instance_count,
             empty_batch: lod.empty_batch,
             per: 1 << (scene >> 8),
@@ -425,6 +443,62 @@ impl LodCull {
             late_spheres: word(LATE, LOD_SPHERES),
             light_late_spheres: word(LATE + 1, LOD_SPHERES),
         })
+    }
+
+    /// The four lists (camera, light, camera late, light late) of
+    /// `capacity` batches each.
+    fn lists(ctx: &Context, capacity: u32) -> Result<[Buffer; 4]> {
+        let mut made = ctx.guard(Vec::new());
+        for name in [
+            "camera LOD list",
+            "light LOD list",
+            "camera late LOD list",
+            "light late LOD list",
+        ] {
+            made.push(Buffer::storage(
+                ctx,
+                name,
+                (capacity as u64 + LIST_TAIL) * 4,
+            )?);
+        }
+        made.keep()
+            .try_into()
+            .map_err(|_| crate::error::Error::Internal("LOD lists".into()))
+    }
+
+    /// Batches each list holds now.
+    pub fn capacity(&self) -> u32 {
+        self.capacity
+    }
+
+    /// After a frame that drew the lists: if a list was given more batches
+    /// than it holds (the cull dropped the rest), makes them all a quarter
+    /// longer than the most asked (at most the full-detail batches) and
+    /// returns true: the frame must be drawn again. The GPU must be idle.
+    pub fn grow_if_overflowed(&mut self, ctx: &Context) -> Result<bool> {
+        let w: Vec<u32> = self
+            .counters
+            .download_pod(ctx, 0, (LOD_VIEWS * LOD_WORDS) as u64)?;
+        let asked = (0..LOD_VIEWS as usize)
+            .map(|v| w[v * LOD_WORDS as usize + LOD_BATCHES as usize])
+            .max()
+            .unwrap_or(0);
+        if asked <= self.capacity {
+            return Ok(false);
+        }
+        let capacity = asked
+            .saturating_add(asked / 4)
+            .clamp(asked.min(self.most), self.most);
+        let lists = Self::lists(ctx, capacity)?;
+        for mut old in std::mem::replace(&mut self.lists, lists) {
+            old.destroy(ctx);
+        }
+        log::debug!(
+            "LOD lists grown from {} to {capacity} batches ({asked} asked)",
+            self.capacity
+        );
+        self.capacity = capacity;
+        Ok(true)
     }
 
     /// Device memory: the lists, counters and levels.

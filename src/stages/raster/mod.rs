@@ -96,7 +96,13 @@ pub struct RasterStage {
 
 impl RasterStage {
     /// The stage for a scene (its SCENE_SPEC and levels of detail).
-    pub fn new(ctx: &Context, graphics: bool, scene_buffers: &SceneBuffers) -> Result<Self> {
+    /// `list_batches`: the LOD lists' initial length (`--lod-list-batches`).
+    pub fn new(
+        ctx: &Context,
+        graphics: bool,
+        scene_buffers: &SceneBuffers,
+        list_batches: Option<u32>,
+    ) -> Result<Self> {
         let scene = scene_buffers.spec;
         if graphics && scene & 0xFF != crate::gpu::consts::SCENE_PLAIN {
             return Err(Error::Input(
@@ -112,7 +118,7 @@ impl RasterStage {
         let compute = ctx.guard(RasterPass::new(ctx, scene)?);
         let coverage = ctx.guard(CoveragePass::new(ctx)?);
         let lod = match &scene_buffers.lod {
-            Some(l) => Some(LodCull::new(ctx, scene, l)?),
+            Some(l) => Some(LodCull::new(ctx, scene, l, list_batches)?),
             None => None,
         };
         Ok(RasterStage {
@@ -122,6 +128,15 @@ impl RasterStage {
             lod,
             lod_used: std::cell::Cell::new(false),
         })
+    }
+
+    /// After a frame: whether it must be drawn again because a LOD list
+    /// overflowed (the lists were grown). The GPU must be idle.
+    pub fn after_frame(&mut self, ctx: &Context) -> Result<bool> {
+        match &mut self.lod {
+            Some(l) if self.lod_used.get() => l.grow_if_overflowed(ctx),
+            _ => Ok(false),
+        }
     }
 
     /// `lod_cull`: this frame's camera list, when the scene has levels of
