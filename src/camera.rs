@@ -176,12 +176,27 @@ pub fn light_view(
     light_dir: DVec3,
     size: u32,
 ) -> Result<Camera> {
+    let axes = light_axes(light_dir)?;
+    light_view_of(extent_along(spheres, axes), axes, size)
+}
+
+/// The light view's axes for `light_dir` (from the light toward the
+/// scene): right, up, and the unit direction.
+pub fn light_axes(light_dir: DVec3) -> Result<[DVec3; 3]> {
     let d = unit(light_dir)
         .ok_or_else(|| Error::Input("--light must be a finite non-zero direction".into()))?;
     // Any up not parallel to d.
     let hint = if d.y.abs() < 0.9 { DVec3::Y } else { DVec3::X };
     let right = d.cross(hint).normalize();
-    let up = right.cross(d);
+    Ok([right, right.cross(d), d])
+}
+
+/// Along each of `axes`, the least `centre . axis - radius` and the
+/// largest `centre . axis + radius` of `spheres` (None: no spheres).
+pub fn extent_along(
+    spheres: impl Iterator<Item = ([f32; 3], f32)>,
+    [right, up, d]: [DVec3; 3],
+) -> Option<(DVec3, DVec3)> {
     let (mut lo, mut hi) = (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN));
     for (c, r) in spheres {
         let c = DVec3::new(c[0] as f64, c[1] as f64, c[2] as f64);
@@ -189,10 +204,17 @@ pub fn light_view(
         lo = lo.min(p - r as f64);
         hi = hi.max(p + r as f64);
     }
-    if lo.x > hi.x {
-        lo = DVec3::splat(-1.0);
-        hi = DVec3::splat(1.0);
-    }
+    (lo.x <= hi.x).then_some((lo, hi))
+}
+
+/// The orthographic light view along `axes` (from [`light_axes`]) fitted
+/// to the spheres' `extent` along them (None: a unit box), `size`² texels.
+pub fn light_view_of(
+    extent: Option<(DVec3, DVec3)>,
+    [right, up, d]: [DVec3; 3],
+    size: u32,
+) -> Result<Camera> {
+    let (lo, hi) = extent.unwrap_or((DVec3::splat(-1.0), DVec3::splat(1.0)));
     let mid = 0.5 * (lo + hi);
     let center = mid.x * right + mid.y * up + mid.z * d;
     // Square texels; a hair of margin keeps border spheres off the edge.

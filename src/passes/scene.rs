@@ -15,6 +15,7 @@ use crate::gpu::consts::{
 };
 use crate::gpu::{GpuBatch, GpuSphere, SphereAttr};
 use crate::scene::Scene;
+use crate::scene::instanced::extremes::Extremes;
 use crate::scene::instanced::lod::MoleculeLod;
 use crate::scene::instanced::{LevelKind, Transforms};
 use crate::vk::pipeline::{Binding, texel};
@@ -702,7 +703,72 @@ impl SceneGeom {
     /// Bounding sphere of the sphere centres' box centre and the farthest
     /// surface (as `Scene::bounding_sphere`).
     pub fn bounding_sphere(&self) -> (DVec3, f64) {
+        if let Some(e) = self.extremes() {
+            return e.center_bounds().map_or((DVec3::ZERO, 0.0), |(lo, hi)| {
+                let c = (lo + hi) * 0.5;
+                (c.as_dvec3(), e.reach_from(c) as f64)
+            });
+        }
         box_sphere(|| self.spheres()).map_or((DVec3::ZERO, 0.0), |(c, r)| (c.as_dvec3(), r as f64))
+    }
+
+    /// An instanced scene's instances as [`Extremes`] (None: plain).
+    fn extremes(&self) -> Option<Extremes<'_>> {
+        match self {
+            SceneGeom::Plain(_) => None,
+            SceneGeom::Instanced(i) => Some(Extremes::new(
+                &i.transforms,
+                &i.instance_molecule,
+                i.molecules.clone(),
+                std::borrow::Cow::Borrowed(&i.atoms),
+            )),
+        }
+    }
+
+    /// Along each of `axes`, the least `centre . axis - radius` and the
+    /// largest `centre . axis + radius` over every represented sphere
+    /// (None: no spheres): what a light view is fitted to.
+    pub fn extent_along(&self, axes: [DVec3; 3]) -> Option<(DVec3, DVec3)> {
+        if let Some(e) = self.extremes() {
+            return e.extent_along(axes);
+        }
+        crate::camera::extent_along(self.spheres(), axes)
+    }
+
+    /// The least `(centre - eye) . dir - radius` over every represented
+    /// sphere (None: no spheres).
+    pub fn nearest_along(&self, eye: DVec3, dir: DVec3) -> Option<f64> {
+        if let Some(e) = self.extremes() {
+            return e.nearest_along(eye, dir);
+        }
+        self.spheres()
+            .map(|(g, r)| {
+                (DVec3::new(g[0] as f64, g[1] as f64, g[2] as f64) - eye).dot(dir) - r as f64
+            })
+            .reduce(f64::min)
+    }
+
+    /// The least and the largest radius of a represented sphere
+    /// (`(f32::MAX, 0)` for none): an instanced scene's from the atoms of
+    /// the molecule types that have instances.
+    pub fn radius_range(&self) -> (f32, f32) {
+        let fold = |it: &mut dyn Iterator<Item = f32>| {
+            it.fold((f32::MAX, 0.0f32), |(lo, hi), r| (lo.min(r), hi.max(r)))
+        };
+        match self {
+            SceneGeom::Plain(g) => fold(&mut g.iter().map(|s| s[3])),
+            SceneGeom::Instanced(i) => {
+                let mut used = vec![false; i.molecules.len()];
+                for &m in &i.instance_molecule {
+                    used[m as usize] = true;
+                }
+                fold(
+                    &mut i.molecules.iter().zip(&used).filter(|(_, u)| **u).flat_map(
+                        |(&(f, n), _)| i.atoms[f as usize..(f + n) as usize].iter().map(|a| a[3]),
+                    ),
+                )
+            }
+        }
     }
 }
 

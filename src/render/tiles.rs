@@ -206,7 +206,7 @@ impl<'a> Renderer<'a> {
         if p.taps.per_sphere() {
             // per-sphere receivers march from a sphere's surface point
             // facing each direction: up to a diameter from the pixel
-            let r = self.res.geom.radii().fold(0.0f32, f32::max);
+            let r = self.res.geom.radius_range().1;
             reach += 2.0 * r as f64;
         }
         let mut ppu = cam.pixels_per_unit();
@@ -214,15 +214,7 @@ impl<'a> Renderer<'a> {
             // a world length at view distance z spans dist / z times its
             // length at the view centre: the nearest sphere sets the reach
             let (eye, dir, dist) = (cam.eye(), cam.dir, cam.eye_distance());
-            let near = self
-                .res
-                .geom
-                .spheres()
-                .map(|(g, r)| {
-                    let c = glam::DVec3::new(g[0] as f64, g[1] as f64, g[2] as f64);
-                    (c - eye).dot(dir) - r as f64
-                })
-                .fold(f64::MAX, f64::min);
+            let near = self.res.geom.nearest_along(eye, dir).unwrap_or(f64::MAX);
             ppu *= dist / near.max(1e-3 * dist);
         }
         let px = (reach * ppu).ceil().min(1e6) as u32;

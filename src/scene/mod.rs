@@ -179,6 +179,9 @@ impl Scene {
 
     /// Component-wise min and max of the sphere centres (None if empty).
     pub fn center_bounds(&self) -> Option<(Vec3, Vec3)> {
+        if let Some(e) = self.extremes() {
+            return e.center_bounds();
+        }
         let mut b: Option<(Vec3, Vec3)> = None;
         self.for_each_geometry(|c, _| {
             let c = Vec3::from(c);
@@ -195,6 +198,9 @@ impl Scene {
             return (Vec3::ZERO, 0.0);
         };
         let c = (lo + hi) * 0.5;
+        if let Some(e) = self.extremes() {
+            return (c, e.reach_from(c));
+        }
         let mut r = 0.0f32;
         self.for_each_geometry(|p, radius| r = r.max(Vec3::from(p).distance(c) + radius));
         (c, r)

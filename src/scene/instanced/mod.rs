@@ -270,6 +270,22 @@ impl Scene {
 
     /// Centre and radius of every represented sphere (faster than
     /// `for_each_sphere`: no regions).
+    /// The scene's instances as [`extremes::Extremes`] (None: plain).
+    pub fn extremes(&self) -> Option<extremes::Extremes<'_>> {
+        let inst = self.instancing.as_ref()?;
+        let atoms: Vec<[f32; 4]> = self
+            .spheres
+            .iter()
+            .map(|s| [s.center[0], s.center[1], s.center[2], s.radius])
+            .collect();
+        Some(extremes::Extremes::new(
+            &inst.transforms,
+            &inst.instance_molecule,
+            inst.molecules.iter().map(|m| (m.first, m.atoms)).collect(),
+            std::borrow::Cow::Owned(atoms),
+        ))
+    }
+
     pub fn for_each_geometry(&self, mut f: impl FnMut([f32; 3], f32)) {
         let Some(inst) = &self.instancing else {
             self.spheres.iter().for_each(|s| f(s.center, s.radius));
@@ -583,14 +599,37 @@ impl InstancedBuilder {
 /// Every represented centre stays within the f32 range sphereshade renders.
 fn check_extent(scene: &Scene) -> Result<(), SceneError> {
     let limit = super::MAX_COORDINATE;
+    let ok = |c: &[f32; 3]| c.iter().all(|v| v.is_finite() && v.abs() <= limit);
     let mut bad = None;
     let mut i = 0u64;
-    scene.for_each_geometry(|c, _| {
-        if bad.is_none() && !c.iter().all(|v| v.is_finite() && v.abs() <= limit) {
-            bad = Some((i, c));
+    // (instances whose hull lies inside are counted, not scanned: at 10^9
+    // atoms a full scan took most of the scene's build)
+    match scene.extremes() {
+        Some(e) => {
+            for k in 0..scene.instancing.as_ref().map_or(0, |x| x.instances()) {
+                if e.inside(k, limit as f64) {
+                    i += e.atom_count(k) as u64;
+                    continue;
+                }
+                for (c, _) in e.atoms_of(k) {
+                    if !ok(&c) {
+                        bad = Some((i, c));
+                        break;
+                    }
+                    i += 1;
+                }
+                if bad.is_some() {
+                    break;
+                }
+            }
         }
-        i += 1;
-    });
+        None => scene.for_each_geometry(|c, _| {
+            if bad.is_none() && !ok(&c) {
+                bad = Some((i, c));
+            }
+            i += 1;
+        }),
+    }
     match bad {
         Some((i, c)) => Err(SceneError::Invalid(format!(
             "{}: sphere {i} lands at {c:?}, outside ±{limit:e}, the range sphereshade renders in f32",
@@ -689,6 +728,7 @@ pub fn run_center(atoms: &[Sphere]) -> Vec3 {
     atoms.iter().map(|s| Vec3::from(s.center)).sum::<Vec3>() / n
 }
 
+pub mod extremes;
 pub mod lod;
 
 #[cfg(test)]

@@ -143,4 +143,31 @@ fn far_instances_are_refused() {
         .unwrap();
     let e = b.finish("far").unwrap_err();
     assert!(e.to_string().contains("outside"), "{e}");
+    // the first far sphere is named by its expanded index, past instances
+    // shown inside by their hulls and one near the limit that is scanned
+    let mut b = InstancedBuilder::default();
+    let m = b.molecule(
+        "a",
+        0,
+        vec![
+            atom([0.0; 3], 0),
+            atom([1.0, 0.0, 0.0], 0),
+            atom([2.0, 0.0, 0.0], 0),
+        ],
+    );
+    for x in [0.0, 5e14, 9.999e14, 2e15, 3e15] {
+        b.instance_quat("t", m, DQuat::IDENTITY, [x, 0.0, 0.0])
+            .unwrap();
+    }
+    let e = b.finish("far").unwrap_err().to_string();
+    assert!(e.contains("sphere 9 lands"), "{e}");
+    let mut b = InstancedBuilder::default();
+    let m = b.molecule(
+        "a",
+        0,
+        vec![atom([0.0; 3], 0), atom([f32::NAN, 0.0, 0.0], 0)],
+    );
+    b.instance_quat("t", m, DQuat::IDENTITY, [0.0; 3]).unwrap();
+    let e = b.finish("nan").unwrap_err().to_string();
+    assert!(e.contains("sphere 1 lands"), "{e}");
 }

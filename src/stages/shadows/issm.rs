@@ -120,9 +120,7 @@ impl Issm {
         let (t, stride) = match p.t.0 {
             Some(t) => (t, 1),
             None => {
-                let (min_r, max_r) = setup
-                    .radii()
-                    .fold((f32::MAX, 0.0f32), |(lo, hi), r| (lo.min(r), hi.max(r)));
+                let (min_r, max_r) = setup.geom.radius_range();
                 let t = auto_t(max_r, if self.soft { p.soft_s } else { 0.0 }, texel);
                 (t, auto_stride(min_r, texel))
             }

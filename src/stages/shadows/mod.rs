@@ -92,7 +92,8 @@ pub struct ShadowSetup<'a> {
 impl ShadowSetup<'_> {
     /// The orthographic light view fitted to the spheres at `size`² texels.
     pub fn fit(&self, size: u32) -> Result<Camera> {
-        crate::camera::light_view(self.geom.spheres(), self.light_dir, size)
+        let axes = crate::camera::light_axes(self.light_dir)?;
+        crate::camera::light_view_of(self.geom.extent_along(axes), axes, size)
     }
 
     /// Every represented sphere's radius.
