@@ -259,3 +259,45 @@ fn view_draws_an_instanced_model_in_every_mode() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `--script fly-in` through the meso scene under validation: 64 wheel
+/// notches from the whole scene to 0.9^64 of its height, into one protein
+/// (levels of detail switching on the way, the LOD lists growing as they
+/// must), the frame intervals reported.
+#[test]
+fn view_flies_into_the_meso_scene() {
+    let dir = std::env::temp_dir().join(format!("sphereshade-view-fly-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let shot = dir.join("fly.png");
+    let o = view(
+        &[
+            "--scene",
+            "meso",
+            "--atoms",
+            "2000000",
+            "--width",
+            "128",
+            "--height",
+            "96",
+            "--view-height",
+            "3000",
+            "--frames",
+            "70",
+            "--script",
+            "fly-in",
+            "--validate",
+        ],
+        &shot,
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(0), "view failed: {err}");
+    let line = err
+        .lines()
+        .find(|l| l.contains("frame intervals"))
+        .unwrap_or_else(|| panic!("no intervals: {err}"));
+    let height: f64 = line.rsplit(' ').next().unwrap().parse().unwrap();
+    let want = 3000.0 * 0.9f64.powi(64);
+    assert!((height - want).abs() < 1e-9 * want, "{line}");
+    assert!(image::open(&shot).is_ok(), "no screenshot");
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -49,8 +49,11 @@ pub struct ViewCmd {
     pub resize_test: bool,
     /// Replay input, one action per frame, through the same handlers as
     /// keys and mouse (tests, measurements): `toggle-all` presses every mode
-    /// key through all its states and drags the light 8 steps.
-    #[arg(long, value_parser = ["toggle-all"])]
+    /// key through all its states and drags the light 8 steps; `fly-in`
+    /// turns the wheel one notch a frame for 64 frames (the view 0.9x as
+    /// high each: from a whole scene into one molecule) and reports the
+    /// frame intervals.
+    #[arg(long, value_parser = ["toggle-all", "fly-in"])]
     pub script: Option<String>,
     /// Play a trajectory of the INPUT topology (space play/pause, left/right
     /// step, [ ] slower/faster, L loop).
@@ -66,6 +69,8 @@ pub struct ViewCmd {
 enum Action {
     Key(&'static str),
     LightDrag(f64, f64),
+    /// Wheel notches (positive: in).
+    Zoom(f64),
 }
 
 fn script(name: &str) -> Vec<Action> {
@@ -83,6 +88,7 @@ fn script(name: &str) -> Vec<Action> {
             v.extend([Action::Key("s"); 6]);
             v
         }
+        "fly-in" => vec![Action::Zoom(1.0); 64],
         _ => Vec::new(),
     }
 }
@@ -138,6 +144,9 @@ struct App<'c> {
     actions: std::collections::VecDeque<Action>,
     /// Seconds spent in mode toggles and light-drag steps (handler only).
     toggle_times: Vec<f64>,
+    /// Seconds between successive presents (a stall is a long one).
+    intervals: Vec<f64>,
+    last_present: Option<Instant>,
     drag_times: Vec<f64>,
     player: Option<player::Player>,
     /// T's see-through presets: the colours as loaded, each sphere record's
@@ -376,6 +385,10 @@ impl<'c> App<'c> {
             return Ok(());
         }
         self.frames += 1;
+        let now = Instant::now();
+        if let Some(t) = self.last_present.replace(now) {
+            self.intervals.push((now - t).as_secs_f64());
+        }
         if self.frames == 1 {
             self.second_frame_at = Some(Instant::now());
             eprintln!(
@@ -422,7 +435,16 @@ impl<'c> App<'c> {
                 (self.shift, self.buttons) = (shift, buttons);
                 r
             }
+            Action::Zoom(steps) => self.zoom(steps),
         }
+    }
+
+    /// The wheel: each notch in makes the view 0.9x as high.
+    fn zoom(&mut self, steps: f64) -> Result<()> {
+        if let Some(o) = &mut self.orbit {
+            o.height *= 0.9f64.powf(steps);
+        }
+        self.update_camera()
     }
 
     fn key(&mut self, key: &Key) -> Result<()> {
@@ -606,10 +628,7 @@ impl ApplicationHandler for App<'_> {
                     MouseScrollDelta::LineDelta(_, y) => y as f64,
                     MouseScrollDelta::PixelDelta(p) => p.y / 40.0,
                 };
-                if let Some(o) = &mut self.orbit {
-                    o.height *= 0.9f64.powf(steps);
-                }
-                self.update_camera()
+                self.zoom(steps)
             }
             _ => Ok(()),
         };
@@ -728,6 +747,8 @@ pub fn run(cmd: ViewCmd) -> Result<Exit> {
         exit: Exit::Ok,
         actions,
         toggle_times: Vec::new(),
+        intervals: Vec::new(),
+        last_present: None,
         drag_times: Vec::new(),
         player: None,
         loaded_colors: Vec::new(),
@@ -742,6 +763,23 @@ pub fn run(cmd: ViewCmd) -> Result<Exit> {
         );
     }
     let mean_ms = |v: &[f64]| 1e3 * v.iter().sum::<f64>() / v.len().max(1) as f64;
+    if app.cmd.script.is_some() && !app.intervals.is_empty() {
+        let mut v = app.intervals.clone();
+        v.sort_by(f64::total_cmp);
+        let (at, most) = app
+            .intervals
+            .iter()
+            .enumerate()
+            .fold((0, 0.0), |b, (i, &t)| if t > b.1 { (i + 2, t) } else { b });
+        eprintln!(
+            "view: {} frame intervals: median {:.1} ms, longest {:.1} ms (before frame {at}); \
+             final view height {}",
+            v.len(),
+            1e3 * v[v.len() / 2],
+            1e3 * most,
+            app.orbit.map_or(0.0, |o| o.height)
+        );
+    }
     if !app.toggle_times.is_empty() || !app.drag_times.is_empty() {
         eprintln!(
             "view: {} mode toggles, mean {:.1} ms (max {:.1}); {} light-drag steps, mean {:.1} ms; \
