@@ -829,3 +829,47 @@ fn streamed_tiled_files_equal_the_untiled_ones() {
     }
     assert_eq!(a["image_sha256"], b["image_sha256"]);
 }
+
+/// Memory per instance from the JSON (the bytes-per-instance
+/// figure): two meso scenes of 2 and 6 million atoms. The `instances`
+/// class is 48 bytes an instance (a rigid transform, 32, and its LOD row,
+/// 16); the `molecules` class (the atoms stored once, their levels) does
+/// not grow with the scene; `spheres_drawn` is at most `spheres`.
+#[test]
+fn memory_per_instance_is_in_the_json() {
+    let read = |atoms: &str| -> serde_json::Value {
+        let (png, json) = (
+            tmp(&format!("meso{atoms}.png")),
+            tmp(&format!("meso{atoms}.json")),
+        );
+        let o = run(&[
+            "render",
+            "--scene",
+            "meso",
+            "--atoms",
+            atoms,
+            "--width",
+            "64",
+            "--height",
+            "48",
+            "--out",
+            png.to_str().unwrap(),
+            "--json",
+            json.to_str().unwrap(),
+        ]);
+        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap()
+    };
+    let (a, b) = (read("2000000"), read("6000000"));
+    let class = |v: &serde_json::Value, c: &str| v["gpu_memory"][c].as_u64().unwrap();
+    for v in [&a, &b] {
+        let n = v["instances"].as_u64().unwrap();
+        assert_eq!(class(v, "instances"), 48 * n, "{v}");
+        assert!(v["spheres_drawn"].as_u64().unwrap() <= v["spheres"].as_u64().unwrap());
+        assert_eq!(v["unique_atoms"], 17_337);
+    }
+    // (the virion's 11,681 instances, then the plasma's)
+    let plasma = |v: &serde_json::Value| v["instances"].as_u64().unwrap() - 11_681;
+    assert!(plasma(&b) > 2 * plasma(&a), "{} {}", plasma(&a), plasma(&b));
+    assert_eq!(class(&a, "molecules"), class(&b, "molecules"));
+}
