@@ -873,3 +873,37 @@ fn memory_per_instance_is_in_the_json() {
     assert!(plasma(&b) > 2 * plasma(&a), "{} {}", plasma(&a), plasma(&b));
     assert_eq!(class(&a, "molecules"), class(&b, "molecules"));
 }
+
+/// 10^8 atoms (the meso scene, 24,789 instances) under validation (GPU-AV
+/// and synchronization): two frames, zero messages, every atom
+/// represented and far fewer drawn.
+#[test]
+fn a_hundred_million_atoms_render_under_validation() {
+    let (png, json) = (tmp("meso1e8.png"), tmp("meso1e8.json"));
+    let o = run(&[
+        "render",
+        "--scene",
+        "meso",
+        "--atoms",
+        "100000000",
+        "--width",
+        "320",
+        "--height",
+        "180",
+        "--frames",
+        "2",
+        "--validate",
+        "--out",
+        png.to_str().unwrap(),
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(v["validation_messages"], 0);
+    let spheres = v["spheres"].as_u64().unwrap();
+    assert!(spheres.abs_diff(100_000_000) <= 11_484 / 2, "{spheres}");
+    let drawn = v["spheres_drawn"].as_u64().unwrap();
+    assert!(drawn > 0 && drawn < spheres / 10, "{drawn} of {spheres}");
+}
