@@ -390,7 +390,7 @@ impl<'c> App<'c> {
             self.intervals.push((now - t).as_secs_f64());
         }
         if self.frames == 1 {
-            self.second_frame_at = Some(Instant::now());
+            self.second_frame_at = Some(now);
             eprintln!(
                 "view: first frame presented {:.0} ms after start",
                 self.started.elapsed().as_secs_f64() * 1e3

@@ -703,13 +703,11 @@ impl SceneGeom {
     /// Bounding sphere of the sphere centres' box centre and the farthest
     /// surface (as `Scene::bounding_sphere`).
     pub fn bounding_sphere(&self) -> (DVec3, f64) {
-        if let Some(e) = self.extremes() {
-            return e.center_bounds().map_or((DVec3::ZERO, 0.0), |(lo, hi)| {
-                let c = (lo + hi) * 0.5;
-                (c.as_dvec3(), e.reach_from(c) as f64)
-            });
-        }
-        box_sphere(|| self.spheres()).map_or((DVec3::ZERO, 0.0), |(c, r)| (c.as_dvec3(), r as f64))
+        let sphere = match self.extremes() {
+            Some(e) => e.bounding_sphere(),
+            None => box_sphere(|| self.spheres()),
+        };
+        sphere.map_or((DVec3::ZERO, 0.0), |(c, r)| (c.as_dvec3(), r as f64))
     }
 
     /// An instanced scene's instances as [`Extremes`] (None: plain).

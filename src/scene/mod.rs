@@ -194,13 +194,13 @@ impl Scene {
     /// box of the centres (the default view centre), radius reaching the
     /// farthest sphere surface. `(0, 0)` for an empty scene.
     pub fn bounding_sphere(&self) -> (Vec3, f32) {
+        if let Some(e) = self.extremes() {
+            return e.bounding_sphere().unwrap_or((Vec3::ZERO, 0.0));
+        }
         let Some((lo, hi)) = self.center_bounds() else {
             return (Vec3::ZERO, 0.0);
         };
         let c = (lo + hi) * 0.5;
-        if let Some(e) = self.extremes() {
-            return (c, e.reach_from(c));
-        }
         let mut r = 0.0f32;
         self.for_each_geometry(|p, radius| r = r.max(Vec3::from(p).distance(c) + radius));
         (c, r)

@@ -116,7 +116,7 @@ impl<'a> Extremes<'a> {
     }
 
     /// Instance `k`'s atoms as the full scan places them: centre, radius.
-    fn placed(&self, k: usize) -> impl Iterator<Item = ([f32; 3], f32)> + '_ {
+    pub fn atoms_of(&self, k: usize) -> impl Iterator<Item = ([f32; 3], f32)> + '_ {
         let (f, n) = self.molecules[self.instance_molecule[k] as usize];
         self.atoms[f as usize..(f + n) as usize]
             .iter()
@@ -137,11 +137,6 @@ impl<'a> Extremes<'a> {
     /// Atoms of instance `k`.
     pub fn atom_count(&self, k: usize) -> u32 {
         self.molecules[self.instance_molecule[k] as usize].1
-    }
-
-    /// Instance `k`'s atoms, placed: centre, radius.
-    pub fn atoms_of(&self, k: usize) -> impl Iterator<Item = ([f32; 3], f32)> + '_ {
-        self.placed(k)
     }
 
     /// The largest `f` over every atom (None: no atoms). `bound(corners,
@@ -166,7 +161,7 @@ impl<'a> Extremes<'a> {
             if best.is_some_and(|b| ub <= b) {
                 break;
             }
-            for (c, r) in self.placed(k) {
+            for (c, r) in self.atoms_of(k) {
                 let v = f(c, r);
                 best = Some(best.map_or(v, |b| b.max(v)));
             }
@@ -184,6 +179,14 @@ impl<'a> Extremes<'a> {
             lo[i] = -self.max_by(|h, _| corner_max(h, -axis), |c, _| -c[i] as f64)? as f32;
         }
         Some((Vec3::from(lo), Vec3::from(hi)))
+    }
+
+    /// The sphere centred on the box of the centres that reaches the
+    /// farthest surface (as `Scene::bounding_sphere`; None without atoms).
+    pub fn bounding_sphere(&self) -> Option<(Vec3, f32)> {
+        let (lo, hi) = self.center_bounds()?;
+        let c = (lo + hi) * 0.5;
+        Some((c, self.reach_from(c)))
     }
 
     /// The farthest surface from `c`: the largest `|centre - c| + radius`
@@ -268,7 +271,7 @@ mod tests {
         }
         let tr = Transforms::Rigid(rigid);
         let e = Extremes::new(&tr, &inst, molecules.clone(), Cow::Borrowed(&atoms));
-        let all: Vec<([f32; 3], f32)> = (0..inst.len()).flat_map(|k| e.placed(k)).collect();
+        let all: Vec<([f32; 3], f32)> = (0..inst.len()).flat_map(|k| e.atoms_of(k)).collect();
         // the box
         let (mut lo, mut hi) = (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN));
         for (c, _) in &all {

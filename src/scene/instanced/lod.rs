@@ -287,10 +287,11 @@ impl MoleculeLod {
             let coarse = self.level_spheres(atoms, l);
             let mut ppu = (pixels / (mean_r * self.radius_scale(l))).min(out[l - 1]);
             // (ends: far enough below a pixel both silhouettes are empty)
-            while CHECK_DIRS
-                .iter()
-                .any(|&d| silhouette_iou(atoms, &coarse, d, ppu) < needed_iou(atoms, d, ppu))
-            {
+            while !CHECK_DIRS.iter().all(|&d| {
+                // (>= needed_iou; level 0's moved silhouette only if needed)
+                let iou = silhouette_iou(atoms, &coarse, d, ppu);
+                iou >= MIN_IOU || iou >= shift_iou(atoms, d, ppu)
+            }) {
                 ppu /= std::f32::consts::SQRT_2;
             }
             out.push(ppu);

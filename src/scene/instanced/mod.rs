@@ -268,8 +268,6 @@ impl Scene {
         }
     }
 
-    /// Centre and radius of every represented sphere (faster than
-    /// `for_each_sphere`: no regions).
     /// The scene's instances as [`extremes::Extremes`] (None: plain).
     pub fn extremes(&self) -> Option<extremes::Extremes<'_>> {
         let inst = self.instancing.as_ref()?;
@@ -286,6 +284,8 @@ impl Scene {
         ))
     }
 
+    /// Centre and radius of every represented sphere (faster than
+    /// `for_each_sphere`: no regions).
     pub fn for_each_geometry(&self, mut f: impl FnMut([f32; 3], f32)) {
         let Some(inst) = &self.instancing else {
             self.spheres.iter().for_each(|s| f(s.center, s.radius));

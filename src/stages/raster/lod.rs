@@ -122,7 +122,7 @@ impl LodCull {
     /// The cull of a scene (SCENE_SPEC `scene`) with levels `lod`; each
     /// view's lists start `list_batches` long (default: an eighth of the
     /// full-detail batches, at least 2^16) and grow on overflow
-    /// ([`LodCull::grow_if_overflowed`]).
+    /// ([`LodCull::grow_lists`]).
     pub fn new(
         ctx: &Context,
         scene: u32,
@@ -429,12 +429,18 @@ impl LodCull {
         self.levels.download_pod(ctx, 0, self.instances as u64)
     }
 
-    /// What the last frame's cull kept (after the frame).
-    pub fn counts(&self, ctx: &Context) -> Result<LodCounts> {
+    /// The last frame's counters (after the frame): `word(list, k)` reads
+    /// counter word `k` of list `list`.
+    fn counter_words(&self, ctx: &Context) -> Result<impl Fn(usize, u32) -> u32> {
         let w: Vec<u32> = self
             .counters
             .download_pod(ctx, 0, (LOD_VIEWS * LOD_WORDS) as u64)?;
-        let word = |list: usize, k: u32| w[list * LOD_WORDS as usize + k as usize];
+        Ok(move |list: usize, k: u32| w[list * LOD_WORDS as usize + k as usize])
+    }
+
+    /// What the last frame's cull kept (after the frame).
+    pub fn counts(&self, ctx: &Context) -> Result<LodCounts> {
+        let word = self.counter_words(ctx)?;
         Ok(LodCounts {
             camera_batches: word(0, LOD_BATCHES) + word(LATE, LOD_BATCHES),
             camera_spheres: word(0, LOD_SPHERES) + word(LATE, LOD_SPHERES),
@@ -480,14 +486,14 @@ impl LodCull {
     /// in the same frame (meso 10^8 fly-in: 272 k -> 752 k batches in one
     /// notch). Returns whether the frame overflowed and must
     /// be drawn again. The GPU must be idle.
-    pub fn grow_if_overflowed(&mut self, ctx: &Context) -> Result<bool> {
-        let w: Vec<u32> = self
-            .counters
-            .download_pod(ctx, 0, (LOD_VIEWS * LOD_WORDS) as u64)?;
-        let asked = (0..LOD_VIEWS as usize)
-            .map(|v| w[v * LOD_WORDS as usize + LOD_BATCHES as usize])
-            .max()
-            .unwrap_or(0);
+    pub fn grow_lists(&mut self, ctx: &Context) -> Result<bool> {
+        let asked = {
+            let word = self.counter_words(ctx)?;
+            (0..LOD_VIEWS as usize)
+                .map(|list| word(list, LOD_BATCHES))
+                .max()
+                .unwrap_or(0)
+        };
         let overflow = asked > self.capacity;
         let capacity = asked
             .saturating_mul(crate::scene::instanced::lod::LOD_STRIDE)

@@ -134,7 +134,7 @@ impl RasterStage {
     /// overflowed (the lists were grown). The GPU must be idle.
     pub fn after_frame(&mut self, ctx: &Context) -> Result<bool> {
         match &mut self.lod {
-            Some(l) if self.lod_used.get() => l.grow_if_overflowed(ctx),
+            Some(l) if self.lod_used.get() => l.grow_lists(ctx),
             _ => Ok(false),
         }
     }

@@ -500,8 +500,6 @@ mod tests {
     use super::*;
     use blur::BLUR_RADII;
 
-    /// The blur pipelines are made for a fixed set of radii: every tap
-    /// set's radius must be one of them.
     /// Per-sphere receivers keep a flag bit per id in one storage buffer:
     /// past the range (lavapipe's 128 MiB: 2^30 ids, an instanced scene
     /// near 10^9 atoms) spheres of a few pixels take the per-pixel taps.
@@ -536,6 +534,8 @@ mod tests {
         }
     }
 
+    /// The blur pipelines are made for a fixed set of radii: every tap
+    /// set's radius must be one of them.
     #[test]
     fn tap_sets_blur_with_a_prepared_radius() {
         for (_, radius) in [SSDO_TAPS_LARGE, SSDO_TAPS_SMALL] {
