@@ -830,6 +830,26 @@ fn streamed_tiled_files_equal_the_untiled_ones() {
     assert_eq!(a["image_sha256"], b["image_sha256"]);
 }
 
+/// `render --scene meso --atoms ATOMS` with `extra` options, which must
+/// succeed; its JSON.
+fn meso_json(atoms: &str, extra: &[&str]) -> serde_json::Value {
+    let (png, json) = (
+        tmp(&format!("meso{atoms}.png")),
+        tmp(&format!("meso{atoms}.json")),
+    );
+    let mut a = vec!["render", "--scene", "meso", "--atoms", atoms];
+    a.extend(extra);
+    a.extend([
+        "--out",
+        png.to_str().unwrap(),
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    let o = run(&a);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap()
+}
+
 /// Memory per instance from the JSON (the bytes-per-instance
 /// figure): two meso scenes of 2 and 6 million atoms. The `instances`
 /// class is 48 bytes an instance (a rigid transform, 32, and its LOD row,
@@ -837,30 +857,8 @@ fn streamed_tiled_files_equal_the_untiled_ones() {
 /// not grow with the scene; `spheres_drawn` is at most `spheres`.
 #[test]
 fn memory_per_instance_is_in_the_json() {
-    let read = |atoms: &str| -> serde_json::Value {
-        let (png, json) = (
-            tmp(&format!("meso{atoms}.png")),
-            tmp(&format!("meso{atoms}.json")),
-        );
-        let o = run(&[
-            "render",
-            "--scene",
-            "meso",
-            "--atoms",
-            atoms,
-            "--width",
-            "64",
-            "--height",
-            "48",
-            "--out",
-            png.to_str().unwrap(),
-            "--json",
-            json.to_str().unwrap(),
-        ]);
-        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
-        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap()
-    };
-    let (a, b) = (read("2000000"), read("6000000"));
+    let small = ["--width", "64", "--height", "48"];
+    let (a, b) = (meso_json("2000000", &small), meso_json("6000000", &small));
     let class = |v: &serde_json::Value, c: &str| v["gpu_memory"][c].as_u64().unwrap();
     for v in [&a, &b] {
         let n = v["instances"].as_u64().unwrap();
@@ -879,28 +877,18 @@ fn memory_per_instance_is_in_the_json() {
 /// represented and far fewer drawn.
 #[test]
 fn a_hundred_million_atoms_render_under_validation() {
-    let (png, json) = (tmp("meso1e8.png"), tmp("meso1e8.json"));
-    let o = run(&[
-        "render",
-        "--scene",
-        "meso",
-        "--atoms",
+    let v = meso_json(
         "100000000",
-        "--width",
-        "320",
-        "--height",
-        "180",
-        "--frames",
-        "2",
-        "--validate",
-        "--out",
-        png.to_str().unwrap(),
-        "--json",
-        json.to_str().unwrap(),
-    ]);
-    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
-    let v: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        &[
+            "--width",
+            "320",
+            "--height",
+            "180",
+            "--frames",
+            "2",
+            "--validate",
+        ],
+    );
     assert_eq!(v["validation_messages"], 0);
     let spheres = v["spheres"].as_u64().unwrap();
     assert!(spheres.abs_diff(100_000_000) <= 11_484 / 2, "{spheres}");
