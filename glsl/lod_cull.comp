@@ -31,14 +31,10 @@
 layout(local_size_x = 64) in;
 
 layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
-// Per (molecule type, level): first batch of the level within the
-// instance's coarse batches (level 0: the number of levels), batches,
-// switch size (f32 bits, pixels per world unit), spheres.
-layout(set = 0, binding = 1) uniform usamplerBuffer lodLevelTex;
+// (the levels and the instances' first batches: scene.glsl's levelTex
+// and instanceRowTex)
 // Per molecule type: bounding sphere in its frame.
 layout(set = 0, binding = 2) uniform samplerBuffer lodBoundTex;
-// Per instance: molecule type, first level-0 batch, first coarse batch.
-layout(set = 0, binding = 3) uniform usamplerBuffer lodInstanceTex;
 // Per instance: the level the camera chose.
 layout(set = 0, binding = 4) buffer Levels { uint levels[]; };
 layout(set = 0, binding = 5) buffer List { uint list[]; };
@@ -82,7 +78,7 @@ bool hidden(View v, vec3 cv, float r, ivec4 rc, bool persp) {
 void main() {
     uint k = FLAT_ID;
     if (k >= pc.instances) return;
-    uvec4 ik = texelFetch(lodInstanceTex, int(k));
+    uvec4 ik = texelFetch(instanceRowTex, int(k));
     uint m = ik.x;
     vec4 bs = texelFetch(lodBoundTex, int(m));
     uint view = pc.view_index & 1u;
@@ -104,12 +100,12 @@ void main() {
         // band LOD_BAND, so a level never flickers at its switch (no
         // popping while a viewer zooms). Never above a switch size: the
         // silhouette guarantee holds at every size a level is drawn at.
-        uint n = texelFetch(lodLevelTex, int(base)).x;
+        uint n = texelFetch(levelTex, int(base)).x;
         uint prev = levels[k];
         level = 0u;
         uint banded = 0u;
         for (uint l = 1u; l < n; ++l) {
-            float sw = uintBitsToFloat(texelFetch(lodLevelTex, int(base + l)).z);
+            float sw = uintBitsToFloat(texelFetch(levelTex, int(base + l)).z);
             if (ppu <= sw) level = l;
             if (ppu * LOD_BAND <= sw) banded = l;
         }
@@ -134,11 +130,12 @@ void main() {
     } else if (!inside || visible[h] == 0u) {
         return;
     }
-    uvec4 e = texelFetch(lodLevelTex, int(base + level));
+    uvec4 e = texelFetch(levelTex, int(base + level));
     uint first = level == 0u ? ik.y : ik.z + e.x;
+    uint batches = (e.w + BATCH_MASK) >> BATCH_SHIFT;
     uint w = pc.view_index * LOD_WORDS;
-    uint at = atomicAdd(counters[w + LOD_BATCHES], e.y);
+    uint at = atomicAdd(counters[w + LOD_BATCHES], batches);
     atomicAdd(counters[w + LOD_SPHERES], e.w);
-    uint last = min(at + e.y, pc.capacity);
+    uint last = min(at + batches, pc.capacity);
     for (uint j = at; j < last; ++j) list[j] = first + (j - at);
 }

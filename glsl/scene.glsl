@@ -24,9 +24,18 @@ const uint BATCH_MASK = (1u << BATCH_SHIFT) - 1u;
 // Plain: centre, radius per sphere. Instanced: the molecules' atoms, each in
 // its molecule's frame.
 layout(set = 0, binding = 24) uniform samplerBuffer sphereTex;
-// Instanced: per batch (RGBA32UI) the instance, its first atom, the
-// expanded index of that atom, the atom count | molecule type << 8.
+// Instanced: per batch (R32UI, 4 bytes: 10^9 atoms make 22 M batches) its
+// instance | level of detail << BATCH_INSTANCE_BITS, or BATCH_EMPTY;
+// `scene_batch` makes its record from the two tables below.
 layout(set = 0, binding = 25) uniform usamplerBuffer batchTex;
+// Instanced: per instance (RGBA32UI) its molecule type, first level-0
+// batch, first coarse batch, expanded index of its first atom.
+layout(set = 0, binding = 31) uniform usamplerBuffer instanceRowTex;
+// Instanced: per (molecule type, level < MAX_LOD_LEVELS), RGBA32UI: the
+// level's first batch within an instance's coarse batches (level 0: the
+// number of levels), its first stored atom, its switch size (f32 bits:
+// most pixels per world unit it is drawn at), its atoms.
+layout(set = 0, binding = 32) uniform usamplerBuffer levelTex;
 // Instanced: 2 texels (rigid: quaternion xyzw, translation) or 3 (affine:
 // the rows m_i0 m_i1 m_i2 v_i) per instance.
 layout(set = 0, binding = 26) uniform samplerBuffer instanceTex;
@@ -47,7 +56,22 @@ layout(set = 0, binding = 29) uniform usamplerBuffer moleculeTex;
 
 bool scene_instanced() { return SCENE_KIND != SCENE_PLAIN; }
 
-uvec4 scene_batch(uint id) { return texelFetch(batchTex, int(id >> BATCH_SHIFT)); }
+// The record of sphere id's batch: its instance, first stored atom, the
+// expanded index of that atom (a coarse batch: of its instance's first),
+// atom count | molecule type << 8 | BATCH_COARSE (zeros for the empty
+// batch). src/passes/scene.rs `BatchTables::record` is the same.
+uvec4 scene_batch(uint id) {
+    uint b = id >> BATCH_SHIFT;
+    uint w = texelFetch(batchTex, int(b)).x;
+    uint k = w & BATCH_INSTANCE_MASK, l = min(w >> BATCH_INSTANCE_BITS, MAX_LOD_LEVELS - 1u);
+    uvec4 row = texelFetch(instanceRowTex, int(k));
+    uvec4 lv = texelFetch(levelTex, int(row.x * MAX_LOD_LEVELS + l));
+    bool coarse = l != 0u;
+    uint a = (b - (coarse ? row.z + lv.x : row.y)) << BATCH_SHIFT;
+    uvec4 r = uvec4(k, lv.y + a, row.w + (coarse ? 0u : a),
+                    min(lv.w - a, 1u << BATCH_SHIFT) | (row.x << 8) | (coarse ? BATCH_COARSE : 0u));
+    return w == BATCH_EMPTY ? uvec4(0u) : r;
+}
 uint scene_lane(uint id) { return id & BATCH_MASK; }
 
 // Instance k's transform applied to a point of its molecule: the

@@ -111,12 +111,19 @@ gpu_constants! {
     /// Batch shifts an instanced scene may use (8 to 64 slots a batch).
     MIN_BATCH_SHIFT: u32 = 3;
     MAX_BATCH_SHIFT: u32 = 6;
-    /// A batch's last word: atom count (bits 0-7) | molecule type << 8
-    /// (types below 2^23) | BATCH_COARSE, set on a batch of a coarse level
-    /// of detail, whose lanes name their atoms through originTex
-    /// (glsl/scene.glsl `scene_index`).
+    /// A batch's record's last word (glsl/scene.glsl `scene_batch`): atom
+    /// count (bits 0-7) | molecule type << 8 (types below 2^23) |
+    /// BATCH_COARSE, set on a batch of a coarse level of detail, whose
+    /// lanes name their atoms through originTex (`scene_index`).
     BATCH_COARSE: u32 = 0x8000_0000;
     BATCH_TYPE_MASK: u32 = 0x7F_FFFF;
+    /// A batch as stored (batchTex, 4 bytes): its instance (the low
+    /// BATCH_INSTANCE_BITS bits: the most instances a scene holds) | its
+    /// level of detail << BATCH_INSTANCE_BITS; BATCH_EMPTY names the LOD
+    /// lists' empty batch (no atoms).
+    BATCH_INSTANCE_BITS: u32 = 24;
+    BATCH_INSTANCE_MASK: u32 = 0xFF_FFFF;
+    BATCH_EMPTY: u32 = 0xFF00_0000;
     /// Levels of detail a molecule type may have (src/scene/instanced/lod.rs:
     /// 4^15 atoms is beyond any molecule).
     MAX_LOD_LEVELS: u32 = 16;

@@ -167,7 +167,7 @@ fn a_leaked_buffer_is_reported_at_teardown() {
 
 /// A scene table the shaders only read as texels is bounded by the texel
 /// limit, not the storage range (an instanced scene's batch table passes
-/// lavapipe's 128 MiB near 10^9 atoms): one a little over the range is
+/// lavapipe's 128 MiB past 10^9 atoms): one a little over the range is
 /// made, filled in pieces and read back; a storage buffer of that size is
 /// refused with a one-line error naming it and the limit.
 #[test]

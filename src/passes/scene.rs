@@ -10,8 +10,9 @@
 
 use crate::error::{Error, Result};
 use crate::gpu::consts::{
-    BATCH_COARSE, BATCH_TYPE_MASK, MAX_BATCH_SHIFT, MAX_LOD_LEVELS, MIN_BATCH_SHIFT, NO_LEVEL,
-    SCENE_AFFINE, SCENE_PLAIN, SCENE_RIGID,
+    BATCH_COARSE, BATCH_EMPTY, BATCH_INSTANCE_BITS, BATCH_INSTANCE_MASK, BATCH_TYPE_MASK,
+    MAX_BATCH_SHIFT, MAX_LOD_LEVELS, MIN_BATCH_SHIFT, NO_LEVEL, SCENE_AFFINE, SCENE_PLAIN,
+    SCENE_RIGID,
 };
 use crate::gpu::{GpuBatch, GpuSphere, SphereAttr};
 use crate::scene::Scene;
@@ -24,11 +25,13 @@ use ash::vk::Format;
 use glam::DVec3;
 
 /// What scene.glsl reads for geometry: `scene_sphere`, `scene_index`.
-pub const SCENE_GEOMETRY: [Binding; 4] = [
+pub const SCENE_GEOMETRY: [Binding; 6] = [
     texel("sphereTex", Format::R32G32B32A32_SFLOAT),
-    texel("batchTex", Format::R32G32B32A32_UINT),
+    texel("batchTex", Format::R32_UINT),
     texel("instanceTex", Format::R32G32B32A32_SFLOAT),
     texel("originTex", Format::R32_UINT),
+    texel("instanceRowTex", Format::R32G32B32A32_UINT),
+    texel("levelTex", Format::R32G32B32A32_UINT),
 ];
 
 /// What scene.glsl reads for colours and regions (SCENE_ATTRIBUTES).
@@ -53,8 +56,12 @@ pub struct SceneBuffers {
     pub attrs: Buffer,
     /// One RGBA8 word per sphere / atom.
     pub colors: Buffer,
-    /// Instanced: the batches (16 B per 2^shift slots).
+    /// Instanced: the batches (4 B per 2^shift slots: [`BatchTables::words`]).
     pub batches: Buffer,
+    /// Instanced: [`BatchTables::rows`] (16 B per instance).
+    pub rows: Buffer,
+    /// Instanced: [`BatchTables::levels`] (16 B per molecule type and level).
+    pub levels: Buffer,
     /// Instanced: the transforms (32 B rigid, 48 B affine per instance).
     pub instances: Buffer,
     /// Instanced: the tree regions of each molecule type (16 B each).
@@ -79,17 +86,11 @@ pub struct SceneBuffers {
 }
 
 /// The tables of the LOD cull (glsl/lod_cull.comp).
+/// (The levels and each instance's first batches are the scene's
+/// [`SceneBuffers::levels`] and [`SceneBuffers::rows`].)
 pub struct LodBuffers {
-    /// Per (molecule type, level < MAX_LOD_LEVELS), RGBA32UI: first batch
-    /// of the level within an instance's coarse batches (level 0: the
-    /// number of levels), its batches, its switch size (f32 bits: most
-    /// pixels per world unit it is drawn at), its spheres.
-    pub levels: Buffer,
     /// Per molecule type, RGBA32F: bounding sphere in its frame.
     pub bounds: Buffer,
-    /// Per instance, RGBA32UI: molecule type, first level-0 batch, first
-    /// coarse batch, 0.
-    pub instances: Buffer,
     pub instance_count: u32,
     /// The batch with no atoms (what unused list entries name).
     pub empty_batch: u32,
@@ -100,12 +101,14 @@ pub struct LodBuffers {
 
 impl SceneBuffers {
     /// The geometry buffers, by the names of [`SCENE_GEOMETRY`].
-    pub fn geometry(&self) -> [(&'static str, &Buffer); 4] {
+    pub fn geometry(&self) -> [(&'static str, &Buffer); 6] {
         [
             ("sphereTex", &self.spheres),
             ("batchTex", &self.batches),
             ("instanceTex", &self.instances),
             ("originTex", &self.origins),
+            ("instanceRowTex", &self.rows),
+            ("levelTex", &self.levels),
         ]
     }
 
@@ -130,15 +133,16 @@ impl SceneBuffers {
         if self.kind() == SCENE_PLAIN {
             return vec![("scene", atoms)];
         }
-        let (lod_mol, lod_inst) = self.lod.as_ref().map_or((0, 0), |l| {
-            (
-                l.levels.size + l.bounds.size + self.origins.size,
-                l.instances.size,
-            )
-        });
+        let lod_mol = self
+            .lod
+            .as_ref()
+            .map_or(0, |l| l.bounds.size + self.origins.size);
         vec![
-            ("molecules", atoms + self.molecules.size + lod_mol),
-            ("instances", self.instances.size + lod_inst),
+            (
+                "molecules",
+                atoms + self.molecules.size + self.levels.size + lod_mol,
+            ),
+            ("instances", self.instances.size + self.rows.size),
             ("scene", self.batches.size),
         ]
     }
@@ -167,12 +171,12 @@ impl SceneBuffers {
     /// with `lod_pixels` (`--lod auto`) an instanced scene's levels of
     /// detail too.
     pub fn new(ctx: &Context, scene: &Scene, lod_pixels: Option<f32>) -> Result<(Self, SceneGeom)> {
-        let mut geom: Vec<GpuSphere> = scene
+        let geom: Vec<GpuSphere> = scene
             .spheres
             .iter()
             .map(|s| [s.center[0], s.center[1], s.center[2], s.radius])
             .collect();
-        let mut colors: Vec<u32> = scene
+        let colors: Vec<u32> = scene
             .spheres
             .iter()
             .map(|s| u32::from_le_bytes(s.color))
@@ -183,7 +187,8 @@ impl SceneBuffers {
                 .iter()
                 .map(|s| SphereAttr { region: s.region })
                 .collect();
-            // (batches, instances and molecules: bound, never read)
+            // (batches, instances, molecules and their rows: bound, never
+            // read)
             let mut buffers = Self::upload(
                 ctx,
                 SCENE_PLAIN,
@@ -196,113 +201,26 @@ impl SceneBuffers {
                     ("scene instances (unused)", &[]),
                     ("scene molecules (unused)", &[]),
                     ("atom origins (unused)", &[]),
+                    ("instance rows (unused)", &[]),
+                    ("molecule levels (unused)", &[]),
                 ],
             )?;
             buffers.base_slots = buffers.slots;
             buffers.base_atoms = geom.len() as u32;
             return Ok((buffers, SceneGeom::Plain(geom)));
         };
-        let shift = batch_shift(scene);
-        let mut batches = batches_of(scene, shift)?;
-        let base_batches = batches.len() as u32;
-        let base_atoms = geom.len() as u32;
-        let mut chains: Vec<u32> = scene.spheres.iter().map(|s| s.region[0]).collect();
-        let lod = match lod_pixels {
-            Some(p) => Some(lod_of(scene, &geom, p)?),
-            None => None,
-        };
-        // The coarse levels' atoms after the scene's own, their batches
-        // after level 0's, then the empty batch.
-        let mut origins: Vec<u32> = Vec::new();
-        let mut coarse_source: Vec<u32> = Vec::new();
-        let mut lod_tables = None;
-        if let Some(lod) = &lod {
-            origins = vec![0; geom.len()];
-            let per = 1u32 << shift;
-            // per molecule type: per level >= 1, its first stored atom
-            let mut level_first: Vec<Vec<u32>> = Vec::with_capacity(inst.molecules.len());
-            for (m, mol) in inst.molecules.iter().enumerate() {
-                let ml = &lod[m].levels;
-                let own = mol.first as usize..(mol.first + mol.atoms) as usize;
-                let mut firsts = vec![mol.first];
-                for l in 1..ml.levels() {
-                    firsts.push(geom.len() as u32);
-                    let spheres = ml.level_spheres(&geom[own.clone()], l);
-                    geom.extend(spheres);
-                    for &a in &ml.order[..ml.counts[l] as usize] {
-                        let src = mol.first + a;
-                        chains.push(chains[src as usize]);
-                        colors.push(colors[src as usize]);
-                        origins.push(a);
-                        coarse_source.push(src);
-                    }
-                }
-                level_first.push(firsts);
-            }
-            // the level table: per (type, level) first batch within the
-            // instance's coarse batches, batches, switch size, spheres
-            let mut levels = vec![[0u32; 4]; inst.molecules.len() * MAX_LOD_LEVELS as usize];
-            let mut coarse_batches = vec![0u32; inst.molecules.len()];
-            for (
-                m,
-                Lod {
-                    levels: ml, switch, ..
-                },
-            ) in lod.iter().enumerate()
-            {
-                let mut off = 0u32;
-                for l in 0..ml.levels() {
-                    let nb = ml.counts[l].div_ceil(per);
-                    let first = if l == 0 { ml.levels() as u32 } else { off };
-                    levels[m * MAX_LOD_LEVELS as usize + l] =
-                        [first, nb, switch[l].to_bits(), ml.counts[l]];
-                    if l > 0 {
-                        off += nb;
-                    }
-                }
-                coarse_batches[m] = off;
-            }
-            // (reserved exactly: at 10^9 atoms the table is ~330 MiB, and a
-            // doubling growth would hold twice that for a moment)
-            let coarse_total: u64 = inst
-                .instance_molecule
-                .iter()
-                .map(|&m| coarse_batches[m as usize] as u64)
-                .sum();
-            batches.reserve_exact(coarse_total as usize + 1);
-            let mut inst_rows = Vec::with_capacity(inst.instances());
-            let mut first0 = 0u32;
-            for (k, &m) in inst.instance_molecule.iter().enumerate() {
-                let mu = m as usize;
-                inst_rows.push([m, first0, batches.len() as u32, 0]);
-                first0 += inst.molecules[mu].atoms.div_ceil(per);
-                for (&n, &at) in lod[mu].levels.counts.iter().zip(&level_first[mu]).skip(1) {
-                    let mut a = 0;
-                    while a < n {
-                        let c = (n - a).min(per);
-                        batches.push([
-                            k as u32,
-                            at + a,
-                            inst.first[k] as u32,
-                            c | (m << 8) | BATCH_COARSE,
-                        ]);
-                        a += c;
-                    }
-                }
-                debug_assert_eq!(batches.len() as u32, inst_rows[k][2] + coarse_batches[mu]);
-            }
-            let empty_batch = batches.len() as u32;
-            batches.push([0, 0, 0, 0]);
-            if (batches.len() as u64) << shift > MAX_SLOTS {
-                return Err(Error::Input(format!(
-                    "{}: the levels of detail need more than the 2^32 sphere ids sphereshade has \
-                     (--lod off draws without them)",
-                    scene.source
-                )));
-            }
-            let bounds: Vec<[f32; 4]> = lod.iter().map(|l| l.bound).collect();
-            lod_tables = Some((levels, bounds, inst_rows, empty_batch));
-        }
+        let Built {
+            geom,
+            chains,
+            colors,
+            origins,
+            coarse_source,
+            tables,
+            base_batches,
+            base_atoms,
+            lod: lod_tables,
+        } = build_instanced(scene, geom, colors, lod_pixels)?;
+        let shift = tables.shift;
         let tree: Vec<u32> = inst.tree_regions.iter().flatten().copied().collect();
         let (kind, transform_bytes): (u32, &[u8]) = match &inst.transforms {
             Transforms::Rigid(v) => (SCENE_RIGID, bytemuck::cast_slice(v)),
@@ -311,39 +229,31 @@ impl SceneBuffers {
         let mut buffers = Self::upload(
             ctx,
             kind | (shift << 8),
-            (batches.len() as u64) << shift,
+            (tables.words.len() as u64) << shift,
             [
                 ("molecule atoms", bytemuck::cast_slice(&geom)),
                 ("atom chains", bytemuck::cast_slice(&chains)),
                 ("atom colours", bytemuck::cast_slice(&colors)),
-                ("scene batches", bytemuck::cast_slice(&batches)),
+                ("scene batches", bytemuck::cast_slice(&tables.words)),
                 ("instances", transform_bytes),
                 ("molecule regions", bytemuck::cast_slice(&tree)),
                 ("atom origins", bytemuck::cast_slice(&origins)),
+                ("instance rows", bytemuck::cast_slice(&tables.rows)),
+                ("molecule levels", bytemuck::cast_slice(&tables.levels)),
             ],
         )?;
         buffers.base_slots = base_batches << shift;
         buffers.base_atoms = base_atoms;
         buffers.coarse_source = coarse_source;
-        if let Some((levels, bounds, rows, empty_batch)) = lod_tables {
-            let mut made = ctx.guard(Vec::new());
-            for (name, bytes) in [
-                ("LOD levels", bytemuck::cast_slice::<[u32; 4], u8>(&levels)),
-                ("LOD bounds", bytemuck::cast_slice(&bounds)),
-                ("LOD instances", bytemuck::cast_slice(&rows)),
-            ] {
-                let b = ctx.guard(Buffer::table(ctx, name, bytes.len().max(16) as u64)?);
-                b.upload(ctx, 0, bytes)?;
-                made.push(b.keep());
-            }
-            let [levels, bounds, instances]: [Buffer; 3] = made
-                .keep()
-                .try_into()
-                .map_err(|_| Error::Internal("LOD buffers".into()))?;
+        if let Some((bounds, empty_batch)) = lod_tables {
+            let b = ctx.guard(Buffer::table(
+                ctx,
+                "LOD bounds",
+                (bounds.len() as u64 * 16).max(16),
+            )?);
+            b.upload(ctx, 0, bytemuck::cast_slice(&bounds))?;
             buffers.lod = Some(LodBuffers {
-                levels,
-                bounds,
-                instances,
+                bounds: b.keep(),
                 instance_count: inst.instances() as u32,
                 empty_batch,
                 base_batches,
@@ -355,7 +265,7 @@ impl SceneBuffers {
             instance_molecule: inst.instance_molecule.clone(),
             molecules: inst.molecules.iter().map(|m| (m.first, m.atoms)).collect(),
             first: inst.first.clone(),
-            batches,
+            tables,
             base_batches: base_batches as usize,
             origins,
             shift,
@@ -363,12 +273,12 @@ impl SceneBuffers {
         Ok((buffers, geom))
     }
 
-    /// The seven buffers (named, with their bytes) in field order; an
+    /// The nine buffers (named, with their bytes) in field order; an
     /// error part way destroys what was made. An instanced scene's are
     /// read-only texel tables (not bound by the storage range: its batch
     /// table passes 128 MiB near 10^9 atoms); a plain scene's spheres are
     /// also the graphics rasterizer's storage buffer.
-    fn upload(ctx: &Context, spec: u32, slots: u64, data: [(&str, &[u8]); 7]) -> Result<Self> {
+    fn upload(ctx: &Context, spec: u32, slots: u64, data: [(&str, &[u8]); 9]) -> Result<Self> {
         let mut made = ctx.guard(Vec::new());
         let make = if spec & 0xFF == SCENE_PLAIN {
             Buffer::storage
@@ -390,7 +300,9 @@ impl SceneBuffers {
             instances,
             molecules,
             origins,
-        ]: [Buffer; 7] = made
+            rows,
+            levels,
+        ]: [Buffer; 9] = made
             .keep()
             .try_into()
             .map_err(|_| Error::Internal("scene buffers".into()))?;
@@ -403,6 +315,8 @@ impl SceneBuffers {
             instances,
             molecules,
             origins,
+            rows,
+            levels,
             slots: slots as u32,
             base_slots: slots as u32,
             lod: None,
@@ -420,13 +334,13 @@ impl SceneBuffers {
             &mut self.instances,
             &mut self.molecules,
             &mut self.origins,
+            &mut self.rows,
+            &mut self.levels,
         ] {
             b.destroy(ctx);
         }
         if let Some(l) = &mut self.lod {
-            l.levels.destroy(ctx);
             l.bounds.destroy(ctx);
-            l.instances.destroy(ctx);
         }
     }
 }
@@ -448,7 +362,7 @@ pub fn levels_word(scene: &Scene) -> [u32; 4] {
 }
 
 /// The batch shift for an instanced scene: the one that makes the fewest
-/// lanes (slots) plus four per batch (its 16-byte record and its view
+/// lanes (slots) plus four per batch (its record's fetches and its view
 /// orders' words weigh about as much as four idle lanes): 64-slot batches
 /// for molecules of thousands of atoms, 8-slot ones for beads (the
 /// Mycoplasma model's 19 beads an instance would leave 70 % of 64-slot
@@ -472,11 +386,188 @@ pub fn batch_shift(scene: &Scene) -> u32 {
         .unwrap_or(MAX_BATCH_SHIFT)
 }
 
-/// The batches of an instanced scene: each instance's atoms in runs of
-/// 2^shift, in expanded order (slot order is expanded order).
-fn batches_of(scene: &Scene, shift: u32) -> Result<Vec<GpuBatch>> {
+/// An instanced scene's tables as [`SceneBuffers::new`] uploads them.
+struct Built {
+    /// The molecule atoms, then the coarse levels' (`geom`, `colors` as
+    /// given extended by them).
+    geom: Vec<GpuSphere>,
+    chains: Vec<u32>,
+    colors: Vec<u32>,
+    origins: Vec<u32>,
+    coarse_source: Vec<u32>,
+    tables: BatchTables,
+    base_batches: u32,
+    base_atoms: u32,
+    /// With levels of detail: the molecule types' bounding spheres, the
+    /// empty batch.
+    lod: Option<(Vec<[f32; 4]>, u32)>,
+}
+
+/// The tables of instanced `scene` (its atoms `geom` and colour words
+/// `colors`); with `lod_pixels` its levels of detail too.
+fn build_instanced(
+    scene: &Scene,
+    mut geom: Vec<GpuSphere>,
+    mut colors: Vec<u32>,
+    lod_pixels: Option<f32>,
+) -> Result<Built> {
     let Some(inst) = &scene.instancing else {
-        return Ok(Vec::new());
+        return Err(Error::Internal("instanced tables of a plain scene".into()));
+    };
+    let shift = batch_shift(scene);
+    let per = 1u32 << shift;
+    let mut tables = base_tables(scene, shift)?;
+    let base_batches = tables.words.len() as u32;
+    let base_atoms = geom.len() as u32;
+    let mut chains: Vec<u32> = scene.spheres.iter().map(|s| s.region[0]).collect();
+    let lod = match lod_pixels {
+        Some(p) => Some(lod_of(scene, &geom, p)?),
+        None => None,
+    };
+    // The coarse levels' atoms after the scene's own, their batches
+    // after level 0's, then the empty batch.
+    let mut origins: Vec<u32> = Vec::new();
+    let mut coarse_source: Vec<u32> = Vec::new();
+    let mut lod_tables = None;
+    if let Some(lod) = &lod {
+        origins = vec![0; geom.len()];
+        // per molecule type: per level, its first stored atom
+        let mut level_first: Vec<Vec<u32>> = Vec::with_capacity(inst.molecules.len());
+        for (m, mol) in inst.molecules.iter().enumerate() {
+            let ml = &lod[m].levels;
+            let own = mol.first as usize..(mol.first + mol.atoms) as usize;
+            let mut firsts = vec![mol.first];
+            for l in 1..ml.levels() {
+                firsts.push(geom.len() as u32);
+                let spheres = ml.level_spheres(&geom[own.clone()], l);
+                geom.extend(spheres);
+                for &a in &ml.order[..ml.counts[l] as usize] {
+                    let src = mol.first + a;
+                    chains.push(chains[src as usize]);
+                    colors.push(colors[src as usize]);
+                    origins.push(a);
+                    coarse_source.push(src);
+                }
+            }
+            level_first.push(firsts);
+        }
+        // the level rows, and each type's coarse batches
+        let mut coarse_batches = vec![0u32; inst.molecules.len()];
+        for (
+            m,
+            Lod {
+                levels: ml, switch, ..
+            },
+        ) in lod.iter().enumerate()
+        {
+            let mut off = 0u32;
+            for l in 0..ml.levels() {
+                let first = if l == 0 { ml.levels() as u32 } else { off };
+                tables.levels[m * MAX_LOD_LEVELS as usize + l] =
+                    [first, level_first[m][l], switch[l].to_bits(), ml.counts[l]];
+                if l > 0 {
+                    off += ml.counts[l].div_ceil(per);
+                }
+            }
+            coarse_batches[m] = off;
+        }
+        let coarse_total: u64 = inst
+            .instance_molecule
+            .iter()
+            .map(|&m| coarse_batches[m as usize] as u64)
+            .sum();
+        if (base_batches as u64 + coarse_total + 1) << shift > MAX_SLOTS {
+            return Err(Error::Input(format!(
+                "{}: the levels of detail need more than the 2^32 sphere ids sphereshade has \
+                 (--lod off draws without them)",
+                scene.source
+            )));
+        }
+        // (reserved exactly: a doubling growth would hold up to twice
+        // the table for a moment)
+        tables.words.reserve_exact(coarse_total as usize + 1);
+        for (k, &m) in inst.instance_molecule.iter().enumerate() {
+            let mu = m as usize;
+            tables.rows[k][2] = tables.words.len() as u32;
+            for (l, &n) in lod[mu].levels.counts.iter().enumerate().skip(1) {
+                let word = k as u32 | (l as u32) << BATCH_INSTANCE_BITS;
+                let nb = n.div_ceil(per) as usize;
+                tables.words.extend(std::iter::repeat_n(word, nb));
+            }
+        }
+        let empty_batch = tables.words.len() as u32;
+        tables.words.push(BATCH_EMPTY);
+        let bounds: Vec<[f32; 4]> = lod.iter().map(|l| l.bound).collect();
+        lod_tables = Some((bounds, empty_batch));
+    }
+    Ok(Built {
+        geom,
+        chains,
+        colors,
+        origins,
+        coarse_source,
+        tables,
+        base_batches,
+        base_atoms,
+        lod: lod_tables,
+    })
+}
+
+/// An instanced scene's batches as the GPU stores them: a word per batch
+/// (its instance and level), a row per instance, a row per (molecule
+/// type, level). [`BatchTables::record`] makes a batch's record from them
+/// as glsl/scene.glsl `scene_batch` does (4 bytes a batch, not the 16 of
+/// a stored record: 86 MB instead of 344 at 10^9 atoms).
+pub struct BatchTables {
+    /// Per batch: instance | level << BATCH_INSTANCE_BITS, or BATCH_EMPTY.
+    pub words: Vec<u32>,
+    /// Per instance: molecule type, first level-0 batch, first coarse
+    /// batch (0 without levels of detail), expanded index of its first
+    /// atom.
+    pub rows: Vec<[u32; 4]>,
+    /// Per (molecule type, level < MAX_LOD_LEVELS): the level's first
+    /// batch within an instance's coarse batches (level 0: the number of
+    /// levels), its first stored atom, its switch size (f32 bits: most
+    /// pixels per world unit it is drawn at), its atoms.
+    pub levels: Vec<[u32; 4]>,
+    /// Slots a batch: 2^shift.
+    pub shift: u32,
+}
+
+impl BatchTables {
+    /// Batch `b`'s record: instance, first stored atom, the expanded index
+    /// of that atom (a coarse batch: of its instance's first), atom count
+    /// | molecule type << 8 | BATCH_COARSE; zeros for the empty batch.
+    pub fn record(&self, b: u32) -> Option<GpuBatch> {
+        let w = *self.words.get(b as usize)?;
+        if w == BATCH_EMPTY {
+            return Some([0; 4]);
+        }
+        let (k, l) = (w & BATCH_INSTANCE_MASK, w >> BATCH_INSTANCE_BITS);
+        let row = self.rows.get(k as usize)?;
+        let lv = self
+            .levels
+            .get((row[0] * MAX_LOD_LEVELS + l.min(MAX_LOD_LEVELS - 1)) as usize)?;
+        let coarse = l != 0;
+        let first = if coarse { row[2] + lv[0] } else { row[1] };
+        let a = b.checked_sub(first)? << self.shift;
+        Some([
+            k,
+            lv[1] + a,
+            row[3] + if coarse { 0 } else { a },
+            lv[3].checked_sub(a)?.min(1 << self.shift)
+                | (row[0] << 8)
+                | if coarse { BATCH_COARSE } else { 0 },
+        ])
+    }
+}
+
+/// The batch tables of an instanced scene at full detail: each instance's
+/// atoms in runs of 2^shift, in expanded order (slot order is expanded
+/// order); one level per molecule type.
+fn base_tables(scene: &Scene, shift: u32) -> Result<BatchTables> {
+    let Some(inst) = &scene.instancing else {
+        return Err(Error::Internal("batches of a plain scene".into()));
     };
     let per = 1u64 << shift;
     let count: u64 = inst
@@ -499,22 +590,23 @@ fn batches_of(scene: &Scene, shift: u32) -> Result<Vec<GpuBatch>> {
             inst.molecules.len()
         )));
     }
-    let mut out = Vec::with_capacity(count as usize);
-    for (k, &m) in inst.instance_molecule.iter().enumerate() {
-        let mol = &inst.molecules[m as usize];
-        let mut a = 0u32;
-        while a < mol.atoms {
-            let n = (mol.atoms - a).min(per as u32);
-            out.push([
-                k as u32,
-                mol.first + a,
-                (inst.first[k] + a as u64) as u32,
-                n | (m << 8),
-            ]);
-            a += n;
-        }
+    let mut levels = vec![[0u32; 4]; inst.molecules.len() * MAX_LOD_LEVELS as usize];
+    for (m, mol) in inst.molecules.iter().enumerate() {
+        levels[m * MAX_LOD_LEVELS as usize] = [1, mol.first, f32::INFINITY.to_bits(), mol.atoms];
     }
-    Ok(out)
+    let mut words = Vec::with_capacity(count as usize);
+    let mut rows = Vec::with_capacity(inst.instances());
+    for (k, &m) in inst.instance_molecule.iter().enumerate() {
+        rows.push([m, words.len() as u32, 0, inst.first[k] as u32]);
+        let nb = (inst.molecules[m as usize].atoms as u64).div_ceil(per);
+        words.extend(std::iter::repeat_n(k as u32, nb as usize));
+    }
+    Ok(BatchTables {
+        words,
+        rows,
+        levels,
+        shift,
+    })
 }
 
 /// The CPU copy of the scene's geometry.
@@ -532,7 +624,7 @@ pub struct InstancedGeom {
     pub molecules: Vec<(u32, u32)>,
     /// Expanded index of each instance's first atom (+ the total).
     pub first: Vec<u64>,
-    pub batches: Vec<GpuBatch>,
+    pub tables: BatchTables,
     /// Level 0's batches (the coarse levels' follow).
     pub base_batches: usize,
     /// Per stored atom of a coarse level: the atom it stands for (index
@@ -618,7 +710,7 @@ impl SceneGeom {
         match self {
             SceneGeom::Plain(g) => ((id as usize) < g.len()).then_some(id as u64),
             SceneGeom::Instanced(i) => {
-                let b = i.batches.get((id >> i.shift) as usize)?;
+                let b = i.tables.record(id >> i.shift)?;
                 let lane = id & ((1 << i.shift) - 1);
                 if lane >= (b[3] & 0xFF) {
                     return None;
@@ -674,9 +766,8 @@ impl SceneGeom {
                 }
                 // (level 0's batches: the coarse ones are listed by the LOD
                 // cull, never by a view order)
-                i.batches[..i.base_batches]
-                    .iter()
-                    .enumerate()
+                (0..i.base_batches)
+                    .filter_map(|b| Some((b, i.tables.record(b as u32)?)))
                     .map(|(b, batch)| {
                         let (k, m) = (
                             batch[0] as usize,
@@ -852,4 +943,133 @@ fn lod_of(scene: &Scene, geom: &[GpuSphere], pixels: f32) -> Result<Vec<Lod>> {
     }
     done.sort_by_key(|d| d.0);
     done.into_iter().map(|d| d.1).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::Sphere;
+    use crate::scene::instanced::InstancedBuilder;
+
+    /// A scene of a 300-atom molecule, a 5-atom one and an empty one,
+    /// instanced 9 times in mixed order.
+    fn scene() -> Scene {
+        let mut b = InstancedBuilder::default();
+        let node = b.node(&["cell", "proteins"]);
+        let blob = |n: usize, seed: u32| -> Vec<Sphere> {
+            let mut x = seed;
+            let mut next = move || {
+                x = x.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+                (x >> 8) as f32 / (1u32 << 24) as f32 * 20.0 - 10.0
+            };
+            (0..n)
+                .map(|i| Sphere {
+                    center: [next(), next(), next()],
+                    radius: 1.5,
+                    color: [200, 100, 50, 255],
+                    region: [(i % 3) as u32, 0, 0, 0],
+                })
+                .collect()
+        };
+        let big = b.molecule("big", node, blob(300, 7));
+        let small = b.molecule("small", node, blob(5, 11));
+        let empty = b.molecule("empty", node, vec![]);
+        for (k, m) in [big, small, big, empty, small, big, big, small, big]
+            .into_iter()
+            .enumerate()
+        {
+            let op = [
+                [1.0, 0.0, 0.0, 40.0 * k as f64],
+                [0.0, 1.0, 0.0, 0.0],
+                [0.0, 0.0, 1.0, 0.0],
+            ];
+            b.instance_matrix("test", m, op).unwrap();
+        }
+        b.finish("test").unwrap()
+    }
+
+    /// The stored 4-byte batches give the records a batch table of whole
+    /// records would hold, built here the plain way: every instance's
+    /// atoms in runs of 2^shift in expanded order, then every instance's
+    /// coarse levels' runs (their atoms stored after the scene's own, per
+    /// type and level), then the empty batch.
+    #[test]
+    fn batch_words_make_the_records_of_a_full_table() {
+        let scene = scene();
+        let inst = scene.instancing.as_ref().unwrap();
+        let geom: Vec<GpuSphere> = scene
+            .spheres
+            .iter()
+            .map(|s| [s.center[0], s.center[1], s.center[2], s.radius])
+            .collect();
+        for lod in [None, Some(4.0)] {
+            let built = build_instanced(&scene, geom.clone(), vec![0; geom.len()], lod).unwrap();
+            let t = &built.tables;
+            let per = 1u32 << t.shift;
+            let mut want: Vec<GpuBatch> = Vec::new();
+            for (k, &m) in inst.instance_molecule.iter().enumerate() {
+                let mol = &inst.molecules[m as usize];
+                for a in (0..mol.atoms).step_by(per as usize) {
+                    let n = (mol.atoms - a).min(per);
+                    let e = inst.first[k] as u32 + a;
+                    want.push([k as u32, mol.first + a, e, n | (m << 8)]);
+                }
+            }
+            assert_eq!(built.base_batches as usize, want.len());
+            if lod.is_some() {
+                // per type and level >= 1: first stored atom, atoms
+                let mut at = geom.len() as u32;
+                let mut coarse: Vec<Vec<(u32, u32)>> = Vec::new();
+                for mol in &inst.molecules {
+                    let atoms = &geom[mol.first as usize..(mol.first + mol.atoms) as usize];
+                    let counts = MoleculeLod::new(atoms).counts;
+                    let mut levels = Vec::new();
+                    for &n in counts.iter().skip(1) {
+                        levels.push((at, n));
+                        at += n;
+                    }
+                    coarse.push(levels);
+                }
+                assert_eq!(built.geom.len() as u32, at);
+                assert!(coarse[0].len() >= 3, "the big molecule has levels");
+                for (k, &m) in inst.instance_molecule.iter().enumerate() {
+                    for &(first, n) in &coarse[m as usize] {
+                        for a in (0..n).step_by(per as usize) {
+                            let c = (n - a).min(per) | (m << 8) | BATCH_COARSE;
+                            want.push([k as u32, first + a, inst.first[k] as u32, c]);
+                        }
+                    }
+                }
+                want.push([0; 4]);
+            }
+            assert_eq!(t.words.len(), want.len(), "lod {lod:?}");
+            for (b, w) in want.iter().enumerate() {
+                assert_eq!(
+                    t.record(b as u32).as_ref(),
+                    Some(w),
+                    "batch {b}, lod {lod:?}"
+                );
+            }
+            assert_eq!(t.record(want.len() as u32), None);
+        }
+    }
+
+    /// A word naming an instance the tables lack gives no record, one
+    /// naming a level its molecule lacks a batch of no atoms (no panic).
+    #[test]
+    fn a_broken_batch_word_gives_no_record() {
+        let scene = scene();
+        let geom: Vec<GpuSphere> = scene
+            .spheres
+            .iter()
+            .map(|s| [s.center[0], s.center[1], s.center[2], s.radius])
+            .collect();
+        let mut t = build_instanced(&scene, geom.clone(), vec![0; geom.len()], None)
+            .unwrap()
+            .tables;
+        t.words[0] = 1000;
+        assert_eq!(t.record(0), None);
+        t.words[0] = 2 | 3 << BATCH_INSTANCE_BITS; // a level instance 2 lacks
+        assert!(t.record(0).is_none_or(|r| r[3] & 0xFF == 0));
+    }
 }

@@ -34,7 +34,7 @@ fn advice(name: &str) -> &'static str {
     } else if scene.iter().any(|k| name.starts_with(k)) {
         "render fewer spheres"
     } else if instanced.iter().any(|k| name.starts_with(k)) {
-        "represent fewer atoms (its batch table holds 16 bytes per 64 atoms of every instance)"
+        "represent fewer atoms (its batch table holds 4 bytes per 64 atoms of every instance)"
     } else {
         "lower the image size (--width/--height)"
     }
@@ -162,7 +162,8 @@ impl Buffer {
     /// A device-local table the shaders only read, as uniform texels: not
     /// a storage buffer, so maxTexelBufferElements bounds it, not the
     /// storage range (lavapipe: 2^27 texels against 128 MiB; an instanced
-    /// scene's batch table at 10^9 atoms is ~330 MiB).
+    /// scene's batch table at 10^9 atoms is 86 MB, its atoms' tables at
+    /// 10^10 would pass the range).
     pub fn table(ctx: &Context, name: &str, size: u64) -> Result<Self> {
         Self::new(
             ctx,

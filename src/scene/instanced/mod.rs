@@ -385,8 +385,9 @@ impl Default for InstancedBuilder {
     }
 }
 
-/// Most instances a scene may hold (a 16-byte record each while loading).
-pub const MAX_INSTANCES: usize = 1 << 24;
+/// Most instances a scene may hold (a 16-byte record each while loading;
+/// a stored batch names its instance in BATCH_INSTANCE_BITS bits).
+pub const MAX_INSTANCES: usize = 1 << crate::gpu::consts::BATCH_INSTANCE_BITS;
 
 /// Most spheres an instanced scene may represent: sphere ids are 32-bit
 /// (~0 means none) and every instance's last batch may leave slots unused.

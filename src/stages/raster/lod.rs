@@ -25,11 +25,9 @@ use ash::vk::Format;
 pub use super::compute::LodView;
 use super::compute::ViewIndex;
 
-const BINDINGS: [Binding; 10] = [
+const BINDINGS: [Binding; 8] = [
     uniform("GlobalsBlock"),
-    texel("lodLevelTex", Format::R32G32B32A32_UINT),
     texel("lodBoundTex", Format::R32G32B32A32_SFLOAT),
-    texel("lodInstanceTex", Format::R32G32B32A32_UINT),
     rw("Levels"),
     rw("List"),
     rw("Counters"),
@@ -247,9 +245,7 @@ impl LodCull {
     ) -> Vec<(&'static str, &'b Buffer)> {
         let mut bindings = vec![
             ("GlobalsBlock", globals),
-            ("lodLevelTex", &lod.levels),
             ("lodBoundTex", &lod.bounds),
-            ("lodInstanceTex", &lod.instances),
             ("Levels", &self.levels),
             ("List", list),
             ("Counters", &self.counters),
