@@ -895,7 +895,7 @@ fn lod_of(scene: &Scene, geom: &[GpuSphere], pixels: f32) -> Result<Vec<Lod>> {
     };
     let one = |mol: &crate::scene::instanced::Molecule| -> Result<Lod> {
         let atoms = &geom[mol.first as usize..(mol.first + mol.atoms) as usize];
-        let ml = MoleculeLod::new(atoms);
+        let mut ml = MoleculeLod::new(atoms);
         if ml.levels() > MAX_LOD_LEVELS as usize {
             return Err(Error::Internal(format!(
                 "{}: {} levels of detail",

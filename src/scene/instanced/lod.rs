@@ -5,8 +5,12 @@
 //! volume (radius grown by (n / n_L)^(1/3)), down to one sphere at the
 //! centroid's atom. Level 0 is every atom in the molecule's own order (what
 //! an instance draws with `--lod off`, byte for byte). A level is drawn
-//! below a switch size where its silhouette is as close to level 0's as
-//! level 0's is to itself moved half a pixel (or IoU 0.95: [`needed_iou`]).
+//! below a switch size under which, at every size checked, its silhouette
+//! is as close to level 0's as level 0's is to itself moved half a pixel
+//! (or IoU 0.95: [`needed_iou`]); its radius factor is the one that makes
+//! that switch size largest.
+
+use std::collections::HashMap;
 
 /// Atoms of level L+1 per atom of level L.
 pub const LOD_STRIDE: u32 = 4;
@@ -19,9 +23,9 @@ pub struct MoleculeLod {
     pub order: Vec<u32>,
     /// Atoms per level: `counts[0]` is every atom, decreasing to 1.
     pub counts: Vec<u32>,
-    /// Radius factor per level (1 at level 0): the one of a few around
-    /// the volume-keeping (n / n_L)^(1/3) whose silhouette best matches
-    /// level 0's (the volume-keeping factor overshoots the outline).
+    /// Radius factor per level (1 at level 0): the volume-keeping
+    /// (n / n_L)^(1/3) until [`MoleculeLod::switch_ppu`] picks, of a few
+    /// around it, the one drawn up to the largest size.
     pub radius: Vec<f32>,
 }
 
@@ -92,36 +96,14 @@ impl MoleculeLod {
             stride *= LOD_STRIDE as usize;
             counts.push(n.div_ceil(stride) as u32);
         }
-        let radius = vec![1.0; counts.len()];
-        let mut lod = MoleculeLod {
+        let radius = counts
+            .iter()
+            .map(|&c| (n as f32 / c as f32).cbrt())
+            .collect();
+        MoleculeLod {
             order,
             counts,
             radius,
-        };
-        lod.fit_radii(atoms);
-        lod
-    }
-
-    /// Each coarse level's radius factor: among 0.5..1.25 x the
-    /// volume-keeping one, the best mean silhouette IoU along
-    /// [`CHECK_DIRS`] with the molecule 64 px across.
-    fn fit_radii(&mut self, atoms: &[[f32; 4]]) {
-        let ppu = 64.0 / extent(atoms).max(1e-6);
-        for l in 1..self.levels() {
-            let vol = (self.counts[0] as f32 / self.counts[l].max(1) as f32).cbrt();
-            let mut best = (f64::MIN, vol);
-            for k in 4..=10 {
-                self.radius[l] = vol * k as f32 / 8.0;
-                let coarse = self.level_spheres(atoms, l);
-                let iou: f64 = CHECK_DIRS
-                    .iter()
-                    .map(|&d| silhouette_iou(atoms, &coarse, d, ppu))
-                    .sum();
-                if iou > best.0 {
-                    best = (iou, self.radius[l]);
-                }
-            }
-            self.radius[l] = best.1;
         }
     }
 
@@ -182,30 +164,42 @@ pub fn needed_iou(atoms: &[[f32; 4]], dir: [f32; 3], ppu: f32) -> f64 {
     MIN_IOU.min(shift_iou(atoms, dir, ppu))
 }
 
-/// Pixels covered by `spheres` seen along `dir` at `ppu` pixels per unit
-/// (pixel centres on a grid whose corner is `lo`, `w` x `h`).
+/// Points covered by `spheres` seen along `dir` at `ppu` pixels per unit,
+/// on a grid of half pixels `w` x `h`: point (x, y) lies `x / 2 - margin`
+/// and `y / 2 - margin` pixels from `anchor` (whole-pixel margins in
+/// integers: the same point tests the same numbers whatever the margin).
+/// Its four sub-grids of odd and even x and y are the pixel centres of the
+/// grid placements [`PHASES`], drawn in one pass.
 pub fn silhouette(
     spheres: &[[f32; 4]],
     dir: [f32; 3],
     ppu: f32,
-    lo: [f32; 2],
-    w: usize,
-    h: usize,
+    anchor: [f32; 2],
+    margin: i64,
+    (w, h): (usize, usize),
 ) -> Vec<bool> {
     let (u, v) = plane_axes(dir);
     let mut m = vec![false; w * h];
+    let m2 = 2 * margin;
     for s in spheres {
         let (pu, pv) = (dot3(s, u), dot3(s, v));
-        let (cx, cy, r) = ((pu - lo[0]) * ppu, (pv - lo[1]) * ppu, s[3] * ppu);
-        let x0 = (cx - r - 0.5).floor().max(0.0) as usize;
-        let y0 = (cy - r - 0.5).floor().max(0.0) as usize;
-        let x1 = ((cx + r + 0.5).ceil().max(0.0) as usize).min(w);
-        let y1 = ((cy + r + 0.5).ceil().max(0.0) as usize).min(h);
+        // (in half pixels)
+        let (cx, cy, r) = (
+            2.0 * (pu - anchor[0]) * ppu,
+            2.0 * (pv - anchor[1]) * ppu,
+            2.0 * s[3] * ppu,
+        );
+        let x0 = ((cx - r).floor() as i64 + m2).max(0) as usize;
+        let y0 = ((cy - r).floor() as i64 + m2).max(0) as usize;
+        let x1 = (((cx + r).ceil() as i64 + m2 + 1).max(0) as usize).min(w);
+        let y1 = (((cy + r).ceil() as i64 + m2 + 1).max(0) as usize).min(h);
         for y in y0..y1 {
-            for x in x0..x1 {
-                let (dx, dy) = (x as f32 + 0.5 - cx, y as f32 + 0.5 - cy);
+            let dy = (y as i64 - m2) as f32 - cy;
+            let row = &mut m[y * w..(y + 1) * w];
+            for (x, cell) in row.iter_mut().enumerate().take(x1).skip(x0) {
+                let dx = (x as i64 - m2) as f32 - cx;
                 if dx * dx + dy * dy <= r * r {
-                    m[y * w + x] = true;
+                    *cell = true;
                 }
             }
         }
@@ -224,27 +218,105 @@ fn plane_axes(dir: [f32; 3]) -> ([f32; 3], [f32; 3]) {
     (u.into(), d.cross(u).into())
 }
 
-/// Silhouette IoU of `coarse` against `fine` seen along `dir` at `ppu`.
-pub fn silhouette_iou(fine: &[[f32; 4]], coarse: &[[f32; 4]], dir: [f32; 3], ppu: f32) -> f64 {
+/// Sub-pixel placements of the pixel grid a silhouette IoU is averaged
+/// over: the four of half a pixel along x, y or both (at a few pixels
+/// across, one placement's IoU jumps by ~0.05 from one size to the next).
+/// [`silhouette`] draws them together on a grid of half pixels.
+const PHASES: usize = 4;
+
+/// The grid a silhouette against `fine` is drawn on, seen along `dir` at
+/// `ppu`: anchored at `fine`'s lower corner (so its masks are the same
+/// whatever else is drawn on it), `margin` units more on every side in
+/// whole pixels.
+struct Frame {
+    dir: [f32; 3],
+    ppu: f32,
+    /// `fine`'s lower corner.
+    anchor: [f32; 2],
+    /// Whole pixels before it.
+    margin: i64,
+    /// In half pixels.
+    size: (usize, usize),
+}
+
+impl Frame {
+    fn new(fine: &[[f32; 4]], dir: [f32; 3], ppu: f32, margin: f32) -> Frame {
+        let (u, v) = plane_axes(dir);
+        let mut lo = [f32::MAX; 2];
+        let mut hi = [f32::MIN; 2];
+        for s in fine {
+            let (pu, pv) = (dot3(s, u), dot3(s, v));
+            lo = [lo[0].min(pu - s[3]), lo[1].min(pv - s[3])];
+            hi = [hi[0].max(pu + s[3]), hi[1].max(pv + s[3])];
+        }
+        let m = (margin * ppu).max(0.0).ceil() as i64 + 1;
+        let side = |k: usize| 2 * (((hi[k] - lo[k]) * ppu).ceil() as usize + 2 * m as usize + 2);
+        Frame {
+            dir,
+            ppu,
+            anchor: lo,
+            margin: m,
+            size: (side(0), side(1)),
+        }
+    }
+
+    /// `spheres`' silhouette on the frame's half-pixel grid.
+    fn mask(&self, spheres: &[[f32; 4]]) -> Vec<bool> {
+        silhouette(
+            spheres,
+            self.dir,
+            self.ppu,
+            self.anchor,
+            self.margin,
+            self.size,
+        )
+    }
+
+    /// The mean over the grid placements of two masks' IoU.
+    fn mean_iou(&self, a: &[bool], b: &[bool]) -> f64 {
+        let w = self.size.0;
+        let (mut inter, mut union) = ([0u32; PHASES], [0u32; PHASES]);
+        for (y, (ra, rb)) in a.chunks(w).zip(b.chunks(w)).enumerate() {
+            for (x, (&p, &q)) in ra.iter().zip(rb).enumerate() {
+                let c = (x & 1) | ((y & 1) << 1);
+                inter[c] += (p && q) as u32;
+                union[c] += (p || q) as u32;
+            }
+        }
+        let sum: f64 = inter
+            .iter()
+            .zip(&union)
+            .map(|(&i, &u)| if u == 0 { 1.0 } else { i as f64 / u as f64 })
+            .sum();
+        sum / PHASES as f64
+    }
+}
+
+/// How far (units) `coarse` reaches past `fine`'s box seen along `dir`.
+fn reach_past(fine: &[[f32; 4]], coarse: &[[f32; 4]], dir: [f32; 3]) -> f32 {
     let (u, v) = plane_axes(dir);
     let mut lo = [f32::MAX; 2];
     let mut hi = [f32::MIN; 2];
-    for s in fine.iter().chain(coarse) {
+    for s in fine {
         let (pu, pv) = (dot3(s, u), dot3(s, v));
         lo = [lo[0].min(pu - s[3]), lo[1].min(pv - s[3])];
         hi = [hi[0].max(pu + s[3]), hi[1].max(pv + s[3])];
     }
-    let w = ((hi[0] - lo[0]) * ppu).ceil() as usize + 1;
-    let h = ((hi[1] - lo[1]) * ppu).ceil() as usize + 1;
-    let a = silhouette(fine, dir, ppu, lo, w, h);
-    let b = silhouette(coarse, dir, ppu, lo, w, h);
-    let inter = a.iter().zip(&b).filter(|(x, y)| **x && **y).count();
-    let union = a.iter().zip(&b).filter(|(x, y)| **x || **y).count();
-    if union == 0 {
-        1.0
-    } else {
-        inter as f64 / union as f64
-    }
+    coarse.iter().fold(0.0f32, |m, s| {
+        let (pu, pv) = (dot3(s, u), dot3(s, v));
+        m.max(lo[0] - (pu - s[3]))
+            .max(lo[1] - (pv - s[3]))
+            .max(pu + s[3] - hi[0])
+            .max(pv + s[3] - hi[1])
+    })
+}
+
+/// Silhouette IoU of `coarse` against `fine` seen along `dir` at `ppu`:
+/// the mean over the grid placements [`PHASES`] of a grid anchored at
+/// `fine`'s lower corner.
+pub fn silhouette_iou(fine: &[[f32; 4]], coarse: &[[f32; 4]], dir: [f32; 3], ppu: f32) -> f64 {
+    let f = Frame::new(fine, dir, ppu, reach_past(fine, coarse, dir));
+    f.mean_iou(&f.mask(fine), &f.mask(coarse))
 }
 
 /// Level 0's silhouette IoU against itself moved half a pixel along both
@@ -270,34 +342,90 @@ pub fn shift_iou(atoms: &[[f32; 4]], dir: [f32; 3], ppu: f32) -> f64 {
 /// axes; instances turn it every way).
 pub const CHECK_DIRS: [[f32; 3]; 3] = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
 
+/// Steps per doubling of the sizes a level's silhouette is checked at.
+pub const SWITCH_STEPS: i32 = 4;
+
+/// The checked size of step `j`: 2^(j / SWITCH_STEPS) pixels per unit.
+pub fn switch_grid(j: i32) -> f32 {
+    (j as f32 / SWITCH_STEPS as f32).exp2()
+}
+
 impl MoleculeLod {
     /// Per level, the most pixels per unit (world length) at which an
-    /// instance may draw it: where its spheres project at most `pixels` in
-    /// radius and its silhouette keeps [`needed_iou`] of level 0's along
-    /// [`CHECK_DIRS`] (searched down in steps of sqrt 2 from the size
-    /// bound; below a molecule of 2 pixels any level will do). Level 0:
-    /// infinity. Non-increasing with the level.
-    pub fn switch_ppu(&self, atoms: &[[f32; 4]], pixels: f32) -> Vec<f32> {
+    /// instance may draw it, and its radius factor: sizes are checked on
+    /// [`switch_grid`] from a molecule 2 pixels across (below, any level
+    /// will do) upward, and a level's switch size is the last one before
+    /// its silhouette first misses [`needed_iou`] of level 0's along
+    /// [`CHECK_DIRS`] (so it keeps it at every checked size below), at
+    /// most where its spheres project `pixels` in radius and at most the
+    /// finer level's. Of the radius factors 0.5..1.25 x the volume-keeping
+    /// one, the level takes the one with the largest switch size (the
+    /// volume-keeping one where several tie). Level 0: infinity.
+    /// Non-increasing with the level.
+    pub fn switch_ppu(&mut self, atoms: &[[f32; 4]], pixels: f32) -> Vec<f32> {
         let mut out = vec![f32::INFINITY];
         if atoms.is_empty() {
             return out;
         }
         let mean_r = atoms.iter().map(|a| a[3]).sum::<f32>() / atoms.len() as f32;
+        let ext = extent(atoms).max(1e-6);
+        let bottom = ((2.0 / ext).log2() * SWITCH_STEPS as f32).floor() as i32;
+        // Per (direction, step): level 0's masks on a grid wide enough for
+        // every coarse sphere tried (their centres are atoms'), and its
+        // IoU moved half a pixel; shared by every level and radius.
+        let grow =
+            1.25 * (self.counts[0] as f32).cbrt() * atoms.iter().fold(0.0f32, |m, a| m.max(a[3]));
+        let mut fine = HashMap::new();
         for l in 1..self.levels() {
-            let coarse = self.level_spheres(atoms, l);
-            let mut ppu = (pixels / (mean_r * self.radius_scale(l))).min(out[l - 1]);
-            // (ends: far enough below a pixel both silhouettes are empty)
-            while !CHECK_DIRS.iter().all(|&d| {
-                // (>= needed_iou; level 0's moved silhouette only if needed)
-                let iou = silhouette_iou(atoms, &coarse, d, ppu);
-                iou >= MIN_IOU || iou >= shift_iou(atoms, d, ppu)
-            }) {
-                ppu /= std::f32::consts::SQRT_2;
+            let vol = (self.counts[0] as f32 / self.counts[l].max(1) as f32).cbrt();
+            let mut best = (i32::MIN, vol);
+            for k in [8, 7, 9, 6, 10, 5, 4] {
+                let f = vol * k as f32 / 8.0;
+                self.radius[l] = f;
+                let coarse = self.level_spheres(atoms, l);
+                let top = (pixels / (mean_r * f)).min(out[l - 1]);
+                let top = (top.log2() * SWITCH_STEPS as f32).floor() as i32;
+                let mut j = bottom.min(top);
+                // (a radius that misses where the best so far passes cannot
+                // beat it: checked first)
+                if best.0 != i32::MIN
+                    && (best.0 >= top || !keeps(&mut fine, atoms, &coarse, best.0 + 1, grow))
+                {
+                    continue;
+                }
+                while j < top && keeps(&mut fine, atoms, &coarse, j + 1, grow) {
+                    j += 1;
+                }
+                if j > best.0 {
+                    best = (j, f);
+                }
             }
-            out.push(ppu);
+            self.radius[l] = best.1;
+            out.push(switch_grid(best.0).min(out[l - 1]));
         }
         out
     }
+}
+
+/// Level 0's masks and its IoU moved half a pixel per (direction,
+/// [`switch_grid`] step).
+type FineMasks = HashMap<(usize, i32), (Frame, Vec<bool>, Option<f64>)>;
+
+/// Whether `coarse` keeps [`needed_iou`] of `atoms`' silhouette along every
+/// one of [`CHECK_DIRS`] at grid step `j` (level 0's masks from `fine`,
+/// made on a grid `grow` units wider on every side where missing).
+fn keeps(fine: &mut FineMasks, atoms: &[[f32; 4]], coarse: &[[f32; 4]], j: i32, grow: f32) -> bool {
+    CHECK_DIRS.iter().enumerate().all(|(di, &d)| {
+        let ppu = switch_grid(j);
+        let (frame, masks, moved) = fine.entry((di, j)).or_insert_with(|| {
+            let frame = Frame::new(atoms, d, ppu, grow);
+            let mask = frame.mask(atoms);
+            (frame, mask, None)
+        });
+        let iou = frame.mean_iou(masks, &frame.mask(coarse));
+        // (level 0 moved only where 0.95 is missed)
+        iou >= MIN_IOU || iou >= *moved.get_or_insert_with(|| shift_iou(atoms, d, ppu))
+    })
 }
 
 /// The level an instance draws at `ppu` pixels per unit: the coarsest
@@ -376,7 +504,7 @@ mod tests {
     #[test]
     fn the_level_follows_the_projected_size() {
         let atoms = blob(1000, 3);
-        let lod = MoleculeLod::new(&atoms);
+        let mut lod = MoleculeLod::new(&atoms);
         let sw = lod.switch_ppu(&atoms, 2.0);
         assert!(sw.windows(2).all(|w| w[1] <= w[0]), "{sw:?}");
         assert_eq!(level_for(&sw, 1e9), 0);
@@ -427,9 +555,77 @@ mod coverage {
             assert_eq!(needed_iou(&atoms, d, 256.0 / ext), MIN_IOU);
             assert!((needed_iou(&atoms, d, 8.0 / ext) - small).abs() < 1e-12);
         }
-        let lod = MoleculeLod::new(&atoms);
+        let mut lod = MoleculeLod::new(&atoms);
         let level = level_for(&lod.switch_ppu(&atoms, 2.0), 8.0 / ext);
         assert!(level >= 3, "level {level} at 8 px across");
+    }
+
+    /// 1TII: every coarse level keeps [`needed_iou`] along the checked
+    /// axes at every checked size from 2 px across up to its switch size
+    /// (not only at the switch: a single grid placement's IoU is noisy in
+    /// the size, and a level that matched at one size could miss below
+    /// it); its radius factor is one of those tried, and no other of them
+    /// reaches one step further.
+    #[test]
+    fn a_level_keeps_its_outline_at_every_size_below_its_switch() {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/1tii.pdb");
+        let scene = load(
+            std::path::Path::new(path),
+            &LoadOptions::default(),
+            &mut |_, _| {},
+        )
+        .expect("load");
+        let atoms: Vec<[f32; 4]> = scene
+            .spheres
+            .iter()
+            .map(|s| [s.center[0], s.center[1], s.center[2], s.radius])
+            .collect();
+        let ext = super::extent(&atoms);
+        let mean_r = atoms.iter().map(|a| a[3]).sum::<f32>() / atoms.len() as f32;
+        let mut lod = MoleculeLod::new(&atoms);
+        let sw = lod.switch_ppu(&atoms, 2.0);
+        let step = |ppu: f32| (ppu.log2() * SWITCH_STEPS as f32).round() as i32;
+        let bottom = ((2.0 / ext).log2() * SWITCH_STEPS as f32).floor() as i32;
+        let keeps = |coarse: &[[f32; 4]], j: i32| {
+            CHECK_DIRS.iter().all(|&d| {
+                silhouette_iou(&atoms, coarse, d, switch_grid(j))
+                    >= needed_iou(&atoms, d, switch_grid(j))
+            })
+        };
+        for l in 1..lod.levels() {
+            let coarse = lod.level_spheres(&atoms, l);
+            let top = step(sw[l]);
+            assert!(
+                (switch_grid(top) - sw[l]).abs() <= 1e-6 * sw[l],
+                "on the grid"
+            );
+            for j in bottom + 1..=top {
+                assert!(
+                    keeps(&coarse, j),
+                    "level {l} misses at {:.1} px",
+                    switch_grid(j) * ext
+                );
+            }
+            let vol = (lod.counts[0] as f32 / lod.counts[l] as f32).cbrt();
+            let chosen = lod.radius_scale(l);
+            assert!((4..=10).any(|k| (vol * k as f32 / 8.0 - chosen).abs() < 1e-6));
+            // (no radius reaches past the finer level's switch)
+            if switch_grid(top + 1) <= sw[l - 1] {
+                let mut other = lod.clone();
+                for k in 4..=10 {
+                    other.radius[l] = vol * k as f32 / 8.0;
+                    let c = other.level_spheres(&atoms, l);
+                    // (its spheres no larger than 2 px in radius there)
+                    let bound = (2.0 / (mean_r * other.radius[l])).min(sw[l - 1]);
+                    let fits = (bound.log2() * SWITCH_STEPS as f32).floor() as i32 > top;
+                    assert!(
+                        !(fits && (bottom + 1..=top + 1).all(|j| keeps(&c, j))),
+                        "level {l}: radius x{} reaches further",
+                        other.radius[l]
+                    );
+                }
+            }
+        }
     }
 
     /// Every molecule type of the SARS-CoV-2 and HIV-1 models: every level
@@ -466,7 +662,7 @@ mod coverage {
                     .iter()
                     .map(|s| [s.center[0], s.center[1], s.center[2], s.radius])
                     .collect();
-                let lod = MoleculeLod::new(&atoms);
+                let mut lod = MoleculeLod::new(&atoms);
                 let sw = lod.switch_ppu(&atoms, 2.0);
                 for (l, &at) in sw.iter().enumerate().skip(1) {
                     let coarse = lod.level_spheres(&atoms, l);
