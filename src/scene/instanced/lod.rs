@@ -526,6 +526,22 @@ mod coverage {
     use super::*;
     use crate::scene::{LoadOptions, load};
 
+    /// 1TII's atoms (centre, radius).
+    fn tii_atoms() -> Vec<[f32; 4]> {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/1tii.pdb");
+        let scene = load(
+            std::path::Path::new(path),
+            &LoadOptions::default(),
+            &mut |_, _| {},
+        )
+        .expect("load");
+        scene
+            .spheres
+            .iter()
+            .map(|s| [s.center[0], s.center[1], s.center[2], s.radius])
+            .collect()
+    }
+
     /// Full detail's own silhouette under half a pixel of motion: far
     /// below 0.95 at the sizes a mesoscale overview shows a protein (so
     /// 0.95 alone would keep every atom there), 0.95 or more only when the
@@ -534,18 +550,7 @@ mod coverage {
     /// atoms or coarser.
     #[test]
     fn half_a_pixel_of_motion_sets_the_floor() {
-        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/1tii.pdb");
-        let scene = load(
-            std::path::Path::new(path),
-            &LoadOptions::default(),
-            &mut |_, _| {},
-        )
-        .expect("load");
-        let atoms: Vec<[f32; 4]> = scene
-            .spheres
-            .iter()
-            .map(|s| [s.center[0], s.center[1], s.center[2], s.radius])
-            .collect();
+        let atoms = tii_atoms();
         let ext = super::extent(&atoms);
         for d in CHECK_DIRS {
             let small = shift_iou(&atoms, d, 8.0 / ext);
@@ -568,18 +573,7 @@ mod coverage {
     /// reaches one step further.
     #[test]
     fn a_level_keeps_its_outline_at_every_size_below_its_switch() {
-        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/1tii.pdb");
-        let scene = load(
-            std::path::Path::new(path),
-            &LoadOptions::default(),
-            &mut |_, _| {},
-        )
-        .expect("load");
-        let atoms: Vec<[f32; 4]> = scene
-            .spheres
-            .iter()
-            .map(|s| [s.center[0], s.center[1], s.center[2], s.radius])
-            .collect();
+        let atoms = tii_atoms();
         let ext = super::extent(&atoms);
         let mean_r = atoms.iter().map(|a| a[3]).sum::<f32>() / atoms.len() as f32;
         let mut lod = MoleculeLod::new(&atoms);
