@@ -217,7 +217,6 @@ impl SceneBuffers {
             coarse_source,
             tables,
             base_batches,
-            base_atoms,
             lod: lod_tables,
         } = build_instanced(scene, geom, colors, lod_pixels)?;
         let shift = tables.shift;
@@ -243,7 +242,8 @@ impl SceneBuffers {
             ],
         )?;
         buffers.base_slots = base_batches << shift;
-        buffers.base_atoms = base_atoms;
+        // (the scene's own atoms: the coarse copies follow them)
+        buffers.base_atoms = scene.spheres.len() as u32;
         buffers.coarse_source = coarse_source;
         if let Some((bounds, empty_batch)) = lod_tables {
             let b = ctx.guard(Buffer::table(
@@ -397,7 +397,6 @@ struct Built {
     coarse_source: Vec<u32>,
     tables: BatchTables,
     base_batches: u32,
-    base_atoms: u32,
     /// With levels of detail: the molecule types' bounding spheres, the
     /// empty batch.
     lod: Option<(Vec<[f32; 4]>, u32)>,
@@ -418,7 +417,6 @@ fn build_instanced(
     let per = 1u32 << shift;
     let mut tables = base_tables(scene, shift)?;
     let base_batches = tables.words.len() as u32;
-    let base_atoms = geom.len() as u32;
     let mut chains: Vec<u32> = scene.spheres.iter().map(|s| s.region[0]).collect();
     let lod = match lod_pixels {
         Some(p) => Some(lod_of(scene, &geom, p)?),
@@ -508,7 +506,6 @@ fn build_instanced(
         coarse_source,
         tables,
         base_batches,
-        base_atoms,
         lod: lod_tables,
     })
 }

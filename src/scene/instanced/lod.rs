@@ -239,16 +239,23 @@ struct Frame {
     size: (usize, usize),
 }
 
+/// The box (lower, upper corner) of `spheres` seen along `dir`.
+fn projected_box(spheres: &[[f32; 4]], dir: [f32; 3]) -> ([f32; 2], [f32; 2]) {
+    let (u, v) = plane_axes(dir);
+    let mut lo = [f32::MAX; 2];
+    let mut hi = [f32::MIN; 2];
+    for s in spheres {
+        let (pu, pv) = (dot3(s, u), dot3(s, v));
+        lo = [lo[0].min(pu - s[3]), lo[1].min(pv - s[3])];
+        hi = [hi[0].max(pu + s[3]), hi[1].max(pv + s[3])];
+    }
+    (lo, hi)
+}
+
 impl Frame {
-    fn new(fine: &[[f32; 4]], dir: [f32; 3], ppu: f32, margin: f32) -> Frame {
-        let (u, v) = plane_axes(dir);
-        let mut lo = [f32::MAX; 2];
-        let mut hi = [f32::MIN; 2];
-        for s in fine {
-            let (pu, pv) = (dot3(s, u), dot3(s, v));
-            lo = [lo[0].min(pu - s[3]), lo[1].min(pv - s[3])];
-            hi = [hi[0].max(pu + s[3]), hi[1].max(pv + s[3])];
-        }
+    /// The frame of fine spheres whose [`projected_box`] along `dir` is
+    /// `(lo, hi)`.
+    fn new((lo, hi): ([f32; 2], [f32; 2]), dir: [f32; 3], ppu: f32, margin: f32) -> Frame {
         let m = (margin * ppu).max(0.0).ceil() as i64 + 1;
         let side = |k: usize| 2 * (((hi[k] - lo[k]) * ppu).ceil() as usize + 2 * m as usize + 2);
         Frame {
@@ -292,16 +299,10 @@ impl Frame {
     }
 }
 
-/// How far (units) `coarse` reaches past `fine`'s box seen along `dir`.
-fn reach_past(fine: &[[f32; 4]], coarse: &[[f32; 4]], dir: [f32; 3]) -> f32 {
+/// How far (units) `coarse` reaches past a fine box `(lo, hi)` seen along
+/// `dir`.
+fn reach_past((lo, hi): ([f32; 2], [f32; 2]), coarse: &[[f32; 4]], dir: [f32; 3]) -> f32 {
     let (u, v) = plane_axes(dir);
-    let mut lo = [f32::MAX; 2];
-    let mut hi = [f32::MIN; 2];
-    for s in fine {
-        let (pu, pv) = (dot3(s, u), dot3(s, v));
-        lo = [lo[0].min(pu - s[3]), lo[1].min(pv - s[3])];
-        hi = [hi[0].max(pu + s[3]), hi[1].max(pv + s[3])];
-    }
     coarse.iter().fold(0.0f32, |m, s| {
         let (pu, pv) = (dot3(s, u), dot3(s, v));
         m.max(lo[0] - (pu - s[3]))
@@ -315,7 +316,8 @@ fn reach_past(fine: &[[f32; 4]], coarse: &[[f32; 4]], dir: [f32; 3]) -> f32 {
 /// the mean over the grid placements [`PHASES`] of a grid anchored at
 /// `fine`'s lower corner.
 pub fn silhouette_iou(fine: &[[f32; 4]], coarse: &[[f32; 4]], dir: [f32; 3], ppu: f32) -> f64 {
-    let f = Frame::new(fine, dir, ppu, reach_past(fine, coarse, dir));
+    let fine_box = projected_box(fine, dir);
+    let f = Frame::new(fine_box, dir, ppu, reach_past(fine_box, coarse, dir));
     f.mean_iou(&f.mask(fine), &f.mask(coarse))
 }
 
@@ -418,7 +420,7 @@ fn keeps(fine: &mut FineMasks, atoms: &[[f32; 4]], coarse: &[[f32; 4]], j: i32, 
     CHECK_DIRS.iter().enumerate().all(|(di, &d)| {
         let ppu = switch_grid(j);
         let (frame, masks, moved) = fine.entry((di, j)).or_insert_with(|| {
-            let frame = Frame::new(atoms, d, ppu, grow);
+            let frame = Frame::new(projected_box(atoms, d), d, ppu, grow);
             let mask = frame.mask(atoms);
             (frame, mask, None)
         });
