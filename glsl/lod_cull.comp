@@ -1,7 +1,7 @@
 #version 460
 // Levels of detail and culling of an instanced scene, one invocation per
 // instance, in phases (pc.view_index):
-//   0 camera, early: the instance's bounding sphere, placed with its
+//   0 camera, early: the instance's bounds (sphere and box), placed with its
 //     transform, is tested against the camera's pixel window (sphere_rect:
 //     the frustum, and a tile's window when tiling); its level is chosen
 //     from its size on screen (the coarsest whose switch size it is within,
@@ -33,7 +33,9 @@ layout(local_size_x = 64) in;
 layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
 // (the levels and the instances' first batches: scene.glsl's levelTex
 // and instanceRowTex)
-// Per molecule type: bounding sphere in its frame.
+// Per molecule type and level (< MAX_LOD_LEVELS), in the molecule's frame
+// (src/passes/scene.rs `lod_bounds`): the bounding sphere of the level's
+// spheres, then its box's half-extents.
 layout(set = 0, binding = 2) uniform samplerBuffer lodBoundTex;
 // Per instance: the level the camera chose.
 layout(set = 0, binding = 4) buffer Levels { uint levels[]; };
@@ -42,7 +44,8 @@ layout(set = 0, binding = 6) buffer Counters { uint counters[]; };
 // Per instance and view (2k + view): it passed the occlusion test last
 // frame.
 layout(set = 0, binding = 7) buffer Visible { uint visible[]; };
-// The view's farthest depth word per 16x16 and per 128x128 pixels.
+// The view's farthest depth word per fine tile, then per coarse one
+// (lod_hiz.comp; fine tiles of 2^pc.hiz_shift pixels).
 layout(set = 0, binding = 8) uniform usamplerBuffer hizTex;
 // The light texels of the camera's visible points (lod_bounds.comp).
 layout(set = 0, binding = 9) readonly buffer Region { int region[]; };
@@ -51,22 +54,25 @@ layout(set = 0, binding = 9) readonly buffer Region { int region[]; };
 
 layout(constant_id = 1) const bool PERSP = false;
 
-// Whether every pixel the sphere (view coordinates cv, radius r) could
-// cover already holds a surface nearer than its nearest point: its
-// rectangle's tiles, 16-pixel ones while they are few, else 128-pixel ones.
-bool hidden(View v, vec3 cv, float r, ivec4 rc, bool persp) {
+// Whether every pixel the instance (bounds centred at view coordinates cv:
+// sphere radius r, box half-extent ez along the view) could cover already
+// holds a surface nearer than its nearest point: its rectangle's tiles,
+// fine ones (2^pc.hiz_shift pixels) while they are few, else coarse ones.
+bool hidden(View v, vec3 cv, float r, float ez, ivec4 rc, bool persp) {
     // (less a margin for the f32 rounding of the atoms' keys: a grazing
-    // ray's perspective key may lose ~|cv| * 3e-4 to cancellation)
-    float zmin = persp ? length(cv) - r - 1e-3 * (length(cv) + r)
-                       : cv.z - r + v.depth.x - 1e-4 * (abs(cv.z) + abs(v.depth.x) + r) - 1e-3;
+    // ray's perspective key may lose ~|cv| * 3e-4 to cancellation; the
+    // distance from the eye is at least the depth along the view)
+    float zmin = persp ? max(length(cv) - r, cv.z - ez) - 1e-3 * (length(cv) + r)
+                       : cv.z - ez + v.depth.x - 1e-4 * (abs(cv.z) + abs(v.depth.x) + r) - 1e-3;
     uint near = floatBitsToUint(max(zmin, 0.0));
     ivec2 o = ivec2(v.dims.zw);
     ivec4 b = rc - ivec4(o, o); // window pixels
-    uvec2 t16 = (v.dims.xy + 15u) / 16u;
-    bool fine = (b.z >> 4) - (b.x >> 4) < 8 && (b.w >> 4) - (b.y >> 4) < 8;
-    int sh = fine ? 4 : 7;
-    uint base = fine ? 0u : t16.x * t16.y;
-    uint tw = fine ? t16.x : (v.dims.x + 127u) / 128u;
+    int S = int(pc.hiz_shift);
+    uvec2 tf = (v.dims.xy + (1u << S) - 1u) >> S;
+    bool fine = (b.z >> S) - (b.x >> S) < 8 && (b.w >> S) - (b.y >> S) < 8;
+    int sh = fine ? S : S + 3;
+    uint base = fine ? 0u : tf.x * tf.y;
+    uint tw = fine ? tf.x : (v.dims.x + (8u << S) - 1u) >> (S + 3);
     for (int y = b.y >> sh; y <= (b.w >> sh); ++y) {
         for (int x = b.x >> sh; x <= (b.z >> sh); ++x) {
             if (texelFetch(hizTex, int(base + uint(y) * tw + uint(x))).x >= near) return false;
@@ -80,13 +86,15 @@ void main() {
     if (k >= pc.instances) return;
     uvec4 ik = texelFetch(instanceRowTex, int(k));
     uint m = ik.x;
-    vec4 bs = texelFetch(lodBoundTex, int(m));
+    uint base = m * MAX_LOD_LEVELS;
+    // (level 0's sphere: the molecule's size, what the level is chosen by)
+    vec4 bs = texelFetch(lodBoundTex, int(2u * base));
     uint view = pc.view_index & 1u;
     bool late = pc.view_index >= 2u;
     bool cam = view == 0u;
     View v = cam ? g.cam : g.light;
-    vec3 cv = view_space(v, instance_apply(k, bs.xyz), PERSP && cam);
-    uint base = m * MAX_LOD_LEVELS;
+    vec3 p = instance_apply(k, bs.xyz);
+    vec3 cv = view_space(v, p, PERSP && cam);
     uint level;
     if (pc.view_index == 0u) {
         // pixels per world unit at the instance's nearest point
@@ -114,7 +122,21 @@ void main() {
     } else {
         level = levels[k];
     }
-    ivec4 rc = sphere_rect(v, cv, bs.w, PERSP && cam);
+    // The level's bounds (same centre).
+    float r = texelFetch(lodBoundTex, int(2u * (base + level))).w;
+    vec3 be = texelFetch(lodBoundTex, int(2u * (base + level) + 1u)).xyz;
+    // The box's half-extents along the view's axes: its turned half-axes'
+    // projections (the transform applied to the box's face centres, so an
+    // affine instance's too), grown for the rounding of that difference,
+    // and never past the sphere.
+    mat3 ax = mat3(instance_apply(k, bs.xyz + vec3(be.x, 0.0, 0.0)) - p,
+                   instance_apply(k, bs.xyz + vec3(0.0, be.y, 0.0)) - p,
+                   instance_apply(k, bs.xyz + vec3(0.0, 0.0, be.z)) - p);
+    mat3 axes = transpose(mat3(v.right.xyz, v.up.xyz, v.dir.xyz));
+    float slack = 1e-3 * r + 1e-6 * max(max(abs(p.x), abs(p.y)), abs(p.z));
+    vec3 ext = min(abs(axes * ax[0]) + abs(axes * ax[1]) + abs(axes * ax[2]) + slack, vec3(r));
+    ivec4 rc = PERSP && cam ? sphere_rect(v, cv, r, true)
+                            : plane_rect(v, cv.x + vec2(-ext.x, ext.x), cv.y + vec2(-ext.y, ext.y));
     bool inside = rc.x <= rc.z && rc.y <= rc.w;
     // (a light view: only what can shadow a point the camera sees)
     if (!cam) {
@@ -123,7 +145,7 @@ void main() {
     }
     uint h = 2u * k + view;
     if (late) {
-        bool seen = inside && !hidden(v, cv, bs.w, rc, PERSP && cam);
+        bool seen = inside && !hidden(v, cv, r, ext.z, rc, PERSP && cam);
         bool drawn = visible[h] != 0u;
         visible[h] = seen ? 1u : 0u;
         if (!seen || drawn) return;

@@ -1,10 +1,10 @@
 #version 460
 // The depth tiles of a view's early raster (pc.view_index: the camera's
 // visibility buffer or the light map) for the late occlusion test
-// (lod_cull.comp): MODE 0, one invocation per 16x16 pixels of the window,
-// the farthest depth word of its pixels (an empty pixel's word is all
-// ones: nothing behind it is hidden); MODE 1, one per 128x128, the
-// farthest of its 8x8 tiles of 16.
+// (lod_cull.comp): MODE 0, one invocation per fine tile of the window (T x
+// T pixels, T = 2^pc.hiz_shift), the farthest depth word of its pixels (an
+// empty pixel's word is all ones: nothing behind it is hidden); MODE 1,
+// one per coarse tile (8T x 8T), the farthest of its 8x8 fine tiles.
 #include "shared.glsl"
 
 layout(local_size_x = 64) in;
@@ -20,13 +20,14 @@ layout(constant_id = 1) const uint MODE = 0u;
 void main() {
     uvec4 dims = pc.view_index == 0u ? g.cam.dims : g.light.dims;
     uint w = dims.x, h = dims.y;
-    uvec2 t16 = (uvec2(w, h) + 15u) / 16u;
+    uint T = 1u << pc.hiz_shift;
+    uvec2 tf = (uvec2(w, h) + T - 1u) / T;
     uint i = FLAT_ID;
     uint far = 0u;
     if (MODE == 0u) {
-        if (i >= t16.x * t16.y) return;
-        uvec2 o = uvec2(i % t16.x, i / t16.x) * 16u;
-        uint x1 = min(o.x + 16u, w), y1 = min(o.y + 16u, h);
+        if (i >= tf.x * tf.y) return;
+        uvec2 o = uvec2(i % tf.x, i / tf.x) * T;
+        uint x1 = min(o.x + T, w), y1 = min(o.y + T, h);
         for (uint y = o.y; y < y1; ++y) {
             for (uint x = o.x; x < x1; ++x) {
                 far = max(far, texelFetch(visWordTex, int(2u * (y * w + x) + 1u)).x);
@@ -34,13 +35,13 @@ void main() {
         }
         hiz[i] = far;
     } else {
-        uvec2 t128 = (uvec2(w, h) + 127u) / 128u;
-        if (i >= t128.x * t128.y) return;
-        uvec2 o = uvec2(i % t128.x, i / t128.x) * 8u;
-        uint x1 = min(o.x + 8u, t16.x), y1 = min(o.y + 8u, t16.y);
+        uvec2 tc = (uvec2(w, h) + 8u * T - 1u) / (8u * T);
+        if (i >= tc.x * tc.y) return;
+        uvec2 o = uvec2(i % tc.x, i / tc.x) * 8u;
+        uint x1 = min(o.x + 8u, tf.x), y1 = min(o.y + 8u, tf.y);
         for (uint y = o.y; y < y1; ++y) {
-            for (uint x = o.x; x < x1; ++x) far = max(far, hiz[y * t16.x + x]);
+            for (uint x = o.x; x < x1; ++x) far = max(far, hiz[y * tf.x + x]);
         }
-        hiz[t16.x * t16.y + i] = far;
+        hiz[tf.x * tf.y + i] = far;
     }
 }

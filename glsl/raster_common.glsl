@@ -18,23 +18,11 @@ vec2 persp_extent(float a, float z, float r, float dist) {
     return vec2(x0, x1);
 }
 
-// Inclusive pixel rectangle (x0, y0, x1, y1), in image coordinates, whose
-// centres may see the sphere, clipped to the view's buffer window; empty
-// when x0 > x1 or y0 > y1. `persp` (v.dir.w != 0) comes from a
-// specialization constant or a literal: lavapipe runs the straight-line
-// code of an if that no lane takes, and the perspective side's atan, asin
-// and tans would run for every orthographic sphere.
-ivec4 sphere_rect(View v, vec3 cv, float r, bool persp) {
+// The inclusive pixel rectangle (x0, y0, x1, y1), in image coordinates,
+// whose centres lie within the plane ranges xr, yr, clipped to the view's
+// buffer window; empty when x0 > x1 or y0 > y1.
+ivec4 plane_rect(View v, vec2 xr, vec2 yr) {
     float ppu = v.center.w, w = v.right.w, h = v.up.w;
-    vec2 xr, yr;
-    if (!persp) {
-        xr = vec2(cv.x - r, cv.x + r);
-        yr = vec2(cv.y - r, cv.y + r);
-    } else {
-        if (cv.z + r <= 0.0) return ivec4(1, 1, 0, 0); // behind the eye
-        xr = persp_extent(cv.x, cv.z, r, v.dir.w);
-        yr = persp_extent(cv.y, cv.z, r, v.dir.w);
-    }
     // plane -> pixel: px = x*ppu + W/2 - 0.5, py = H/2 - y*ppu - 0.5; a small
     // slack absorbs rounding between this inverse and pixel_plane().
     const float SLACK = 1e-3;
@@ -45,6 +33,24 @@ ivec4 sphere_rect(View v, vec3 cv, float r, bool persp) {
     ivec4 rect = ivec4(ceil(fx0), ceil(fy0), floor(fx1), floor(fy1));
     ivec2 lo = ivec2(v.dims.zw), hi = min(lo + ivec2(v.dims.xy), ivec2(int(w), int(h))) - 1;
     return ivec4(max(rect.xy, lo), min(rect.zw, hi));
+}
+
+// The pixel rectangle (plane_rect) whose centres may see the sphere.
+// `persp` (v.dir.w != 0) comes from a specialization constant or a
+// literal: lavapipe runs the straight-line code of an if that no lane
+// takes, and the perspective side's atan, asin and tans would run for
+// every orthographic sphere.
+ivec4 sphere_rect(View v, vec3 cv, float r, bool persp) {
+    vec2 xr, yr;
+    if (!persp) {
+        xr = vec2(cv.x - r, cv.x + r);
+        yr = vec2(cv.y - r, cv.y + r);
+    } else {
+        if (cv.z + r <= 0.0) return ivec4(1, 1, 0, 0); // behind the eye
+        xr = persp_extent(cv.x, cv.z, r, v.dir.w);
+        yr = persp_extent(cv.y, cv.z, r, v.dir.w);
+    }
+    return plane_rect(v, xr, yr);
 }
 
 #endif

@@ -112,14 +112,18 @@ gpu_push! {
         instances: u32,
         /// Entries of the view's batch list.
         capacity: u32,
-        pad: u32,
+        /// The late phases' fine depth tiles are 2^hiz_shift pixels a side
+        /// (`hiz_shift`, src/stages/raster/lod.rs).
+        hiz_shift: u32,
     }
 
     /// `lod_hiz` (glsl/lod_hiz.comp).
     LodHizPush "lod_hiz" {
         /// 0 camera, 1 key light.
         view_index: u32,
-        pad: [u32; 3],
+        /// Fine tiles of 2^hiz_shift pixels a side.
+        hiz_shift: u32,
+        pad: [u32; 2],
     }
 
     /// `lod_args` (glsl/lod_args.comp): the cull's counts into indirect

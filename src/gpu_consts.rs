@@ -138,6 +138,12 @@ gpu_constants! {
     /// The farthest (texels) a shadow lookup reads from the texel its point
     /// projects to: ISSM's largest patch half-size (32) and PCF's 2 more.
     LOD_REACH: i32 = 34;
+    /// The occlusion test's depth tiles (glsl/lod_hiz.comp): fine ones of
+    /// 2^s pixels a side, s the least from HIZ_MIN_SHIFT that keeps a
+    /// view's within HIZ_FINE_TILES (4 px at 1080p and on a 4096^2 light
+    /// map; 16 px on a 16384^2 window), then coarse ones of 8x8 fine.
+    HIZ_MIN_SHIFT: u32 = 2;
+    HIZ_FINE_TILES: u32 = 1048576;
     /// The cull's per-instance level before any frame chose one.
     NO_LEVEL_YET: u32 = 0xFFFF_FFFF;
     LOD_BATCHES: u32 = 0;

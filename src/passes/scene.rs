@@ -495,7 +495,14 @@ fn build_instanced(
         }
         let empty_batch = tables.words.len() as u32;
         tables.words.push(BATCH_EMPTY);
-        let bounds: Vec<[f32; 4]> = lod.iter().map(|l| l.bound).collect();
+        // (MAX_LOD_LEVELS rows per type, as levelTex)
+        let mut bounds = vec![[0.0f32; 4]; 2 * lod.len() * MAX_LOD_LEVELS as usize];
+        for (m, l) in lod.iter().enumerate() {
+            for (i, b) in l.bound.iter().enumerate() {
+                let at = 2 * (m * MAX_LOD_LEVELS as usize + i);
+                bounds[at..at + 2].copy_from_slice(b);
+            }
+        }
         lod_tables = Some((bounds, empty_batch));
     }
     Ok(Built {
@@ -881,8 +888,36 @@ struct Lod {
     levels: MoleculeLod,
     /// Per level: most pixels per world unit it is drawn at.
     switch: Vec<f32>,
-    /// Bounding sphere in the molecule's frame.
-    bound: [f32; 4],
+    /// Per level: its bounds in the molecule's frame ([`lod_bounds`]).
+    bound: Vec<[[f32; 4]; 2]>,
+}
+
+/// What bounds each level's spheres (a coarse level's, grown to keep the
+/// volume, reach past the atoms' own box), in the molecule's frame, per
+/// level: the sphere (centre: level 0's centres' box's, the same for every
+/// level; radius), then the half-extents of the box about that centre
+/// (w = 0), which glsl/lod_cull.comp turns with the instance: tighter than
+/// the sphere for a long or flat molecule. Grown a little against the f32
+/// rounding of the transforms.
+fn lod_bounds(atoms: &[[f32; 4]], ml: &MoleculeLod) -> Vec<[[f32; 4]; 2]> {
+    let Some((c, _)) = box_sphere(|| atoms.iter().map(|a| ([a[0], a[1], a[2]], a[3]))) else {
+        return vec![[[0.0; 4]; 2]];
+    };
+    let grow = |x: f32| x * 1.001 + 1e-3;
+    (0..ml.levels())
+        .map(|l| {
+            let (mut r, mut e) = (0.0f32, glam::Vec3::ZERO);
+            for s in ml.level_spheres(atoms, l) {
+                let d = glam::Vec3::new(s[0], s[1], s[2]) - c;
+                r = r.max(d.length() + s[3]);
+                e = e.max(d.abs() + glam::Vec3::splat(s[3]));
+            }
+            [
+                [c.x, c.y, c.z, grow(r)],
+                [grow(e.x), grow(e.y), grow(e.z), 0.0],
+            ]
+        })
+        .collect()
 }
 
 /// Every molecule type's levels (`pixels`: `--lod-pixels`).
@@ -901,13 +936,11 @@ fn lod_of(scene: &Scene, geom: &[GpuSphere], pixels: f32) -> Result<Vec<Lod>> {
             )));
         }
         let switch = ml.switch_ppu(atoms, pixels);
-        // (grown a little against the f32 rounding of the transforms)
-        let (c, r) = box_sphere(|| atoms.iter().map(|a| ([a[0], a[1], a[2]], a[3])))
-            .unwrap_or((glam::Vec3::ZERO, 0.0));
+        let bound = lod_bounds(atoms, &ml);
         Ok(Lod {
             levels: ml,
             switch,
-            bound: [c.x, c.y, c.z, r * 1.001 + 1e-3],
+            bound,
         })
     };
     // The molecule types on every core (their silhouette fits are the
@@ -1068,5 +1101,59 @@ mod tests {
         assert_eq!(t.record(0), None);
         t.words[0] = 2 | 3 << BATCH_INSTANCE_BITS; // a level instance 2 lacks
         assert!(t.record(0).is_none_or(|r| r[3] & 0xFF == 0));
+    }
+
+    /// Each level's bounds hold every sphere of that level, its grown
+    /// radii included (a coarse sphere reaches past the atoms' box), and
+    /// the box is no looser than the sphere on any axis.
+    #[test]
+    fn a_levels_bounds_hold_its_spheres() {
+        let mut x = 5u32;
+        let mut next = move || {
+            x = x.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (x >> 8) as f32 / (1u32 << 24) as f32
+        };
+        // a rod: 60 x 12 x 12
+        let atoms: Vec<[f32; 4]> = (0..2000)
+            .map(|_| {
+                [
+                    next() * 60.0 + 100.0,
+                    next() * 12.0,
+                    next() * 12.0 - 50.0,
+                    1.7,
+                ]
+            })
+            .collect();
+        let mut ml = MoleculeLod::new(&atoms);
+        ml.switch_ppu(&atoms, 2.0);
+        let bounds = lod_bounds(&atoms, &ml);
+        assert_eq!(bounds.len(), ml.levels());
+        let level0 = bounds[0][0][3];
+        for (l, [s, e]) in bounds.iter().enumerate() {
+            let c = glam::Vec3::new(s[0], s[1], s[2]);
+            assert_eq!(
+                c,
+                glam::Vec3::new(bounds[0][0][0], bounds[0][0][1], bounds[0][0][2])
+            );
+            let mut reach = 0.0f32;
+            for a in ml.level_spheres(&atoms, l) {
+                let d = glam::Vec3::new(a[0], a[1], a[2]) - c;
+                reach = reach.max(d.length() + a[3]);
+                assert!(d.length() + a[3] <= s[3], "level {l}: sphere");
+                for k in 0..3 {
+                    assert!(d[k].abs() + a[3] <= e[k], "level {l}: box axis {k}");
+                }
+            }
+            // tight: grown only for rounding
+            assert!(s[3] <= reach * 1.001 + 1e-3 + 1e-5, "level {l}");
+            assert!(
+                e.iter().take(3).all(|&x| x <= s[3]),
+                "level {l}: {e:?} {s:?}"
+            );
+        }
+        // the rod's box is thinner than its sphere across it
+        assert!(bounds[0][1][1] < 0.5 * bounds[0][0][3], "{:?}", bounds[0]);
+        // a coarse level's grown spheres reach past level 0's
+        assert!(bounds.iter().any(|b| b[0][3] > level0), "{bounds:?}");
     }
 }

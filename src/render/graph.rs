@@ -21,7 +21,7 @@ use crate::vk::{Buffer, Context, Recorder};
 pub const PASSES: &[(&str, &str)] = &[
     (
         "lod_cull",
-        "instanced scenes with levels of detail (`--lod auto`): one invocation per instance places its molecule's bounding sphere and tests it against the camera's pixel window, chooses the coarsest level whose switch size the instance is within (a prefix of the molecule's atoms in a spatial order, radii grown; kept only where its outline keeps 95 % of the molecule's, or what half a pixel of motion keeps; a coarser one than last frame's only a band below its switch size) and keeps the level for the light; the kept (instance, level) batches of those that passed the occlusion test last frame are listed with one `atomicAdd`, and the rasterizer visits the list, dispatched indirectly, instead of the view's order",
+        "instanced scenes with levels of detail (`--lod auto`): one invocation per instance places its molecule's bounds and chooses the coarsest level whose switch size the instance is within (a prefix of the molecule's atoms in a spatial order, radii grown; kept only where its outline keeps 95 % of the molecule's, or what half a pixel of motion keeps; a coarser one than last frame's only a band below its switch size) and keeps the level for the light, then tests that level's bounds (a sphere, and a box turned with the instance) against the camera's pixel window; the kept (instance, level) batches of those that passed the occlusion test last frame are listed with one `atomicAdd`, and the rasterizer visits the list, dispatched indirectly, instead of the view's order",
     ),
     (
         "raster",
@@ -29,7 +29,7 @@ pub const PASSES: &[(&str, &str)] = &[
     ),
     (
         "lod_occlusion",
-        "instanced scenes with levels of detail: the farthest depth of each 16x16 and 128x128 pixels of the early camera image (the instances that passed last frame's test), then one invocation per instance in the window: hidden if its bounding sphere's nearest point lies behind every tile its rectangle touches (exact: it could not win a pixel); the visible ones not drawn early are listed, and the results are the next frame's history (two-phase occlusion culling, as niagara and Mol* do it)",
+        "instanced scenes with levels of detail: the farthest depth of each 4x4 and 32x32 pixels (coarser past 4096x4096) of the early camera image (the instances that passed last frame's test), then one invocation per instance in the window: hidden if the nearest point of its level's bounds lies behind every tile its rectangle touches (exact: it could not win a pixel); the visible ones not drawn early are listed, and the results are the next frame's history (two-phase occlusion culling, as niagara and Mol* do it)",
     ),
     (
         "raster_late",

@@ -15,7 +15,10 @@
 
 use crate::error::Result;
 use crate::gpu::blocks::{LodArgsPush, LodCullPush, LodHizPush};
-use crate::gpu::consts::{LOD_ARGS, LOD_BATCHES, LOD_SPHERES, LOD_VIEWS, LOD_WORDS, NO_LEVEL_YET};
+use crate::gpu::consts::{
+    HIZ_FINE_TILES, HIZ_MIN_SHIFT, LOD_ARGS, LOD_BATCHES, LOD_SPHERES, LOD_VIEWS, LOD_WORDS,
+    NO_LEVEL_YET,
+};
 use crate::passes::scene::{LodBuffers, SCENE_GEOMETRY, SceneBuffers};
 use crate::passes::{LOCAL_SIZE, spirv};
 use crate::vk::pipeline::{Binding, PipelineDesc, ro, rw, texel, uniform};
@@ -48,9 +51,19 @@ const HIZ_BINDINGS: [Binding; 3] = [
     rw("Hiz"),
 ];
 
-/// Depth tile words for the largest window (16384 pixels a side): one per
-/// 16x16 and one per 128x128 pixels.
-const HIZ_WORDS: u64 = (1024 * 1024) + (128 * 128);
+/// Depth tile words of a view: its fine tiles, then its coarse ones (8x8
+/// fine each).
+const HIZ_WORDS: u64 = HIZ_FINE_TILES as u64 * 65 / 64 + 4096;
+
+/// The fine depth tiles' shift for a `w` x `h` window: the finest from
+/// HIZ_MIN_SHIFT whose tiles fit HIZ_FINE_TILES and, with the coarse ones,
+/// HIZ_WORDS.
+pub fn hiz_shift(w: u32, h: u32) -> u32 {
+    let tiles = |s: u32| w.div_ceil(1 << s) as u64 * h.div_ceil(1 << s) as u64;
+    (HIZ_MIN_SHIFT..28)
+        .find(|&s| tiles(s) <= HIZ_FINE_TILES as u64 && tiles(s) + tiles(s + 3) <= HIZ_WORDS)
+        .unwrap_or(28)
+}
 
 /// A view's late list is `LATE + view` (index in `lists` and the counter
 /// words).
@@ -79,7 +92,7 @@ pub struct LodCull {
     /// Orthographic and perspective cameras (constant 1).
     cull: [ComputePipeline; 2],
     args: ComputePipeline,
-    /// The depth tiles (16 and 128 px).
+    /// The depth tiles (fine, coarse: [`hiz_shift`]).
     hiz: [ComputePipeline; 2],
     /// Camera, light (early), camera, light (late): the batch lists.
     lists: [Buffer; 4],
@@ -170,8 +183,8 @@ impl LodCull {
                 },
             )
         };
-        let hiz16 = ctx.guard(hiz("lod depth tiles", 0)?);
-        let hiz128 = ctx.guard(hiz("lod depth tiles 128", 1)?);
+        let hiz_fine = ctx.guard(hiz("lod depth tiles", 0)?);
+        let hiz_coarse = ctx.guard(hiz("lod coarse depth tiles", 1)?);
         // (a view lists each instance once, at one level: never more than
         // the full-detail batches)
         let most = lod.base_batches.max(1);
@@ -217,7 +230,7 @@ impl LodCull {
         Ok(LodCull {
             cull: [ortho.keep(), persp.keep()],
             args: args.keep(),
-            hiz: [hiz16.keep(), hiz128.keep()],
+            hiz: [hiz_fine.keep(), hiz_coarse.keep()],
             lists: lists.keep(),
             visible: visible.keep(),
             hiz_tiles: [hiz_camera.keep(), hiz_light.keep()],
@@ -272,8 +285,10 @@ impl LodCull {
     }
 
     /// The last steps of every cull phase: `list` (of `view`; counter
-    /// words `list` too) emptied, the cull dispatched into it, and the
-    /// dispatch arguments of every list.
+    /// words `list` too) emptied, the cull dispatched into it (a late one
+    /// reading depth tiles of 2^hiz_shift pixels), and the dispatch
+    /// arguments of every list.
+    #[allow(clippy::too_many_arguments)]
     fn cull_into<'b>(
         &'b self,
         p: &mut PassBuilder<'b>,
@@ -282,6 +297,7 @@ impl LodCull {
         list: usize,
         view: ViewIndex,
         perspective: bool,
+        hiz_shift: u32,
     ) -> Result<()> {
         let lod = scene.lod.as_ref().ok_or_else(|| {
             crate::error::Error::Internal("the scene has no levels of detail".into())
@@ -296,7 +312,7 @@ impl LodCull {
                 view_index: list as u32,
                 instances: self.instances,
                 capacity: self.capacity,
-                pad: 0,
+                hiz_shift,
             },
             Grid::Invocations(self.instances as u64),
             &bindings,
@@ -370,7 +386,8 @@ impl LodCull {
                 ],
             );
         }
-        self.cull_into(p, globals, scene, view as usize, view, perspective)
+        // (the early phases read no depth tiles)
+        self.cull_into(p, globals, scene, view as usize, view, perspective, 0)
     }
 
     /// The steps of `lod_occlusion` (`light_occlusion`): the depth tiles
@@ -393,13 +410,26 @@ impl LodCull {
             ("Hiz", &self.hiz_tiles[view as usize]),
         ];
         let tiles = |t: u32| (w.div_ceil(t) as u64) * (h.div_ceil(t) as u64);
+        let shift = hiz_shift(w, h);
         let push = LodHizPush {
             view_index: view as u32,
-            pad: [0; 3],
+            hiz_shift: shift,
+            pad: [0; 2],
         };
-        p.dispatch(&self.hiz[0], &push, Grid::Invocations(tiles(16)), &hb);
-        p.dispatch(&self.hiz[1], &push, Grid::Invocations(tiles(128)), &hb);
-        self.cull_into(p, globals, scene, LATE + view as usize, view, perspective)
+        p.dispatch(
+            &self.hiz[0],
+            &push,
+            Grid::Invocations(tiles(1 << shift)),
+            &hb,
+        );
+        p.dispatch(
+            &self.hiz[1],
+            &push,
+            Grid::Invocations(tiles(8 << shift)),
+            &hb,
+        );
+        let list = LATE + view as usize;
+        self.cull_into(p, globals, scene, list, view, perspective, shift)
     }
 
     /// `view`'s late list.
@@ -476,7 +506,7 @@ impl LodCull {
     /// After a frame that drew the lists: if a list was given more batches
     /// than it holds (the cull dropped the rest), or more than three
     /// quarters of them (a viewer zooming in asks more frame after frame),
-    /// makes them all LOD_STRIDE (4) times as long as the most asked (at
+    /// makes them all LOD_MAX_STRIDE (4) times as long as the most asked (at
     /// most the full-detail batches): one level finer has up to 4x the
     /// batches, and an orthographic view switches every instance of a type
     /// in the same frame (meso 10^8 fly-in: 272 k -> 752 k batches in one
@@ -492,7 +522,7 @@ impl LodCull {
         };
         let overflow = asked > self.capacity;
         let capacity = asked
-            .saturating_mul(crate::scene::instanced::lod::LOD_STRIDE)
+            .saturating_mul(crate::scene::instanced::lod::LOD_MAX_STRIDE)
             .clamp(asked.min(self.most), self.most);
         if asked as u64 * 4 <= self.capacity as u64 * 3 || capacity <= self.capacity {
             return Ok(overflow);
@@ -545,3 +575,37 @@ impl LodCull {
 }
 
 crate::impl_destroy!(LodCull);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Fine tiles of 4 px where they fit (1080p, a 4096^2 light map),
+    /// coarser on the largest windows, and never more words than the
+    /// buffer holds.
+    #[test]
+    fn depth_tiles_are_as_fine_as_the_buffer_allows() {
+        assert_eq!(hiz_shift(1920, 1080), 2);
+        assert_eq!(hiz_shift(4096, 4096), 2);
+        assert_eq!(hiz_shift(4097, 4096), 3);
+        assert_eq!(hiz_shift(16384, 16384), 4);
+        assert_eq!(hiz_shift(1, 1), 2);
+        for (w, h) in [
+            (1, 16384),
+            (16384, 1),
+            (8191, 8193),
+            (16384, 16384),
+            (640, 480),
+        ] {
+            let s = hiz_shift(w, h);
+            let tiles = |s: u32| w.div_ceil(1 << s) as u64 * h.div_ceil(1 << s) as u64;
+            assert!(tiles(s) <= HIZ_FINE_TILES as u64, "{w}x{h}");
+            assert!(tiles(s) + tiles(s + 3) <= HIZ_WORDS, "{w}x{h}");
+            // the finest that fits
+            assert!(
+                s == HIZ_MIN_SHIFT || tiles(s - 1) > HIZ_FINE_TILES as u64,
+                "{w}x{h}"
+            );
+        }
+    }
+}
