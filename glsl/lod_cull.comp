@@ -81,23 +81,6 @@ bool hidden(View v, vec3 cv, float r, float ez, ivec4 rc, bool persp) {
     return true;
 }
 
-// Whether the sphere (view coordinates cv, radius r) may cover a pixel of
-// the whole image (not only the tile being drawn: every tile must choose
-// the same levels).
-bool in_image(View v, vec3 cv, float r, bool persp) {
-    vec2 xr = vec2(cv.x - r, cv.x + r), yr = vec2(cv.y - r, cv.y + r);
-    if (persp) {
-        if (cv.z + r <= 0.0) return false;
-        xr = persp_extent(cv.x, cv.z, r, v.dir.w);
-        yr = persp_extent(cv.y, cv.z, r, v.dir.w);
-    }
-    // (plane -> pixel as plane_rect, a pixel's slack more)
-    float ppu = v.center.w, w = v.right.w, h = v.up.w;
-    vec2 px = vec2(xr.x, xr.y) * ppu + 0.5 * w - 0.5;
-    vec2 py = 0.5 * h - vec2(yr.y, yr.x) * ppu - 0.5;
-    return px.y >= -1.0 && px.x <= w && py.y >= -1.0 && py.x <= h;
-}
-
 void main() {
     uint k = FLAT_ID;
     if (k >= pc.instances) return;
@@ -120,15 +103,6 @@ void main() {
             float z = cv.z - bs.w;
             ppu = z > 0.0 ? ppu * v.dir.w / z : 1e30;
         }
-        // An instance no level of which reaches into the image (level 0's
-        // box row's w: the largest radius of any level) is never seen by
-        // the camera, only cast shadows: its level is chosen from its size
-        // in the light's view (mostly far coarser: a zoomed-in camera's
-        // scale made the light draw the shadow casters around the view at
-        // full detail), which keeps the self-shadow test exact for every
-        // instance the camera draws.
-        float reach = texelFetch(lodBoundTex, int(2u * base + 1u)).w;
-        if (!in_image(v, cv, reach, PERSP)) ppu = g.light.center.w;
         // The coarsest level whose switch size the instance is within; a
         // coarser one than last frame's only below its switch size by the
         // band LOD_BAND, so a level never flickers at its switch (no

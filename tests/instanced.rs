@@ -763,9 +763,7 @@ fn culled_instances_are_never_visible() {
 /// (the coarsest whose switch size it is within: level 0 close up), and a
 /// level coarser than last frame's is taken only once the size is a band
 /// (LOD_BAND) below its switch size, so a viewer zooming across a switch
-/// does not flicker; never a level above its switch size. An instance no
-/// level of which reaches into the image takes its level from its size in
-/// the light's view (it only casts shadows).
+/// does not flicker; never a level above its switch size.
 #[test]
 fn levels_follow_the_size_on_screen_with_a_band() {
     use sphereshade::gpu::consts::LOD_BAND;
@@ -773,10 +771,7 @@ fn levels_follow_the_size_on_screen_with_a_band() {
     let ctx = validated_context();
     let s = meso("sarscov2_2-no_bonds.bcif");
     let inst = s.instancing.as_ref().unwrap();
-    // per type: switch sizes, and the centre and reach of its levels (the
-    // farthest any level's sphere reaches from the centre of level 0's
-    // centres' box)
-    let types: Vec<(Vec<f32>, [f32; 3], f32)> = inst
+    let switch: Vec<Vec<f32>> = inst
         .molecules
         .iter()
         .map(|m| {
@@ -784,67 +779,25 @@ fn levels_follow_the_size_on_screen_with_a_band() {
                 .iter()
                 .map(|a| [a.center[0], a.center[1], a.center[2], a.radius])
                 .collect();
-            let mut lod = MoleculeLod::new(&atoms);
-            let sw = lod.switch_ppu(&atoms, 2.0);
-            let c: [f32; 3] = std::array::from_fn(|i| {
-                let lo = atoms.iter().map(|a| a[i]).fold(f32::MAX, f32::min);
-                let hi = atoms.iter().map(|a| a[i]).fold(f32::MIN, f32::max);
-                (lo + hi) * 0.5
-            });
-            let reach = (0..lod.levels())
-                .flat_map(|l| lod.level_spheres(&atoms, l))
-                .map(|a| (0..3).map(|i| (a[i] - c[i]).powi(2)).sum::<f32>().sqrt() + a[3])
-                .fold(0.0f32, f32::max);
-            (sw, c, reach)
+            MoleculeLod::new(&atoms).switch_ppu(&atoms, 2.0)
         })
         .collect();
-    // how far (pixels) instance k's reach lies outside the image (< 0: it
-    // may reach into it)
-    let gap = |k: usize, cam: &sphereshade::camera::Camera| {
-        let ppu = cam.pixels_per_unit();
-        let (w, h) = (cam.width as f64, cam.height as f64);
-        let (_, c, reach) = &types[inst.instance_molecule[k] as usize];
-        let q = glam::DVec3::from(inst.transforms.apply(k, *c).map(f64::from)) - cam.center;
-        let (x, y) = (q.dot(cam.right) * ppu, q.dot(cam.up) * ppu);
-        let r = *reach as f64 * ppu;
-        [
-            -1.0 - (x + r + 0.5 * w - 0.5),
-            (x - r + 0.5 * w - 0.5) - w,
-            -1.0 - (0.5 * h + r - y - 0.5),
-            (0.5 * h - r - y - 0.5) - h,
-        ]
-        .into_iter()
-        .fold(f64::MIN, f64::max)
-    };
-    // the CPU twin of the cull's choice: by the camera's scale where some
-    // level may reach into the image, else by the light's (an instance
-    // within a hundredth of a pixel of the image's edge may take either)
-    let expect = |prev: Option<&[u32]>, cam: &sphereshade::camera::Camera, light: f32| {
+    // the CPU twin of the cull's choice
+    let expect = |prev: Option<&[u32]>, ppu: f32| -> Vec<u32> {
         (0..inst.instances())
             .map(|k| {
-                let sw = &types[inst.instance_molecule[k] as usize].0;
-                let choose = |ppu: f32| {
-                    let level = level_for(sw, ppu) as u32;
-                    let banded = level_for(sw, ppu * LOD_BAND) as u32;
-                    match prev {
-                        Some(p) if p[k] <= level => p[k].max(banded),
-                        _ => level,
-                    }
-                };
-                let (inside, outside) = (choose(cam.pixels_per_unit() as f32), choose(light));
-                match gap(k, cam) {
-                    g if g < -0.01 => vec![inside],
-                    g if g > 0.01 => vec![outside],
-                    _ => vec![inside, outside],
+                let sw = &switch[inst.instance_molecule[k] as usize];
+                let level = level_for(sw, ppu) as u32;
+                let banded = level_for(sw, ppu * LOD_BAND) as u32;
+                match prev {
+                    Some(p) if p[k] <= level => p[k].max(banded),
+                    _ => level,
                 }
             })
-            .collect::<Vec<Vec<u32>>>()
-    };
-    let matches = |got: &[u32], want: &[Vec<u32>]| {
-        got.len() == want.len() && got.iter().zip(want).all(|(g, w)| w.contains(g))
+            .collect()
     };
     // a switch size most types share (the first type's level 1)
-    let sw1 = types[0].0[1];
+    let sw1 = switch[0][1];
     let at = |ppu: f32| {
         let mut cam = camera(&s, 64, 48, None);
         cam.view_height = 48.0 / ppu as f64;
@@ -854,32 +807,15 @@ fn levels_follow_the_size_on_screen_with_a_band() {
     let st = settings(at(sw1 * 1.3), ShadowMode::Issm);
     let mut r = Renderer::new(&ctx, &s, st.clone()).expect("renderer");
     let mut prev: Option<Vec<u32>> = None;
-    let mut outside = 0;
     for (f, ppu) in [1.3f32, 0.95, 0.95, 0.8, 1.02, 2.0].into_iter().enumerate() {
-        let cam = at(sw1 * ppu);
-        r.update(|x| x.camera = cam).expect("camera");
+        r.update(|x| x.camera = at(sw1 * ppu)).expect("camera");
         r.render_frame().expect("frame");
-        let light = r.inspect().issm_info().expect("ISSM").0.pixels_per_unit() as f32;
         let got = levels(&r);
-        let want = expect(prev.as_deref(), &cam, light);
-        assert!(matches(&got, &want), "frame {f} at {ppu} x the switch size");
-        // never coarser than the level its size allows (in the camera's
-        // view or, out of the image, in the light's)
-        let most = expect(None, &cam, light);
-        assert!(
-            got.iter().zip(&most).all(|(g, m)| m.iter().any(|m| g <= m)),
-            "frame {f}"
-        );
-        // (out of the image, a coarser level than the camera's scale gives)
-        let camera_level = |k: usize| {
-            level_for(
-                &types[inst.instance_molecule[k] as usize].0,
-                cam.pixels_per_unit() as f32,
-            ) as u32
-        };
-        outside += (0..got.len())
-            .filter(|&k| gap(k, &cam) > 0.01 && got[k] > camera_level(k))
-            .count();
+        let want = expect(prev.as_deref(), sw1 * ppu);
+        assert_eq!(got, want, "frame {f} at {ppu} x the switch size");
+        // never coarser than the level its size allows
+        let most = expect(None, sw1 * ppu);
+        assert!(got.iter().zip(&most).all(|(g, m)| g <= m), "frame {f}");
         prev = Some(got);
     }
     // the band held level 0 at 0.95 x the switch size, where a fresh
@@ -887,15 +823,9 @@ fn levels_follow_the_size_on_screen_with_a_band() {
     let mut fresh = Renderer::new(&ctx, &s, settings(at(sw1 * 0.95), ShadowMode::Issm)).unwrap();
     fresh.render_frame().unwrap();
     let f = levels(&fresh);
-    // (an instance of the first type in the image)
-    let k0 = (0..inst.instances())
-        .position(|k| inst.instance_molecule[k] == 0 && gap(k, &at(sw1 * 0.95)) < -1.0)
-        .unwrap();
+    let k0 = inst.instance_molecule.iter().position(|&m| m == 0).unwrap();
     assert_eq!(f[k0], 1, "a fresh renderer at 0.95 x the switch size");
     assert_eq!(prev.unwrap()[k0], 0);
-    // the zoomed-in frames left instances out of the image, drawn by the
-    // light alone at its coarser scale
-    assert!(outside > 0, "no instance took the light's level");
     assert_no_validation_messages(&ctx);
 }
 

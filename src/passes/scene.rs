@@ -896,16 +896,15 @@ struct Lod {
 /// volume, reach past the atoms' own box), in the molecule's frame, per
 /// level: the sphere (centre: level 0's centres' box's, the same for every
 /// level; radius), then the half-extents of the box about that centre
-/// (w: 0, but level 0's holds the largest radius of any level: what no
-/// level reaches past), which glsl/lod_cull.comp turns with the instance:
-/// tighter than the sphere for a long or flat molecule. Grown a little
-/// against the f32 rounding of the transforms.
+/// (w = 0), which glsl/lod_cull.comp turns with the instance: tighter than
+/// the sphere for a long or flat molecule. Grown a little against the f32
+/// rounding of the transforms.
 fn lod_bounds(atoms: &[[f32; 4]], ml: &MoleculeLod) -> Vec<[[f32; 4]; 2]> {
     let Some((c, _)) = box_sphere(|| atoms.iter().map(|a| ([a[0], a[1], a[2]], a[3]))) else {
         return vec![[[0.0; 4]; 2]];
     };
     let grow = |x: f32| x * 1.001 + 1e-3;
-    let mut bounds: Vec<[[f32; 4]; 2]> = (0..ml.levels())
+    (0..ml.levels())
         .map(|l| {
             let (mut r, mut e) = (0.0f32, glam::Vec3::ZERO);
             for s in ml.level_spheres(atoms, l) {
@@ -918,9 +917,7 @@ fn lod_bounds(atoms: &[[f32; 4]], ml: &MoleculeLod) -> Vec<[[f32; 4]; 2]> {
                 [grow(e.x), grow(e.y), grow(e.z), 0.0],
             ]
         })
-        .collect();
-    bounds[0][1][3] = bounds.iter().map(|b| b[0][3]).fold(0.0, f32::max);
-    bounds
+        .collect()
 }
 
 /// Every molecule type's levels (`pixels`: `--lod-pixels`).
@@ -1153,14 +1150,10 @@ mod tests {
                 e.iter().take(3).all(|&x| x <= s[3]),
                 "level {l}: {e:?} {s:?}"
             );
-            // level 0's box row holds the largest radius of any level
-            assert!(s[3] <= bounds[0][1][3], "level {l}");
-            assert!(l == 0 || e[3] == 0.0, "level {l}");
         }
         // the rod's box is thinner than its sphere across it
         assert!(bounds[0][1][1] < 0.5 * bounds[0][0][3], "{:?}", bounds[0]);
         // a coarse level's grown spheres reach past level 0's
         assert!(bounds.iter().any(|b| b[0][3] > level0), "{bounds:?}");
-        assert!(bounds.iter().any(|b| b[0][3] == bounds[0][1][3]));
     }
 }
