@@ -759,6 +759,69 @@ fn culled_instances_are_never_visible() {
     }
 }
 
+/// Culling at coarse levels (their spheres grown past the atoms: each
+/// (type, level) has its own bounds) never drops a visible sphere: on one
+/// renderer panning over the meso scene (orthographic, so every frame
+/// keeps the same levels), each frame's ids, depths and shadows equal a
+/// fresh renderer's first frame at that camera, which draws every
+/// instance in the window (no history, nothing yet to hide behind); from
+/// the third frame on (the first's history is everything in the window)
+/// the history and the depth tiles cull.
+#[test]
+fn culled_coarse_levels_are_never_visible() {
+    let ctx = validated_context();
+    // (a virion in plasma: proteins of thousands of atoms behind others)
+    let s = sphereshade::scene::meso::meso(1_000_000, 1).unwrap();
+    let r = s.bounding_sphere().1 as f64;
+    let whole = camera(&s, 128, 96, None);
+    let pan = |shift: f64| {
+        let mut cam = whole;
+        cam.view_height = whole.view_height / 8.0;
+        cam.center = whole.center + whole.right * (r * shift);
+        cam
+    };
+    let st = settings(pan(0.0), ShadowMode::IssmSoft);
+    let mut rd = Renderer::new(&ctx, &s, st.clone()).expect("renderer");
+    let mut coarse = 0;
+    for (f, shift) in [0.0, 0.0, 0.0, 0.02, 0.04].into_iter().enumerate() {
+        let cam = pan(shift);
+        rd.update(|x| x.camera = cam).expect("camera");
+        rd.render_frame().expect("frame");
+        let mut fresh = Renderer::new(&ctx, &s, settings(cam, ShadowMode::IssmSoft)).unwrap();
+        fresh.render_frame().unwrap();
+        let (a, b) = (rd.inspect(), fresh.inspect());
+        let levels = a.lod_levels().unwrap().unwrap();
+        assert_eq!(
+            Some(&levels),
+            b.lod_levels().unwrap().as_ref(),
+            "frame {f}: levels"
+        );
+        coarse += levels.iter().filter(|&&l| l > 0).count();
+        assert!(
+            a.read_vis().unwrap() == b.read_vis().unwrap(),
+            "frame {f}: ids or depths differ"
+        );
+        assert!(
+            a.read_shadow().unwrap() == b.read_shadow().unwrap(),
+            "frame {f}: shadows differ"
+        );
+        let (x, y) = (
+            a.lod_counts().unwrap().unwrap(),
+            b.lod_counts().unwrap().unwrap(),
+        );
+        if f >= 2 {
+            // occlusion culled spheres the fresh frame drew, all hidden
+            assert!(
+                x.camera_spheres < y.camera_spheres,
+                "frame {f}: {x:?} {y:?}"
+            );
+            assert!(x.light_spheres < y.light_spheres, "frame {f}: {x:?} {y:?}");
+        }
+        assert_no_validation_messages(&ctx);
+    }
+    assert!(coarse > 0, "no instance drew a coarse level");
+}
+
 /// Levels of detail: each instance's level follows its size on screen
 /// (the coarsest whose switch size it is within: level 0 close up), and a
 /// level coarser than last frame's is taken only once the size is a band
