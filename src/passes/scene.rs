@@ -474,11 +474,16 @@ fn build_instanced(
             .iter()
             .map(|&m| coarse_batches[m as usize] as u64)
             .sum();
-        if (base_batches as u64 + coarse_total + 1) << shift > MAX_SLOTS {
+        let needed = (base_batches as u64 + coarse_total + 1) << shift;
+        if needed > MAX_SLOTS {
+            // (the coarse levels' share scales with the atoms)
+            let fit = inst.represented() as u128 * MAX_SLOTS as u128 / needed as u128;
             return Err(Error::Input(format!(
-                "{}: the levels of detail need more than the 2^32 sphere ids sphereshade has \
-                 (--lod off draws without them)",
-                scene.source
+                "{}: {} atoms with their levels of detail need {needed} sphere ids, more than \
+                 the {MAX_SLOTS} sphereshade has: about {fit} atoms fit (--lod off needs none \
+                 for the levels, but draws every atom every frame)",
+                scene.source,
+                inst.represented()
             )));
         }
         // (reserved exactly: a doubling growth would hold up to twice
@@ -1155,5 +1160,52 @@ mod tests {
         assert!(bounds[0][1][1] < 0.5 * bounds[0][0][3], "{:?}", bounds[0]);
         // a coarse level's grown spheres reach past level 0's
         assert!(bounds.iter().any(|b| b[0][3] > level0), "{bounds:?}");
+    }
+
+    /// Levels of detail past the 2^32 sphere ids are refused in one line
+    /// that says how many atoms fit (before any table is built).
+    #[test]
+    fn too_many_slots_for_the_levels_is_one_clear_line() {
+        let mut b = InstancedBuilder::default();
+        let node = b.node(&["cell"]);
+        let atoms: Vec<Sphere> = (0..4096)
+            .map(|i| Sphere {
+                center: [
+                    (i % 16) as f32 * 1.5,
+                    (i / 16 % 16) as f32 * 1.5,
+                    (i / 256) as f32 * 1.5,
+                ],
+                radius: 1.7,
+                color: [200, 100, 50, 255],
+                region: [0; 4],
+            })
+            .collect();
+        let m = b.molecule("cube", node, atoms);
+        // 3.5 * 10^9 atoms: under MAX_REPRESENTED, but with their coarse
+        // levels past 2^32 slots
+        for k in 0..854_500u32 {
+            let t = [k as f64 * 30.0, 0.0, 0.0];
+            b.instance_quat("test", m, glam::DQuat::IDENTITY, t)
+                .unwrap();
+        }
+        let scene = b.finish("big").unwrap();
+        let geom: Vec<GpuSphere> = scene
+            .spheres
+            .iter()
+            .map(|s| [s.center[0], s.center[1], s.center[2], s.radius])
+            .collect();
+        let Err(e) = build_instanced(&scene, geom, vec![0; 4096], Some(2.0)) else {
+            panic!("built past 2^32 slots");
+        };
+        let msg = e.to_string();
+        assert!(!msg.contains('\n'), "{msg}");
+        assert!(msg.starts_with("big: 3500032000 atoms"), "{msg}");
+        let fit: u64 = msg
+            .split("about ")
+            .nth(1)
+            .and_then(|t| t.split(' ').next())
+            .and_then(|n| n.parse().ok())
+            .expect("the atoms that fit");
+        assert!((2_500_000_000..3_500_000_000).contains(&fit), "{msg}");
     }
 }
