@@ -1,13 +1,14 @@
 #version 460
 // Levels of detail and culling of an instanced scene, one invocation per
 // instance, in phases (pc.view_index):
-//   0 camera, early: the instance's bounds (sphere and box), placed with its
-//     transform, is tested against the camera's pixel window (sphere_rect:
-//     the frustum, and a tile's window when tiling); its level is chosen
-//     from its size on screen (the coarsest whose switch size it is within,
+//   0 camera, early: the instance's level is chosen from its size on
+//     screen (the coarsest whose switch size it is within,
 //     src/scene/instanced/lod.rs) and kept for the other phases, so every
 //     view draws the same (instance, atom) slots and the ISSM's self-shadow
-//     test stays exact. Listed if it passed the occlusion test last frame.
+//     test stays exact; that level's bounds (sphere and box), placed with
+//     the instance's transform, are tested against the camera's pixel
+//     window (the frustum, and a tile's window when tiling). Listed if it
+//     passed the occlusion test last frame.
 //   1 key light, early: the light's view, the camera's level, listed if it
 //     passed the light's occlusion test last frame; only instances over
 //     the light texels a visible point's lookup may read (the rectangle of

@@ -124,8 +124,8 @@ gpu_constants! {
     BATCH_INSTANCE_BITS: u32 = 24;
     BATCH_INSTANCE_MASK: u32 = 0xFF_FFFF;
     BATCH_EMPTY: u32 = 0xFF00_0000;
-    /// Levels of detail a molecule type may have (src/scene/instanced/lod.rs:
-    /// 4^15 atoms is beyond any molecule).
+    /// Levels of detail a molecule type may have (src/scene/instanced/lod.rs
+    /// `strides` reaches one sphere within them up to 2^30 atoms).
     MAX_LOD_LEVELS: u32 = 16;
     /// Counter words per list of the LOD cull (glsl/lod_cull.comp): batches
     /// listed, spheres drawn, then the three indirect dispatch words; lists

@@ -10,7 +10,7 @@ use common::*;
 use glam::{DQuat, DVec3};
 use rmpv::Value;
 use sphereshade::output::ids_from_vis;
-use sphereshade::render::Renderer;
+use sphereshade::render::{Inspect, Renderer};
 use sphereshade::scene::instanced::{LevelKind, Transforms};
 use sphereshade::scene::{self, LoadOptions, ModelSelect, Scene};
 use sphereshade::settings::{Levels, RenderSettings, ShadowMode, SsdoMode};
@@ -759,10 +759,27 @@ fn culled_instances_are_never_visible() {
     }
 }
 
+/// Two renderers' last frames: the same ids and depths, colours and shadow
+/// AOV, bit for bit.
+fn assert_same_frame(a: &Inspect, b: &Inspect, what: &str) {
+    assert!(
+        a.read_vis().unwrap() == b.read_vis().unwrap(),
+        "{what}: ids or depths differ"
+    );
+    assert!(
+        a.read_color().unwrap() == b.read_color().unwrap(),
+        "{what}: colours differ"
+    );
+    assert!(
+        a.read_shadow().unwrap() == b.read_shadow().unwrap(),
+        "{what}: shadows differ"
+    );
+}
+
 /// Culling at coarse levels (their spheres grown past the atoms: each
 /// (type, level) has its own bounds) never drops a visible sphere: on one
 /// renderer panning over the meso scene (orthographic, so every frame
-/// keeps the same levels), each frame's ids, depths and shadows equal a
+/// keeps the same levels), each frame's ids, depths, colours and shadows equal a
 /// fresh renderer's first frame at that camera, which draws every
 /// instance in the window (no history, nothing yet to hide behind); from
 /// the third frame on (the first's history is everything in the window)
@@ -797,14 +814,7 @@ fn culled_coarse_levels_are_never_visible() {
             "frame {f}: levels"
         );
         coarse += levels.iter().filter(|&&l| l > 0).count();
-        assert!(
-            a.read_vis().unwrap() == b.read_vis().unwrap(),
-            "frame {f}: ids or depths differ"
-        );
-        assert!(
-            a.read_shadow().unwrap() == b.read_shadow().unwrap(),
-            "frame {f}: shadows differ"
-        );
+        assert_same_frame(&a, &b, &format!("frame {f}"));
         let (x, y) = (
             a.lod_counts().unwrap().unwrap(),
             b.lod_counts().unwrap().unwrap(),
@@ -917,18 +927,7 @@ fn lod_lists_grow_when_a_frame_overflows() {
         );
         // (the counts may differ: the frame drawn again has the first
         // try's occlusion history, so it draws more early and hides more)
-        assert!(
-            ia.read_vis().unwrap() == ib.read_vis().unwrap(),
-            "frame {f}: ids or depths differ"
-        );
-        assert!(
-            ia.read_color().unwrap() == ib.read_color().unwrap(),
-            "frame {f}: colours differ"
-        );
-        assert!(
-            ia.read_shadow().unwrap() == ib.read_shadow().unwrap(),
-            "frame {f}: shadows differ"
-        );
+        assert_same_frame(&ia, &ib, &format!("frame {f}"));
     }
     assert_no_validation_messages(&ctx);
 }

@@ -55,13 +55,18 @@ const HIZ_BINDINGS: [Binding; 3] = [
 /// fine each).
 const HIZ_WORDS: u64 = HIZ_FINE_TILES as u64 * 65 / 64 + 4096;
 
+/// Tiles of `side` pixels a side over a `w` x `h` window.
+fn tiles(w: u32, h: u32, side: u32) -> u64 {
+    w.div_ceil(side) as u64 * h.div_ceil(side) as u64
+}
+
 /// The fine depth tiles' shift for a `w` x `h` window: the finest from
 /// HIZ_MIN_SHIFT whose tiles fit HIZ_FINE_TILES and, with the coarse ones,
 /// HIZ_WORDS.
 pub fn hiz_shift(w: u32, h: u32) -> u32 {
-    let tiles = |s: u32| w.div_ceil(1 << s) as u64 * h.div_ceil(1 << s) as u64;
+    let count = |s: u32| tiles(w, h, 1 << s);
     (HIZ_MIN_SHIFT..28)
-        .find(|&s| tiles(s) <= HIZ_FINE_TILES as u64 && tiles(s) + tiles(s + 3) <= HIZ_WORDS)
+        .find(|&s| count(s) <= HIZ_FINE_TILES as u64 && count(s) + count(s + 3) <= HIZ_WORDS)
         .unwrap_or(28)
 }
 
@@ -378,7 +383,7 @@ impl LodCull {
             p.dispatch(
                 &self.bounds[perspective as usize],
                 &(),
-                Grid::Invocations(w.div_ceil(16) as u64 * h.div_ceil(16) as u64),
+                Grid::Invocations(tiles(w, h, 16)),
                 &[
                     ("GlobalsBlock", globals),
                     ("visWordTex", vis),
@@ -409,7 +414,6 @@ impl LodCull {
             ("visWordTex", vis),
             ("Hiz", &self.hiz_tiles[view as usize]),
         ];
-        let tiles = |t: u32| (w.div_ceil(t) as u64) * (h.div_ceil(t) as u64);
         let shift = hiz_shift(w, h);
         let push = LodHizPush {
             view_index: view as u32,
@@ -419,13 +423,13 @@ impl LodCull {
         p.dispatch(
             &self.hiz[0],
             &push,
-            Grid::Invocations(tiles(1 << shift)),
+            Grid::Invocations(tiles(w, h, 1 << shift)),
             &hb,
         );
         p.dispatch(
             &self.hiz[1],
             &push,
-            Grid::Invocations(tiles(8 << shift)),
+            Grid::Invocations(tiles(w, h, 8 << shift)),
             &hb,
         );
         let list = LATE + view as usize;
@@ -598,12 +602,12 @@ mod tests {
             (640, 480),
         ] {
             let s = hiz_shift(w, h);
-            let tiles = |s: u32| w.div_ceil(1 << s) as u64 * h.div_ceil(1 << s) as u64;
-            assert!(tiles(s) <= HIZ_FINE_TILES as u64, "{w}x{h}");
-            assert!(tiles(s) + tiles(s + 3) <= HIZ_WORDS, "{w}x{h}");
+            let count = |s: u32| tiles(w, h, 1 << s);
+            assert!(count(s) <= HIZ_FINE_TILES as u64, "{w}x{h}");
+            assert!(count(s) + count(s + 3) <= HIZ_WORDS, "{w}x{h}");
             // the finest that fits
             assert!(
-                s == HIZ_MIN_SHIFT || tiles(s - 1) > HIZ_FINE_TILES as u64,
+                s == HIZ_MIN_SHIFT || count(s - 1) > HIZ_FINE_TILES as u64,
                 "{w}x{h}"
             );
         }
