@@ -204,8 +204,13 @@ impl Tracker {
         }
         for u in uses {
             let st = self.states.entry(u.buffer).or_default();
-            if u.read && !u.write && !st.reads.iter().any(|(r, _)| *r == u.stage) {
-                st.reads.push((u.stage, Vec::new()));
+            if u.read && !u.write {
+                // (a read again at a stage is ordered before nothing yet,
+                // whatever barriers ordered its earlier reads)
+                match st.reads.iter_mut().find(|(r, _)| *r == u.stage) {
+                    Some((_, ordered)) => ordered.clear(),
+                    None => st.reads.push((u.stage, Vec::new())),
+                }
             }
         }
         b
@@ -462,6 +467,25 @@ mod tests {
         assert_eq!(b.src_stage, vk::PipelineStageFlags2::COMPUTE_SHADER);
         assert_eq!(b.dst_stage, vk::PipelineStageFlags2::TRANSFER);
         assert!(check_hazards(&log).is_empty());
+    }
+
+    /// A buffer read, a barrier another buffer's fill needed (it orders
+    /// that read before transfers), the buffer read again, then filled:
+    /// the second read still needs its own barrier (the LOD cull's light
+    /// region, read by the camera's two culls, the lists filled between).
+    #[test]
+    fn a_read_again_after_a_barrier_is_not_ordered_by_it() {
+        let log = run(&[
+            vec![
+                u(1, Stage::Compute, true, false),
+                u(2, Stage::Compute, false, true),
+            ],
+            vec![u(2, Stage::Transfer, false, true)],
+            vec![u(1, Stage::Compute, true, false)],
+            vec![u(1, Stage::Transfer, false, true)],
+        ]);
+        assert!(matches!(log[log.len() - 2], Event::Barrier(_)), "{log:?}");
+        assert!(check_hazards(&log).is_empty(), "{log:?}");
     }
 
     #[test]
