@@ -23,16 +23,28 @@
 //     visible one not drawn early is listed; the result is the next
 //     frame's history.
 //   3 key light, late: the same against the light map.
-// A kept instance appends its level's batches to the view's list, which
+// Within a kept instance each batch of its level (64 atoms in a spatial
+// run: a protein at full detail is ~26 spheres deep on its own) is tested
+// by its bounding sphere, the same way: an early phase lists the batches
+// not hidden behind the view's last final image (its depth tiles, kept
+// from last frame: `hizPrevTex`), the late phase, of the instances seen,
+// the batches that early phase did not list (recomputed: the same tests on
+// the same tiles) and that the early image does not hide. What is visible
+// in the final image is drawn in one phase or the other: exact, whatever
+// the last frame was (a camera that moved only moves work to the late
+// phase).
+// A kept instance appends its kept batches to the view's list, which
 // the rasterizer visits instead of the view order (dispatched indirectly,
-// lod_args.comp). Entries past the count name the empty batch (the host
-// fills them).
+// lod_args.comp). The four lists lie in one buffer, list v from entry
+// v * (pc.capacity + LOD_LIST_TAIL): in a frame that draws them, a
+// sphere's id is its slot in that buffer (scene.glsl's batchTex is the
+// lists). Entries past a count name the empty batch (the host fills them).
 #include "raster_common.glsl"
 
 layout(local_size_x = 64) in;
 
 layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
-// (the levels and the instances' first batches: scene.glsl's levelTex
+// (the levels and the instances' molecule types: scene.glsl's levelTex
 // and instanceRowTex)
 // Per molecule type and level (< MAX_LOD_LEVELS), in the molecule's frame
 // (src/passes/scene.rs `lod_bounds`): the bounding sphere of the level's
@@ -40,7 +52,7 @@ layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
 layout(set = 0, binding = 2) uniform samplerBuffer lodBoundTex;
 // Per instance: the level the camera chose.
 layout(set = 0, binding = 4) buffer Levels { uint levels[]; };
-layout(set = 0, binding = 5) buffer List { uint list[]; };
+layout(set = 0, binding = 5) buffer List { uvec2 list[]; };
 layout(set = 0, binding = 6) buffer Counters { uint counters[]; };
 // Per instance and view (2k + view): it passed the occlusion test last
 // frame.
@@ -48,6 +60,12 @@ layout(set = 0, binding = 7) buffer Visible { uint visible[]; };
 // The view's farthest depth word per fine tile, then per coarse one
 // (lod_hiz.comp; fine tiles of 2^pc.hiz_shift pixels).
 layout(set = 0, binding = 8) uniform usamplerBuffer hizTex;
+// The same of the view's last final image (the history the early phases
+// test batches against).
+layout(set = 0, binding = 10) uniform usamplerBuffer hizPrevTex;
+// Per batch of each (molecule type, level): its bounding sphere in the
+// molecule's frame (the level's first: lodBoundTex's box w).
+layout(set = 0, binding = 11) uniform samplerBuffer batchBoundTex;
 // The light texels of the camera's visible points (lod_bounds.comp).
 layout(set = 0, binding = 9) readonly buffer Region { int region[]; };
 #include "scene.glsl"
@@ -55,11 +73,13 @@ layout(set = 0, binding = 9) readonly buffer Region { int region[]; };
 
 layout(constant_id = 1) const bool PERSP = false;
 
-// Whether every pixel the instance (bounds centred at view coordinates cv:
-// sphere radius r, box half-extent ez along the view) could cover already
-// holds a surface nearer than its nearest point: its rectangle's tiles,
-// fine ones (2^pc.hiz_shift pixels) while they are few, else coarse ones.
-bool hidden(View v, vec3 cv, float r, float ez, ivec4 rc, bool persp) {
+// Whether every pixel an instance or batch (bounds centred at view
+// coordinates cv: sphere radius r, box half-extent ez along the view)
+// could cover already holds a surface nearer than its nearest point: its
+// rectangle's tiles of this frame's early image (`prev`: of the last final
+// image), fine ones (2^pc.hiz_shift pixels) while they are few, else
+// coarse ones. (A bool, not the sampler as a parameter: one function.)
+bool hidden(bool prev, View v, vec3 cv, float r, float ez, ivec4 rc, bool persp) {
     // (less a margin for the f32 rounding of the atoms' keys: a grazing
     // ray's perspective key may lose ~|cv| * 3e-4 to cancellation; the
     // distance from the eye is at least the depth along the view)
@@ -76,7 +96,10 @@ bool hidden(View v, vec3 cv, float r, float ez, ivec4 rc, bool persp) {
     uint tw = fine ? tf.x : (v.dims.x + (8u << S) - 1u) >> (S + 3);
     for (int y = b.y >> sh; y <= (b.w >> sh); ++y) {
         for (int x = b.x >> sh; x <= (b.z >> sh); ++x) {
-            if (texelFetch(hizTex, int(base + uint(y) * tw + uint(x))).x >= near) return false;
+            // (clamped: the last image's tiles may be of another size)
+            int at = min(int(base + uint(y) * tw + uint(x)), textureSize(hizTex) - 1);
+            uint word = prev ? texelFetch(hizPrevTex, at).x : texelFetch(hizTex, at).x;
+            if (word >= near) return false;
         }
     }
     return true;
@@ -85,8 +108,7 @@ bool hidden(View v, vec3 cv, float r, float ez, ivec4 rc, bool persp) {
 void main() {
     uint k = FLAT_ID;
     if (k >= pc.instances) return;
-    uvec4 ik = texelFetch(instanceRowTex, int(k));
-    uint m = ik.x;
+    uint m = texelFetch(instanceRowTex, int(k)).x;
     uint base = m * MAX_LOD_LEVELS;
     // (level 0's sphere: the molecule's size, what the level is chosen by)
     vec4 bs = texelFetch(lodBoundTex, int(2u * base));
@@ -145,20 +167,59 @@ void main() {
                         && rc.w >= region[1] - LOD_REACH && rc.y <= region[3] + LOD_REACH;
     }
     uint h = 2u * k + view;
+    bool persp = PERSP && cam;
+    // (the early phase's candidates: the instances seen last frame)
+    bool listed_early = true;
     if (late) {
-        bool seen = inside && !hidden(v, cv, r, ext.z, rc, PERSP && cam);
-        bool drawn = visible[h] != 0u;
+        bool seen = inside && !hidden(false, v, cv, r, ext.z, rc, persp);
+        listed_early = inside && visible[h] != 0u;
         visible[h] = seen ? 1u : 0u;
-        if (!seen || drawn) return;
+        if (!seen) return;
     } else if (!inside || visible[h] == 0u) {
         return;
     }
-    uvec4 e = texelFetch(levelTex, int(base + level));
-    uint first = level == 0u ? ik.y : ik.z + e.x;
-    uint batches = (e.w + BATCH_MASK) >> BATCH_SHIFT;
+    uint atoms = texelFetch(levelTex, int(base + level)).w;
+    uint batches = (atoms + BATCH_MASK) >> BATCH_SHIFT;
+    uint first = uint(texelFetch(lodBoundTex, int(2u * (base + level) + 1u)).w);
+    // A batch sphere's radius placed with the instance: times the
+    // transform's largest stretch (1 for a rigid one; an affine one's
+    // bounded by Gershgorin's circles of A^T A, its columns taken from
+    // unit offsets), grown for the rounding of the placed centre.
+    float stretch = 1.0;
+    if (SCENE_KIND == SCENE_AFFINE) {
+        mat3 a = mat3(instance_apply(k, bs.xyz + vec3(1.0, 0.0, 0.0)) - p,
+                      instance_apply(k, bs.xyz + vec3(0.0, 1.0, 0.0)) - p,
+                      instance_apply(k, bs.xyz + vec3(0.0, 0.0, 1.0)) - p);
+        mat3 ata = transpose(a) * a;
+        float row = 0.0;
+        for (int i = 0; i < 3; ++i) {
+            row = max(row, abs(ata[i].x) + abs(ata[i].y) + abs(ata[i].z));
+        }
+        // (never below 1: the atoms' radii are not scaled)
+        stretch = max(sqrt(row), 1.0) * 1.001;
+    }
+    float grow = 1e-6 * max(max(abs(p.x), abs(p.y)), abs(p.z)) + 1e-4;
+    // Each kept batch takes its entry with an atomicAdd (a count first
+    // and the entries in a second loop would need both loops to agree,
+    // lane by lane).
+    uint from = pc.view_index * (pc.capacity + LOD_LIST_TAIL);
+    uint word = k | (level << BATCH_INSTANCE_BITS);
     uint w = pc.view_index * LOD_WORDS;
-    uint at = atomicAdd(counters[w + LOD_BATCHES], batches);
-    atomicAdd(counters[w + LOD_SPHERES], e.w);
-    uint last = min(at + batches, pc.capacity);
-    for (uint j = at; j < last; ++j) list[j] = first + (j - at);
+    uint spheres = 0u;
+    for (uint j = 0u; j < batches; ++j) {
+        vec4 bb = texelFetch(batchBoundTex, int(first + j));
+        bb.w = bb.w * stretch * 1.001 + grow;
+        vec3 bv = view_space(v, instance_apply(k, bb.xyz), persp);
+        ivec4 br = sphere_rect(v, bv, bb.w, persp);
+        bool in_window = br.x <= br.z && br.y <= br.w;
+        bool early = listed_early && in_window && !hidden(true, v, bv, bb.w, bb.w, br, persp);
+        bool keep = late ? !early && in_window && !hidden(false, v, bv, bb.w, bb.w, br, persp)
+                         : early;
+        if (keep) {
+            uint at = atomicAdd(counters[w + LOD_BATCHES], 1u);
+            if (at < pc.capacity) list[from + at] = uvec2(word, j);
+            spheres += min(atoms - (j << BATCH_SHIFT), 1u << BATCH_SHIFT);
+        }
+    }
+    if (spheres > 0u) atomicAdd(counters[w + LOD_SPHERES], spheres);
 }

@@ -24,7 +24,9 @@ layout(set = 0, binding = 5) uniform usamplerBuffer visWordTex;
 // early-depth test turns more of the later visits away before their
 // atomics, and the halves take alike work on different cache lines
 // (glsl/bands.glsl's SPHERE_AT; src/stages/raster/compute.rs `view_order`).
-// (instanced scenes: the order is over batches of 2^BATCH_SHIFT slots)
+// (instanced scenes: the order is over batches of 2^BATCH_SHIFT slots; a
+// LOD list, pc.list_base != RASTER_ORDER, is visited in its own order:
+// its slots are the ids)
 layout(set = 0, binding = 6) uniform usamplerBuffer orderTex;
 // The spheres as texels (scene.glsl): in a view's order a sphere's address
 // is not the invocation's, and a storage load at per-lane addresses is a
@@ -32,7 +34,8 @@ layout(set = 0, binding = 6) uniform usamplerBuffer orderTex;
 #define SCENE_ATTRIBUTES
 #include "scene.glsl"
 #define SPHERE_AT(i) (scene_instanced() \
-    ? (texelFetch(orderTex, int((i) >> BATCH_SHIFT)).x << BATCH_SHIFT) | scene_lane(i) \
+    ? (pc.list_base != RASTER_ORDER ? (pc.list_base << BATCH_SHIFT) + (i) \
+       : (texelFetch(orderTex, int((i) >> BATCH_SHIFT)).x << BATCH_SHIFT) | scene_lane(i)) \
     : texelFetch(orderTex, int(i)).x)
 
 #include "push/raster.glsl"

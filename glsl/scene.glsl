@@ -1,16 +1,19 @@
 // The scene's spheres by id, for every pass that reads them: plain (one
 // texel per sphere, id = index) or instanced (molecule atoms stored once,
-// id = slot: batch id >> BATCH_SHIFT, atom id & BATCH_MASK of the batch's
-// run of one instance's molecule), chosen by the specialization constant
-// SCENE_SPEC (src/passes/scene.rs sets it for every pipeline of a
-// renderer; lavapipe runs both sides of a branch on data, so the plain
-// scene does not pay for the instanced path). Slots are ordered as the
-// expanded spheres, so depth ties resolve alike in both. The batch shift
-// is the scene's: 3 (8 slots) for molecules of a few beads, where 64-slot
-// batches would leave most lanes idle, up to 6.
+// id = slot: entry id >> BATCH_SHIFT of the batch table, atom id &
+// BATCH_MASK of that entry's run of one instance's molecule), chosen by the
+// specialization constant SCENE_SPEC (src/passes/scene.rs sets it for
+// every pipeline of a renderer; lavapipe runs both sides of a branch on
+// data, so the plain scene does not pay for the instanced path). The
+// batch table is the static one (every instance's full detail, in
+// expanded order, so depth ties resolve as in the expanded scene) or, in
+// a frame that draws the LOD cull's lists, those lists: a slot is then a
+// list position, so ids stay 32-bit however many atoms are represented.
+// The batch shift is the scene's: 3 (8 slots) for molecules of a few
+// beads, where 64-slot batches would leave most lanes idle, up to 6.
 //
 // Needs `Globals g` before inclusion (scene_region reads g.scene). Define
-// SCENE_ATTRIBUTES first for colours and regions. Bindings 24-30 are the
+// SCENE_ATTRIBUTES first for colours and regions. Bindings 24-32 are the
 // scene's (by name in Rust: SCENE_GEOMETRY, SCENE_ATTRIBUTES).
 #ifndef SCENE_GLSL
 #define SCENE_GLSL
@@ -24,17 +27,17 @@ const uint BATCH_MASK = (1u << BATCH_SHIFT) - 1u;
 // Plain: centre, radius per sphere. Instanced: the molecules' atoms, each in
 // its molecule's frame.
 layout(set = 0, binding = 24) uniform samplerBuffer sphereTex;
-// Instanced: per batch (R32UI, 4 bytes: 10^9 atoms make 22 M batches) its
-// instance | level of detail << BATCH_INSTANCE_BITS, or BATCH_EMPTY;
-// `scene_batch` makes its record from the two tables below.
+// Instanced: per batch (RG32UI) its instance | level of detail <<
+// BATCH_INSTANCE_BITS (or BATCH_EMPTY: no atoms), and its index among
+// that level's batches; `scene_batch` makes its record from the two
+// tables below.
 layout(set = 0, binding = 25) uniform usamplerBuffer batchTex;
-// Instanced: per instance (RGBA32UI) its molecule type, first level-0
-// batch, first coarse batch, expanded index of its first atom.
+// Instanced: per instance (RG32UI) its molecule type and the expanded
+// index of its first atom (its low 32 bits).
 layout(set = 0, binding = 31) uniform usamplerBuffer instanceRowTex;
-// Instanced: per (molecule type, level < MAX_LOD_LEVELS), RGBA32UI: the
-// level's first batch within an instance's coarse batches (level 0: the
-// number of levels), its first stored atom, its switch size (f32 bits:
-// most pixels per world unit it is drawn at), its atoms.
+// Instanced: per (molecule type, level < MAX_LOD_LEVELS), RGBA32UI: level
+// 0's holds the number of levels, its first stored atom, its switch size
+// (f32 bits: most pixels per world unit it is drawn at), its atoms.
 layout(set = 0, binding = 32) uniform usamplerBuffer levelTex;
 // Instanced: 2 texels (rigid: quaternion xyzw, translation) or 3 (affine:
 // the rows m_i0 m_i1 m_i2 v_i) per instance.
@@ -57,20 +60,19 @@ layout(set = 0, binding = 29) uniform usamplerBuffer moleculeTex;
 bool scene_instanced() { return SCENE_KIND != SCENE_PLAIN; }
 
 // The record of sphere id's batch: its instance, first stored atom, the
-// expanded index of that atom (a coarse batch: of its instance's first),
-// atom count | molecule type << 8 | BATCH_COARSE (zeros for the empty
-// batch). src/passes/scene.rs `BatchTables::record` is the same.
+// expanded index of that atom (a coarse batch: of its instance's first;
+// low 32 bits), atom count | molecule type << 8 | BATCH_COARSE (zeros for
+// the empty batch). src/passes/scene.rs `BatchTables::record` is the same.
 uvec4 scene_batch(uint id) {
-    uint b = id >> BATCH_SHIFT;
-    uint w = texelFetch(batchTex, int(b)).x;
-    uint k = w & BATCH_INSTANCE_MASK, l = min(w >> BATCH_INSTANCE_BITS, MAX_LOD_LEVELS - 1u);
-    uvec4 row = texelFetch(instanceRowTex, int(k));
+    uvec2 e = texelFetch(batchTex, int(id >> BATCH_SHIFT)).xy;
+    uint k = e.x & BATCH_INSTANCE_MASK, l = min(e.x >> BATCH_INSTANCE_BITS, MAX_LOD_LEVELS - 1u);
+    uvec2 row = texelFetch(instanceRowTex, int(k)).xy;
     uvec4 lv = texelFetch(levelTex, int(row.x * MAX_LOD_LEVELS + l));
     bool coarse = l != 0u;
-    uint a = (b - (coarse ? row.z + lv.x : row.y)) << BATCH_SHIFT;
-    uvec4 r = uvec4(k, lv.y + a, row.w + (coarse ? 0u : a),
+    uint a = e.y << BATCH_SHIFT;
+    uvec4 r = uvec4(k, lv.y + a, row.y + (coarse ? 0u : a),
                     min(lv.w - a, 1u << BATCH_SHIFT) | (row.x << 8) | (coarse ? BATCH_COARSE : 0u));
-    return w == BATCH_EMPTY ? uvec4(0u) : r;
+    return e.x == BATCH_EMPTY ? uvec4(0u) : r;
 }
 uint scene_lane(uint id) { return id & BATCH_MASK; }
 

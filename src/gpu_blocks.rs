@@ -102,6 +102,11 @@ gpu_push! {
         /// Entries of the band job buffer.
         job_capacity: u32,
         sphere_count: u32,
+        /// A LOD list's first batch in the scene's batch table (the lists,
+        /// glsl/lod_cull.comp): invocation i draws slot
+        /// (list_base << shift) + i; RASTER_ORDER: the view's order.
+        list_base: u32,
+        pad: [u32; 3],
     }
 
     /// `lod_cull` (glsl/lod_cull.comp): one invocation per instance.

@@ -117,10 +117,10 @@ gpu_constants! {
     /// lanes name their atoms through originTex (`scene_index`).
     BATCH_COARSE: u32 = 0x8000_0000;
     BATCH_TYPE_MASK: u32 = 0x7F_FFFF;
-    /// A batch as stored (batchTex, 4 bytes): its instance (the low
+    /// A batch as stored (batchTex, 8 bytes): its instance (the low
     /// BATCH_INSTANCE_BITS bits: the most instances a scene holds) | its
-    /// level of detail << BATCH_INSTANCE_BITS; BATCH_EMPTY names the LOD
-    /// lists' empty batch (no atoms).
+    /// level of detail << BATCH_INSTANCE_BITS, then its index among that
+    /// level's batches; BATCH_EMPTY names the empty batch (no atoms).
     BATCH_INSTANCE_BITS: u32 = 24;
     BATCH_INSTANCE_MASK: u32 = 0xFF_FFFF;
     BATCH_EMPTY: u32 = 0xFF00_0000;
@@ -132,6 +132,11 @@ gpu_constants! {
     /// camera (early), light (early), camera (late), light (late).
     LOD_WORDS: u32 = 8;
     LOD_VIEWS: u32 = 4;
+    /// RasterPush.list_base of a view drawn in its order (not a LOD list).
+    RASTER_ORDER: u32 = 0xFFFF_FFFF;
+    /// Entries after each LOD list's capacity, empty: the last
+    /// workgroup's lanes read past the count.
+    LOD_LIST_TAIL: u32 = 64;
     /// A level coarser than last frame's is taken only below its switch
     /// size divided by this (glsl/lod_cull.comp).
     LOD_BAND: f32 = 1.15;

@@ -246,12 +246,11 @@ pub fn load_scene_with_progress(
             let name = name.as_deref().unwrap_or(scene::DEFAULT_SCENE);
             let atoms = args.atoms.unwrap_or(scene::DEFAULT_ATOMS);
             if name.eq_ignore_ascii_case("meso") {
-                // instanced: as many atoms as 32-bit sphere ids name
+                // instanced: as many atoms as an instanced scene represents
                 let most = scene::instanced::MAX_REPRESENTED;
                 if atoms == 0 || atoms as u64 > most {
                     return Err(Error::Input(format!(
-                        "--atoms {atoms}: the meso scene holds between 1 and {most} atoms \
-                         (32-bit sphere ids)"
+                        "--atoms {atoms}: the meso scene holds between 1 and {most} atoms"
                     )));
                 }
                 let t = std::time::Instant::now();
@@ -964,6 +963,10 @@ impl<'c> PreparedRun<'c> {
         let samples = settings.ssaa_for(aov);
         let tile = settings.tile_size;
         let r = Renderer::new_windowed(ctx, scene, settings, tile)?;
+        if aov != Aov::Color && !r.inspect().ids_fit() {
+            // (before any frame: read_vis's one line)
+            r.inspect().read_vis()?;
+        }
         let mut run = PreparedRun {
             r,
             input: input.to_string(),

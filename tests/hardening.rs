@@ -37,16 +37,18 @@ fn write(path: &Path, bytes: &[u8]) -> String {
     path.to_str().unwrap().to_string()
 }
 
-/// A small mmCIF with 2,000 atoms of chain A, ten translation operators,
+/// A small mmCIF with 5,000 atoms of chain A, ten translation operators,
 /// assembly 1 = (1-10) ten times over (10^10 operators), assembly 2 =
-/// (1-10) four times (10^4 operators x 2,000 atoms = 2e7 spheres).
+/// (1-10) four times (10^4 operators x 5,000 atoms = 5e7 spheres),
+/// assembly 3 = (1-10) six times (10^6 instances, 5e9 spheres: past the
+/// 2^32 ids of a frame that draws every atom).
 fn assembly_bomb(path: &Path) -> String {
     let mut t = String::from(
         "data_bomb\nloop_\n_atom_site.group_PDB\n_atom_site.id\n_atom_site.type_symbol\n\
          _atom_site.label_atom_id\n_atom_site.label_comp_id\n_atom_site.label_asym_id\n\
          _atom_site.label_seq_id\n_atom_site.Cartn_x\n_atom_site.Cartn_y\n_atom_site.Cartn_z\n",
     );
-    for i in 0..2000 {
+    for i in 0..5000 {
         t += &format!(
             "ATOM {} C CA GLY A 1 {:.3} 0.000 0.000\n",
             i + 1,
@@ -59,7 +61,7 @@ fn assembly_bomb(path: &Path) -> String {
         "1 '{}' A\n2 '{}' A\n3 '{}' A\n#\nloop_\n",
         "(1-10)".repeat(10),
         "(1-10)".repeat(4),
-        "(1-10)".repeat(7)
+        "(1-10)".repeat(6)
     );
     t += "_pdbx_struct_oper_list.id\n_pdbx_struct_oper_list.type\n";
     for i in 1..=3 {
@@ -69,7 +71,14 @@ fn assembly_bomb(path: &Path) -> String {
         t += &format!("_pdbx_struct_oper_list.vector[{i}]\n");
     }
     for i in 1..=10 {
-        t += &format!("{i} 'op' 1 0 0 {} 0 1 0 0 0 0 1 0\n", i * 300);
+        // (translations along every axis: the bounds' search has no ties
+        // to scan through)
+        t += &format!(
+            "{i} 'op' 1 0 0 {} 0 1 0 {} 0 0 1 {}\n",
+            i * 300,
+            i * 170,
+            i * 90
+        );
     }
     t += "#\n";
     write(path, t.as_bytes())
@@ -139,12 +148,15 @@ fn cases(d: &Path) -> Vec<Case> {
             "more than 16777215, the most",
         ),
         c(
-            "assembly of 2e10 spheres (instanced)",
-            render(vec![cif.clone(), "--assembly".into(), "3".into()], &[]),
-            "the most sphereshade renders (32-bit sphere ids)",
+            "assembly of 5e9 spheres (instanced) at full detail",
+            render(
+                vec![cif.clone(), "--assembly".into(), "3".into(), "--lod".into(), "off".into()],
+                &[],
+            ),
+            "drawing every atom needs",
         ),
         c(
-            "assembly of 2e7 spheres expanded",
+            "assembly of 5e7 spheres expanded",
             render(vec![cif.clone(), "--assembly".into(), "2".into(), "--expand".into()], &[]),
             "more than 16777215, the most an expanded scene holds",
         ),
@@ -250,9 +262,9 @@ fn cases(d: &Path) -> Vec<Case> {
             "--lod-list-batches must be at least 1",
         ),
         c(
-            "--scene meso --atoms 5e9",
+            "--scene meso --atoms 2e12",
             render(
-                vec!["--scene".into(), "meso".into(), "--atoms".into(), "5000000000".into()],
+                vec!["--scene".into(), "meso".into(), "--atoms".into(), "2000000000000".into()],
                 &[],
             ),
             "the meso scene holds between 1 and",

@@ -981,6 +981,101 @@ fn ids_past_2_pow_24_are_rgba16() {
     assert!(past > 100, "{past} pixels show a sphere past 2^24");
 }
 
+/// Past 2^32 atoms (66,004 instances of a 65,536-atom block, 4.3 * 10^9
+/// represented) the LOD lists draw the scene, their slots being the
+/// ids: four cubes in view, placed last, render the colour of a scene of
+/// those four alone (the rest lies outside the window and is culled), and
+/// their pixels name the same atoms, at expanded indices past 2^32. What
+/// names atoms by 32 bits (read_vis, the id AOV) and what draws every atom
+/// (deep shadows) are refused in one line each.
+#[test]
+fn past_2_pow_32_atoms_draw_through_the_lod_lists() {
+    use sphereshade::scene::instanced::InstancedBuilder;
+    let ctx = validated_context();
+    let atoms: Vec<scene::Sphere> = (0..65536)
+        .map(|k| {
+            let (x, y, z) = (k % 32, k / 32 % 32, k / 1024);
+            sphere([x as f32 * 1.5, y as f32 * 1.5, z as f32 * 1.5], 0.9)
+        })
+        .collect();
+    let near: Vec<(DQuat, [f64; 3])> = (0..4)
+        .map(|k| {
+            let q = DQuat::from_rotation_y(0.4 * k as f64) * DQuat::from_rotation_x(0.3);
+            (q, [k as f64 * 60.0, (k % 2) as f64 * 30.0, 0.0])
+        })
+        .collect();
+    let far = 66_000u32;
+    // (rows to the side of the view; the small scene holds their first
+    // and last, so both have the same bounds, the same depth keys)
+    let at = |k: u32| {
+        [
+            2e3 + (k % 300) as f64 * 120.0,
+            (k / 300) as f64 * 120.0,
+            0.0,
+        ]
+    };
+    let build = |far: &mut dyn Iterator<Item = u32>| {
+        let mut b = InstancedBuilder::default();
+        let m = b.molecule("cube", 0, atoms.clone());
+        for k in far {
+            b.instance_quat("far", m, DQuat::IDENTITY, at(k)).unwrap();
+        }
+        for &(q, t) in &near {
+            b.instance_quat("near", m, q, t).unwrap();
+        }
+        b.finish("cubes").unwrap()
+    };
+    let (big, small) = (build(&mut (0..far)), build(&mut [0, far - 1].into_iter()));
+    let offset = (far as u64 - 2) * 65536;
+    assert!(offset > u32::MAX as u64);
+    assert_eq!(big.represented(), (far as u64 + 4) * 65536);
+    let near_only = build(&mut std::iter::empty());
+    let mut st = settings(camera(&near_only, 64, 48, None), ShadowMode::None);
+    st.lod.lod_pixels = 2.0;
+    let read = |s: &Scene| {
+        let mut r = Renderer::new(&ctx, s, st.clone()).expect("renderer");
+        r.render_frame().expect("frame");
+        let i = r.inspect();
+        let drawn = i
+            .lod_counts()
+            .unwrap()
+            .expect("the cull ran")
+            .camera_spheres;
+        (
+            i.read_color().unwrap(),
+            i.read_ids().unwrap(),
+            drawn,
+            i.read_vis().map(|_| ()),
+        )
+    };
+    let (color_b, ids_b, drawn_b, vis_b) = read(&big);
+    let (color_s, ids_s, drawn_s, _) = read(&small);
+    assert_no_validation_messages(&ctx);
+    assert_eq!(drawn_b, drawn_s, "the far cubes are culled");
+    assert!(color_b == color_s, "colours differ");
+    let mut seen = 0;
+    for (p, (b, s)) in ids_b.iter().zip(&ids_s).enumerate() {
+        assert_eq!(*b, s.map(|e| e + offset), "pixel {p}");
+        seen += s.is_some() as usize;
+    }
+    assert!(seen > 200, "{seen} pixels show a cube");
+    let msg = vis_b.expect_err("32-bit ids past 2^32 atoms").to_string();
+    assert!(!msg.contains('\n'), "{msg}");
+    assert!(msg.starts_with("4325638144 atoms:"), "{msg}");
+    let mut deep = st.clone();
+    deep.shadows = ShadowMode::Deep;
+    let msg = match Renderer::new(&ctx, &big, deep) {
+        Ok(_) => panic!("deep shadows draw every atom past 2^32 ids"),
+        Err(e) => e.to_string(),
+    };
+    assert!(!msg.contains('\n'), "{msg}");
+    assert!(
+        msg.contains("drawing every atom needs 4325638208 sphere ids"),
+        "{msg}"
+    );
+    assert_no_validation_messages(&ctx);
+}
+
 /// The EXR layers of an instanced scene add `instance` and `atom` (index
 /// within the molecule), agreeing with the `id` layer.
 #[test]

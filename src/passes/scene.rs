@@ -27,10 +27,10 @@ use glam::DVec3;
 /// What scene.glsl reads for geometry: `scene_sphere`, `scene_index`.
 pub const SCENE_GEOMETRY: [Binding; 6] = [
     texel("sphereTex", Format::R32G32B32A32_SFLOAT),
-    texel("batchTex", Format::R32_UINT),
+    texel("batchTex", Format::R32G32_UINT),
     texel("instanceTex", Format::R32G32B32A32_SFLOAT),
     texel("originTex", Format::R32_UINT),
-    texel("instanceRowTex", Format::R32G32B32A32_UINT),
+    texel("instanceRowTex", Format::R32G32_UINT),
     texel("levelTex", Format::R32G32B32A32_UINT),
 ];
 
@@ -41,8 +41,9 @@ pub const SCENE_ATTRIBUTES: [Binding; 3] = [
     texel("moleculeTex", Format::R32_UINT),
 ];
 
-/// Most slots an instanced scene may have: ids are 32-bit and ~0 means
-/// "no sphere".
+/// Most slots a batch table may have: ids are 32-bit and ~0 means "no
+/// sphere". The static table (every atom of every instance) is bound by
+/// it; the LOD lists, whose slots are list positions, are not.
 pub const MAX_SLOTS: u64 = u32::MAX as u64 - (1 << MAX_BATCH_SHIFT);
 
 /// The scene's buffers on the device.
@@ -56,9 +57,14 @@ pub struct SceneBuffers {
     pub attrs: Buffer,
     /// One RGBA8 word per sphere / atom.
     pub colors: Buffer,
-    /// Instanced: the batches (4 B per 2^shift slots: [`BatchTables::words`]).
+    /// Instanced: the static batch table (8 B per 2^shift slots: every
+    /// instance's full detail, [`static_entries`]); with levels of detail
+    /// made for the first frame that draws full detail
+    /// ([`SceneBuffers::ensure_static`]), 16 unread bytes until then.
     pub batches: Buffer,
-    /// Instanced: [`BatchTables::rows`] (16 B per instance).
+    /// The static table is made (`batches` holds it).
+    pub static_made: bool,
+    /// Instanced: [`BatchTables::rows`] (8 B per instance).
     pub rows: Buffer,
     /// Instanced: [`BatchTables::levels`] (16 B per molecule type and level).
     pub levels: Buffer,
@@ -69,15 +75,18 @@ pub struct SceneBuffers {
     /// Instanced with levels of detail: the origin of each coarse atom
     /// (4 B per stored atom; 16 B unread otherwise).
     pub origins: Buffer,
-    /// Ids a per-sphere dispatch covers: the spheres, or every slot of the
-    /// batches.
+    /// Ids a per-sphere dispatch over the static table covers: the
+    /// spheres, or every slot of its batches (0 before it is made).
     pub slots: u32,
-    /// The slots of level 0 (every atom of every instance, expanded
-    /// order): what a pass that draws full detail covers. `slots` less the
-    /// coarse levels' batches.
-    pub base_slots: u32,
+    /// Slots of every level of every instance (saturated at u32::MAX):
+    /// what SSDO's per-sphere receivers are sized by (src/render/mod.rs).
+    pub all_level_slots: u32,
     /// The levels of detail (instanced scenes, `--lod auto`).
     pub lod: Option<LodBuffers>,
+    /// This frame draws the LOD lists: they are the batch table
+    /// (`geometry`), and ids are their slots (set by the renderer for
+    /// each frame).
+    pub listed: std::cell::Cell<bool>,
     /// Atoms of the scene's own (`Scene::spheres`); the colour buffer holds
     /// them, then the coarse copies (`coarse_source`).
     base_atoms: u32,
@@ -85,26 +94,39 @@ pub struct SceneBuffers {
     coarse_source: Vec<u32>,
 }
 
-/// The tables of the LOD cull (glsl/lod_cull.comp).
-/// (The levels and each instance's first batches are the scene's
+/// The tables of the LOD cull (glsl/lod_cull.comp) and its lists.
+/// (The levels and each instance's molecule type are the scene's
 /// [`SceneBuffers::levels`] and [`SceneBuffers::rows`].)
 pub struct LodBuffers {
-    /// Per molecule type, RGBA32F: bounding sphere in its frame.
+    /// Per molecule type and level, RGBA32F: bounding sphere and box in
+    /// its frame ([`lod_bounds`]; the box's w: its first batch bound).
     pub bounds: Buffer,
+    /// Per batch of each (molecule type, level), RGBA32F: its bounding
+    /// sphere in the molecule's frame ([`batch_bound`]).
+    pub batch_bounds: Buffer,
     pub instance_count: u32,
-    /// The batch with no atoms (what unused list entries name).
-    pub empty_batch: u32,
-    /// Level-0 batches: the most a view lists (an instance draws one
-    /// level).
+    /// Level-0 batches (saturated at u32::MAX): the most a view lists (an
+    /// instance draws one level).
     pub base_batches: u32,
+    /// The four lists of the LOD cull, one after the other (8 B entries:
+    /// src/stages/raster/lod.rs makes, fills and grows them); in a frame
+    /// that draws them, the batch table.
+    pub lists: Buffer,
+    /// Entries `lists` holds (4 lists and their tails).
+    pub list_entries: u32,
 }
 
 impl SceneBuffers {
-    /// The geometry buffers, by the names of [`SCENE_GEOMETRY`].
+    /// The geometry buffers, by the names of [`SCENE_GEOMETRY`] (the
+    /// batch table: the LOD lists in a frame that draws them).
     pub fn geometry(&self) -> [(&'static str, &Buffer); 6] {
+        let batches = match &self.lod {
+            Some(l) if self.listed.get() => &l.lists,
+            _ => &self.batches,
+        };
         [
             ("sphereTex", &self.spheres),
-            ("batchTex", &self.batches),
+            ("batchTex", batches),
             ("instanceTex", &self.instances),
             ("originTex", &self.origins),
             ("instanceRowTex", &self.rows),
@@ -126,6 +148,44 @@ impl SceneBuffers {
         self.spec & 0xFF
     }
 
+    /// Ids this frame's passes may name: the LOD lists' slots when the
+    /// frame draws them, else the static table's.
+    pub fn frame_slots(&self) -> u32 {
+        self.slots_when(self.listed.get())
+    }
+
+    /// Ids a frame may name that draws the LOD lists (`listed`) or not.
+    pub fn slots_when(&self, listed: bool) -> u32 {
+        match &self.lod {
+            Some(l) if listed => l.list_entries << (self.spec >> 8),
+            _ => self.slots,
+        }
+    }
+
+    /// Makes the static batch table of an instanced scene with levels of
+    /// detail (every atom of every instance: what a frame that draws full
+    /// detail names) the first time one needs it. The GPU must be idle.
+    pub fn ensure_static(&mut self, ctx: &Context, geom: &SceneGeom) -> Result<()> {
+        let SceneGeom::Instanced(i) = geom else {
+            return Ok(());
+        };
+        if self.static_made {
+            return Ok(());
+        }
+        let entries = static_entries(&i.batch_first, i.shift, &i.source)?;
+        let b = ctx.guard(Buffer::table(
+            ctx,
+            "scene batches",
+            entries.len() as u64 * 8,
+        )?);
+        b.upload(ctx, 0, bytemuck::cast_slice(&entries))?;
+        let mut old = std::mem::replace(&mut self.batches, b.keep());
+        old.destroy(ctx);
+        self.slots = ((entries.len() as u64 - 1) << i.shift) as u32;
+        self.static_made = true;
+        Ok(())
+    }
+
     /// Device memory by class: plain `scene`; instanced `molecules` (the
     /// atoms and their attributes), `instances`, and `scene` (batches).
     pub fn memory(&self) -> Vec<(&'static str, u64)> {
@@ -133,17 +193,19 @@ impl SceneBuffers {
         if self.kind() == SCENE_PLAIN {
             return vec![("scene", atoms)];
         }
-        let lod_mol = self
-            .lod
-            .as_ref()
-            .map_or(0, |l| l.bounds.size + self.origins.size);
+        let lod_mol = self.lod.as_ref().map_or(0, |l| {
+            l.bounds.size + l.batch_bounds.size + self.origins.size
+        });
         vec![
             (
                 "molecules",
                 atoms + self.molecules.size + self.levels.size + lod_mol,
             ),
             ("instances", self.instances.size + self.rows.size),
-            ("scene", self.batches.size),
+            (
+                "scene",
+                self.batches.size + self.lod.as_ref().map_or(0, |l| l.lists.size),
+            ),
         ]
     }
 
@@ -205,7 +267,7 @@ impl SceneBuffers {
                     ("molecule levels (unused)", &[]),
                 ],
             )?;
-            buffers.base_slots = buffers.slots;
+            buffers.static_made = true;
             buffers.base_atoms = geom.len() as u32;
             return Ok((buffers, SceneGeom::Plain(geom)));
         };
@@ -216,7 +278,9 @@ impl SceneBuffers {
             origins,
             coarse_source,
             tables,
-            base_batches,
+            batch_first,
+            all_level_batches,
+            entries,
             lod: lod_tables,
         } = build_instanced(scene, geom, colors, lod_pixels)?;
         let shift = tables.shift;
@@ -225,15 +289,21 @@ impl SceneBuffers {
             Transforms::Rigid(v) => (SCENE_RIGID, bytemuck::cast_slice(v)),
             Transforms::Affine(v) => (SCENE_AFFINE, bytemuck::cast_slice(v)),
         };
+        let static_slots = entries
+            .as_ref()
+            .map_or(0, |e| (e.len() as u64 - 1) << shift);
         let mut buffers = Self::upload(
             ctx,
             kind | (shift << 8),
-            (tables.words.len() as u64) << shift,
+            static_slots,
             [
                 ("molecule atoms", bytemuck::cast_slice(&geom)),
                 ("atom chains", bytemuck::cast_slice(&chains)),
                 ("atom colours", bytemuck::cast_slice(&colors)),
-                ("scene batches", bytemuck::cast_slice(&tables.words)),
+                (
+                    "scene batches",
+                    entries.as_deref().map_or(&[], bytemuck::cast_slice),
+                ),
                 ("instances", transform_bytes),
                 ("molecule regions", bytemuck::cast_slice(&tree)),
                 ("atom origins", bytemuck::cast_slice(&origins)),
@@ -241,22 +311,34 @@ impl SceneBuffers {
                 ("molecule levels", bytemuck::cast_slice(&tables.levels)),
             ],
         )?;
-        buffers.base_slots = base_batches << shift;
+        buffers.static_made = entries.is_some();
+        buffers.all_level_slots = (all_level_batches << shift).min(u32::MAX as u64) as u32;
         // (the scene's own atoms: the coarse copies follow them)
         buffers.base_atoms = scene.spheres.len() as u32;
         buffers.coarse_source = coarse_source;
-        if let Some((bounds, empty_batch)) = lod_tables {
+        let base_batches = batch_first.last().copied().unwrap_or(0);
+        if let Some((bounds, batch_bounds)) = lod_tables {
             let b = ctx.guard(Buffer::table(
                 ctx,
                 "LOD bounds",
                 (bounds.len() as u64 * 16).max(16),
             )?);
             b.upload(ctx, 0, bytemuck::cast_slice(&bounds))?;
+            let bb = ctx.guard(Buffer::table(
+                ctx,
+                "LOD batch bounds",
+                (batch_bounds.len() as u64 * 16).max(16),
+            )?);
+            bb.upload(ctx, 0, bytemuck::cast_slice(&batch_bounds))?;
+            // (src/stages/raster/lod.rs sizes them)
+            let lists = Buffer::storage(ctx, "LOD lists", 16)?;
             buffers.lod = Some(LodBuffers {
                 bounds: b.keep(),
+                batch_bounds: bb.keep(),
                 instance_count: inst.instances() as u32,
-                empty_batch,
-                base_batches,
+                base_batches: base_batches.min(u32::MAX as u64) as u32,
+                lists,
+                list_entries: 0,
             });
         }
         let geom = SceneGeom::Instanced(Box::new(InstancedGeom {
@@ -266,9 +348,10 @@ impl SceneBuffers {
             molecules: inst.molecules.iter().map(|m| (m.first, m.atoms)).collect(),
             first: inst.first.clone(),
             tables,
-            base_batches: base_batches as usize,
+            batch_first,
             origins,
             shift,
+            source: scene.source.clone(),
         }));
         Ok((buffers, geom))
     }
@@ -317,9 +400,11 @@ impl SceneBuffers {
             origins,
             rows,
             levels,
-            slots: slots as u32,
-            base_slots: slots as u32,
+            slots: slots.min(MAX_SLOTS) as u32,
+            all_level_slots: slots.min(MAX_SLOTS) as u32,
+            static_made: false,
             lod: None,
+            listed: std::cell::Cell::new(false),
             base_atoms: 0,
             coarse_source: Vec::new(),
         })
@@ -341,6 +426,8 @@ impl SceneBuffers {
         }
         if let Some(l) = &mut self.lod {
             l.bounds.destroy(ctx);
+            l.batch_bounds.destroy(ctx);
+            l.lists.destroy(ctx);
         }
     }
 }
@@ -396,11 +483,22 @@ struct Built {
     origins: Vec<u32>,
     coarse_source: Vec<u32>,
     tables: BatchTables,
-    base_batches: u32,
-    /// With levels of detail: the molecule types' bounding spheres, the
-    /// empty batch.
-    lod: Option<(Vec<[f32; 4]>, u32)>,
+    /// Per instance its first batch in the static table (+ the total).
+    batch_first: Vec<u64>,
+    /// Batches of every level of every instance.
+    all_level_batches: u64,
+    /// Without levels of detail the static table ([`static_entries`]),
+    /// made up front; with them, made when a frame draws full detail.
+    entries: Option<Vec<[u32; 2]>>,
+    /// With levels of detail: per (molecule type, level) its bounds
+    /// ([`lod_bounds`]), then per batch of each its bounding sphere
+    /// ([`batch_bound`]).
+    lod: Option<LodTables>,
 }
+
+/// Per (molecule type, level) its bounds, then per batch of each its
+/// bounding sphere (RGBA32F texels).
+type LodTables = (Vec<[f32; 4]>, Vec<[f32; 4]>);
 
 /// The tables of instanced `scene` (its atoms `geom` and colour words
 /// `colors`); with `lod_pixels` its levels of detail too.
@@ -414,29 +512,38 @@ fn build_instanced(
         return Err(Error::Internal("instanced tables of a plain scene".into()));
     };
     let shift = batch_shift(scene);
-    let per = 1u32 << shift;
     let mut tables = base_tables(scene, shift)?;
-    let base_batches = tables.words.len() as u32;
+    let batch_first = batch_firsts(
+        inst.instance_molecule
+            .iter()
+            .map(|&m| inst.molecules[m as usize].atoms),
+        shift,
+    );
     let mut chains: Vec<u32> = scene.spheres.iter().map(|s| s.region[0]).collect();
     let lod = match lod_pixels {
         Some(p) => Some(lod_of(scene, &geom, p)?),
         None => None,
     };
-    // The coarse levels' atoms after the scene's own, their batches
-    // after level 0's, then the empty batch.
+    // The coarse levels' atoms after the scene's own.
     let mut origins: Vec<u32> = Vec::new();
     let mut coarse_source: Vec<u32> = Vec::new();
     let mut lod_tables = None;
     if let Some(lod) = &lod {
         origins = vec![0; geom.len()];
-        // per molecule type: per level, its first stored atom
-        let mut level_first: Vec<Vec<u32>> = Vec::with_capacity(inst.molecules.len());
         for (m, mol) in inst.molecules.iter().enumerate() {
-            let ml = &lod[m].levels;
+            let Lod {
+                levels: ml, switch, ..
+            } = &lod[m];
             let own = mol.first as usize..(mol.first + mol.atoms) as usize;
-            let mut firsts = vec![mol.first];
-            for l in 1..ml.levels() {
-                firsts.push(geom.len() as u32);
+            for (l, sw) in switch.iter().enumerate().take(ml.levels()) {
+                let first = if l == 0 { mol.first } else { geom.len() as u32 };
+                // (level 0's row holds the number of levels)
+                let x = if l == 0 { ml.levels() as u32 } else { 0 };
+                tables.levels[m * MAX_LOD_LEVELS as usize + l] =
+                    [x, first, sw.to_bits(), ml.counts[l]];
+                if l == 0 {
+                    continue;
+                }
                 let spheres = ml.level_spheres(&geom[own.clone()], l);
                 geom.extend(spheres);
                 for &a in &ml.order[..ml.counts[l] as usize] {
@@ -447,69 +554,53 @@ fn build_instanced(
                     coarse_source.push(src);
                 }
             }
-            level_first.push(firsts);
         }
-        // the level rows, and each type's coarse batches
-        let mut coarse_batches = vec![0u32; inst.molecules.len()];
-        for (
-            m,
-            Lod {
-                levels: ml, switch, ..
-            },
-        ) in lod.iter().enumerate()
-        {
-            let mut off = 0u32;
-            for l in 0..ml.levels() {
-                let first = if l == 0 { ml.levels() as u32 } else { off };
-                tables.levels[m * MAX_LOD_LEVELS as usize + l] =
-                    [first, level_first[m][l], switch[l].to_bits(), ml.counts[l]];
-                if l > 0 {
-                    off += ml.counts[l].div_ceil(per);
-                }
-            }
-            coarse_batches[m] = off;
-        }
-        let coarse_total: u64 = inst
-            .instance_molecule
-            .iter()
-            .map(|&m| coarse_batches[m as usize] as u64)
-            .sum();
-        let needed = (base_batches as u64 + coarse_total + 1) << shift;
-        if needed > MAX_SLOTS {
-            // (the coarse levels' share scales with the atoms)
-            let fit = inst.represented() as u128 * MAX_SLOTS as u128 / needed as u128;
-            return Err(Error::Input(format!(
-                "{}: {} atoms with their levels of detail need {needed} sphere ids, more than \
-                 the {MAX_SLOTS} sphereshade has: about {fit} atoms fit (--lod off needs none \
-                 for the levels, but draws every atom every frame)",
-                scene.source,
-                inst.represented()
-            )));
-        }
-        // (reserved exactly: a doubling growth would hold up to twice
-        // the table for a moment)
-        tables.words.reserve_exact(coarse_total as usize + 1);
-        for (k, &m) in inst.instance_molecule.iter().enumerate() {
-            let mu = m as usize;
-            tables.rows[k][2] = tables.words.len() as u32;
-            for (l, &n) in lod[mu].levels.counts.iter().enumerate().skip(1) {
-                let word = k as u32 | (l as u32) << BATCH_INSTANCE_BITS;
-                let nb = n.div_ceil(per) as usize;
-                tables.words.extend(std::iter::repeat_n(word, nb));
-            }
-        }
-        let empty_batch = tables.words.len() as u32;
-        tables.words.push(BATCH_EMPTY);
-        // (MAX_LOD_LEVELS rows per type, as levelTex)
+        // (MAX_LOD_LEVELS rows per type, as levelTex; the box's w: the
+        // level's first batch bound)
         let mut bounds = vec![[0.0f32; 4]; 2 * lod.len() * MAX_LOD_LEVELS as usize];
+        let mut batch_bounds: Vec<[f32; 4]> = Vec::new();
         for (m, l) in lod.iter().enumerate() {
             for (i, b) in l.bound.iter().enumerate() {
-                let at = 2 * (m * MAX_LOD_LEVELS as usize + i);
+                let row = m * MAX_LOD_LEVELS as usize + i;
+                let at = 2 * row;
                 bounds[at..at + 2].copy_from_slice(b);
+                bounds[at + 1][3] = batch_bounds.len() as f32;
+                let [_, first, _, n] = tables.levels[row];
+                let stored = &geom[first as usize..(first + n) as usize];
+                batch_bounds.extend(stored.chunks(1 << shift).map(batch_bound));
             }
         }
-        lod_tables = Some((bounds, empty_batch));
+        if batch_bounds.len() >= 1 << 24 {
+            return Err(Error::Input(format!(
+                "{}: {} batches in the molecules' levels, more than 2^24",
+                scene.source,
+                batch_bounds.len()
+            )));
+        }
+        lod_tables = Some((bounds, batch_bounds));
     }
+    let entries = match lod {
+        None => Some(static_entries(&batch_first, shift, &scene.source)?),
+        Some(_) => None,
+    };
+    let level_batches: Vec<u64> = match &lod {
+        None => Vec::new(),
+        Some(lod) => lod
+            .iter()
+            .map(|l| {
+                let c = &l.levels.counts;
+                c.iter().map(|&n| n.div_ceil(1 << shift) as u64).sum()
+            })
+            .collect(),
+    };
+    let all_level_batches = match lod {
+        None => batch_first.last().copied().unwrap_or(0),
+        Some(_) => inst
+            .instance_molecule
+            .iter()
+            .map(|&m| level_batches[m as usize])
+            .sum(),
+    };
     Ok(Built {
         geom,
         chains,
@@ -517,53 +608,107 @@ fn build_instanced(
         origins,
         coarse_source,
         tables,
-        base_batches,
+        batch_first,
+        all_level_batches,
+        entries,
         lod: lod_tables,
     })
 }
 
-/// An instanced scene's batches as the GPU stores them: a word per batch
-/// (its instance and level), a row per instance, a row per (molecule
-/// type, level). [`BatchTables::record`] makes a batch's record from them
-/// as glsl/scene.glsl `scene_batch` does (4 bytes a batch, not the 16 of
-/// a stored record: 86 MB instead of 344 at 10^9 atoms).
+/// The sphere about the box of a batch's centres that holds its spheres
+/// (in the molecule's frame), grown a little against the f32 rounding of
+/// the transforms: what glsl/lod_cull.comp tests a batch by.
+fn batch_bound(spheres: &[GpuSphere]) -> [f32; 4] {
+    let Some((c, _)) = box_sphere(|| spheres.iter().map(|a| ([a[0], a[1], a[2]], a[3]))) else {
+        return [0.0; 4];
+    };
+    let r = spheres
+        .iter()
+        .map(|a| glam::Vec3::new(a[0], a[1], a[2]).distance(c) + a[3])
+        .fold(0.0f32, f32::max);
+    [c.x, c.y, c.z, r * 1.001 + 1e-3]
+}
+
+/// Per instance (of `atoms` each) its first batch of 2^shift slots in the
+/// static table, then the total.
+fn batch_firsts(atoms: impl Iterator<Item = u32>, shift: u32) -> Vec<u64> {
+    let mut firsts = vec![0u64];
+    let mut at = 0u64;
+    for n in atoms {
+        at += n.div_ceil(1 << shift) as u64;
+        firsts.push(at);
+    }
+    firsts
+}
+
+/// Whether the static table's slots fit the 32-bit ids (else the one
+/// line that says what can draw the scene).
+fn static_fits(batch_first: &[u64], shift: u32, source: &str) -> Result<()> {
+    let total = batch_first.last().copied().unwrap_or(0);
+    let needed = (total + 1) << shift;
+    if needed > MAX_SLOTS {
+        return Err(Error::Input(format!(
+            "{source}: drawing every atom needs {needed} sphere ids, more than the {MAX_SLOTS} \
+             sphereshade has: only levels of detail (--lod auto) with the compute rasterizer, \
+             opaque spheres and --shadows issm|sm|pcf|none draw a scene this large"
+        )));
+    }
+    Ok(())
+}
+
+/// The static batch table: every instance's batches at full detail in
+/// expanded order (entry: instance, batch index within its level 0),
+/// then the empty batch; `batch_first` per instance and the total. Its
+/// slots must fit the 32-bit ids: past them only the LOD lists can draw
+/// the scene, and the error says so.
+pub fn static_entries(batch_first: &[u64], shift: u32, source: &str) -> Result<Vec<[u32; 2]>> {
+    static_fits(batch_first, shift, source)?;
+    let total = batch_first.last().copied().unwrap_or(0);
+    let mut entries = Vec::with_capacity(total as usize + 1);
+    for (k, w) in batch_first.windows(2).enumerate() {
+        entries.extend((0..(w[1] - w[0]) as u32).map(|j| [k as u32, j]));
+    }
+    entries.push([BATCH_EMPTY, 0]);
+    Ok(entries)
+}
+
+/// An instanced scene's instances and levels as the GPU stores them; a
+/// batch table's entries (the static one, or the LOD lists) name an
+/// instance, a level and a batch of it, and [`BatchTables::record`] makes
+/// that batch's record from them as glsl/scene.glsl `scene_batch` does.
 pub struct BatchTables {
-    /// Per batch: instance | level << BATCH_INSTANCE_BITS, or BATCH_EMPTY.
-    pub words: Vec<u32>,
-    /// Per instance: molecule type, first level-0 batch, first coarse
-    /// batch (0 without levels of detail), expanded index of its first
-    /// atom.
-    pub rows: Vec<[u32; 4]>,
-    /// Per (molecule type, level < MAX_LOD_LEVELS): the level's first
-    /// batch within an instance's coarse batches (level 0: the number of
-    /// levels), its first stored atom, its switch size (f32 bits: most
-    /// pixels per world unit it is drawn at), its atoms.
+    /// Per instance: molecule type, the low 32 bits of the expanded index
+    /// of its first atom.
+    pub rows: Vec<[u32; 2]>,
+    /// Per (molecule type, level < MAX_LOD_LEVELS): level 0's holds the
+    /// number of levels, the level's first stored atom, its switch size
+    /// (f32 bits: most pixels per world unit it is drawn at), its atoms.
     pub levels: Vec<[u32; 4]>,
     /// Slots a batch: 2^shift.
     pub shift: u32,
 }
 
 impl BatchTables {
-    /// Batch `b`'s record: instance, first stored atom, the expanded index
-    /// of that atom (a coarse batch: of its instance's first), atom count
-    /// | molecule type << 8 | BATCH_COARSE; zeros for the empty batch.
-    pub fn record(&self, b: u32) -> Option<GpuBatch> {
-        let w = *self.words.get(b as usize)?;
-        if w == BATCH_EMPTY {
+    /// The record of the batch entry `e` names: instance, first stored
+    /// atom, the expanded index of that atom (a coarse batch: of its
+    /// instance's first; low 32 bits), atom count | molecule type << 8 |
+    /// BATCH_COARSE; zeros for the empty batch. None: an entry past the
+    /// tables.
+    pub fn record(&self, e: [u32; 2]) -> Option<GpuBatch> {
+        if e[0] == BATCH_EMPTY {
             return Some([0; 4]);
         }
-        let (k, l) = (w & BATCH_INSTANCE_MASK, w >> BATCH_INSTANCE_BITS);
+        let (k, l) = (e[0] & BATCH_INSTANCE_MASK, e[0] >> BATCH_INSTANCE_BITS);
         let row = self.rows.get(k as usize)?;
         let lv = self
             .levels
             .get((row[0] * MAX_LOD_LEVELS + l.min(MAX_LOD_LEVELS - 1)) as usize)?;
         let coarse = l != 0;
-        let first = if coarse { row[2] + lv[0] } else { row[1] };
-        let a = b.checked_sub(first)? << self.shift;
+        let a = e[1].checked_mul(1 << self.shift)?;
         Some([
             k,
             lv[1] + a,
-            row[3] + if coarse { 0 } else { a },
+            row[1].wrapping_add(if coarse { 0 } else { a }),
             lv[3].checked_sub(a)?.min(1 << self.shift)
                 | (row[0] << 8)
                 | if coarse { BATCH_COARSE } else { 0 },
@@ -571,27 +716,12 @@ impl BatchTables {
     }
 }
 
-/// The batch tables of an instanced scene at full detail: each instance's
-/// atoms in runs of 2^shift, in expanded order (slot order is expanded
-/// order); one level per molecule type.
+/// The instance and level tables of an instanced scene at full detail
+/// (one level per molecule type; `build_instanced` adds the coarse ones).
 fn base_tables(scene: &Scene, shift: u32) -> Result<BatchTables> {
     let Some(inst) = &scene.instancing else {
         return Err(Error::Internal("batches of a plain scene".into()));
     };
-    let per = 1u64 << shift;
-    let count: u64 = inst
-        .instance_molecule
-        .iter()
-        .map(|&m| (inst.molecules[m as usize].atoms as u64).div_ceil(per))
-        .sum();
-    if count * per > MAX_SLOTS || inst.represented() > u32::MAX as u64 - 1 {
-        return Err(Error::Input(format!(
-            "{}: {} spheres in {count} batches of {per}: more than the 2^32 sphere ids \
-             sphereshade has",
-            scene.source,
-            inst.represented()
-        )));
-    }
     if inst.molecules.len() > BATCH_TYPE_MASK as usize {
         return Err(Error::Input(format!(
             "{}: {} molecule types, more than 2^23",
@@ -603,15 +733,13 @@ fn base_tables(scene: &Scene, shift: u32) -> Result<BatchTables> {
     for (m, mol) in inst.molecules.iter().enumerate() {
         levels[m * MAX_LOD_LEVELS as usize] = [1, mol.first, f32::INFINITY.to_bits(), mol.atoms];
     }
-    let mut words = Vec::with_capacity(count as usize);
-    let mut rows = Vec::with_capacity(inst.instances());
-    for (k, &m) in inst.instance_molecule.iter().enumerate() {
-        rows.push([m, words.len() as u32, 0, inst.first[k] as u32]);
-        let nb = (inst.molecules[m as usize].atoms as u64).div_ceil(per);
-        words.extend(std::iter::repeat_n(k as u32, nb as usize));
-    }
+    let rows = inst
+        .instance_molecule
+        .iter()
+        .enumerate()
+        .map(|(k, &m)| [m, inst.first[k] as u32])
+        .collect();
     Ok(BatchTables {
-        words,
         rows,
         levels,
         shift,
@@ -634,16 +762,33 @@ pub struct InstancedGeom {
     /// Expanded index of each instance's first atom (+ the total).
     pub first: Vec<u64>,
     pub tables: BatchTables,
-    /// Level 0's batches (the coarse levels' follow).
-    pub base_batches: usize,
+    /// Per instance its first batch in the static table, then the total.
+    pub batch_first: Vec<u64>,
     /// Per stored atom of a coarse level: the atom it stands for (index
     /// within its molecule); empty without levels of detail.
     pub origins: Vec<u32>,
     /// Slots a batch: 2^shift.
     pub shift: u32,
+    /// The scene's name (for errors).
+    pub source: String,
 }
 
 impl InstancedGeom {
+    /// The expanded index of atom `lane` of the batch entry `e` names
+    /// (None: no such atom).
+    fn expanded_of(&self, e: [u32; 2], lane: u32) -> Option<u64> {
+        let b = self.tables.record(e)?;
+        if lane >= (b[3] & 0xFF) {
+            return None;
+        }
+        let atom = if b[3] & BATCH_COARSE != 0 {
+            *self.origins.get((b[1] + lane) as usize)?
+        } else {
+            (e[1] << self.shift) + lane
+        };
+        Some(self.first.get(b[0] as usize)? + atom as u64)
+    }
+
     fn instance_atoms(&self, k: usize) -> &[GpuSphere] {
         let (f, n) = self.molecules[self.instance_molecule[k] as usize];
         &self.atoms[f as usize..(f + n) as usize]
@@ -668,7 +813,19 @@ impl SceneGeom {
     pub fn slots(&self) -> u32 {
         match self {
             SceneGeom::Plain(g) => g.len() as u32,
-            SceneGeom::Instanced(i) => (i.base_batches as u32) << i.shift,
+            SceneGeom::Instanced(i) => {
+                let total = i.batch_first.last().copied().unwrap_or(0);
+                (total << i.shift).min(MAX_SLOTS) as u32
+            }
+        }
+    }
+
+    /// Whether a frame may draw every atom (the static table's ids fit 32
+    /// bits), else the one line that says what can draw the scene.
+    pub fn check_full_detail(&self) -> Result<()> {
+        match self {
+            SceneGeom::Plain(_) => Ok(()),
+            SceneGeom::Instanced(i) => static_fits(&i.batch_first, i.shift, &i.source),
         }
     }
 
@@ -714,22 +871,31 @@ impl SceneGeom {
         }
     }
 
-    /// The expanded index of sphere id `id` (a slot of an instanced scene).
+    /// The expanded index of sphere id `id` (a slot of an instanced
+    /// scene's static table).
     pub fn expanded_id(&self, id: u32) -> Option<u64> {
         match self {
             SceneGeom::Plain(g) => ((id as usize) < g.len()).then_some(id as u64),
             SceneGeom::Instanced(i) => {
-                let b = i.tables.record(id >> i.shift)?;
-                let lane = id & ((1 << i.shift) - 1);
-                if lane >= (b[3] & 0xFF) {
+                let b = (id >> i.shift) as u64;
+                let k = i.batch_first.partition_point(|&f| f <= b).checked_sub(1)?;
+                if k >= i.instance_molecule.len() {
                     return None;
                 }
-                let atom = if b[3] & BATCH_COARSE != 0 {
-                    *i.origins.get((b[1] + lane) as usize)?
-                } else {
-                    lane
-                };
-                Some(b[2] as u64 + atom as u64)
+                let entry = [k as u32, (b - i.batch_first[k]) as u32];
+                i.expanded_of(entry, id & ((1 << i.shift) - 1))
+            }
+        }
+    }
+
+    /// The expanded index of sphere id `id` of a frame that drew the LOD
+    /// lists (`lists`: their entries as the GPU held them).
+    pub fn listed_id(&self, lists: &[[u32; 2]], id: u32) -> Option<u64> {
+        match self {
+            SceneGeom::Plain(_) => None,
+            SceneGeom::Instanced(i) => {
+                let e = *lists.get((id >> i.shift) as usize)?;
+                i.expanded_of(e, id & ((1 << i.shift) - 1))
             }
         }
     }
@@ -773,24 +939,21 @@ impl SceneGeom {
                             .collect(),
                     );
                 }
-                // (level 0's batches: the coarse ones are listed by the LOD
-                // cull, never by a view order)
-                (0..i.base_batches)
-                    .filter_map(|b| Some((b, i.tables.record(b as u32)?)))
-                    .map(|(b, batch)| {
-                        let (k, m) = (
-                            batch[0] as usize,
-                            ((batch[3] >> 8) & BATCH_TYPE_MASK) as usize,
-                        );
-                        let run = (batch[1] - i.molecules[m].0) as usize / per;
-                        let c = i.transforms.apply(k, local[m][run]);
-                        let first = (b << i.shift) as u32;
-                        (
+                // (the static table's batches, level 0: the coarse ones are
+                // listed by the LOD cull, never by a view order)
+                let mut runs = Vec::with_capacity(self.slots() as usize >> i.shift);
+                for (k, &m) in i.instance_molecule.iter().enumerate() {
+                    let first = i.batch_first[k];
+                    for (j, &c) in local[m as usize].iter().enumerate() {
+                        let slot = ((first + j as u64) << i.shift).min(MAX_SLOTS) as u32;
+                        let c = i.transforms.apply(k, c);
+                        runs.push((
                             DVec3::new(c[0] as f64, c[1] as f64, c[2] as f64),
-                            first..first + per as u32,
-                        )
-                    })
-                    .collect()
+                            slot..slot + per as u32,
+                        ));
+                    }
+                }
+                runs
             }
         }
     }
@@ -1023,13 +1186,14 @@ mod tests {
         b.finish("test").unwrap()
     }
 
-    /// The stored 4-byte batches give the records a batch table of whole
-    /// records would hold, built here the plain way: every instance's
-    /// atoms in runs of 2^shift in expanded order, then every instance's
-    /// coarse levels' runs (their atoms stored after the scene's own, per
-    /// type and level), then the empty batch.
+    /// The 8-byte batch entries give the records a batch table of whole
+    /// records would hold, built here the plain way: the static table is
+    /// every instance's atoms in runs of 2^shift in expanded order, then
+    /// the empty batch; an entry (instance, level, j) of the LOD lists
+    /// names run j of that instance's level (its atoms stored after the
+    /// scene's own, per type and level).
     #[test]
-    fn batch_words_make_the_records_of_a_full_table() {
+    fn batch_entries_make_the_records_of_a_full_table() {
         let scene = scene();
         let inst = scene.instancing.as_ref().unwrap();
         let geom: Vec<GpuSphere> = scene
@@ -1050,62 +1214,105 @@ mod tests {
                     want.push([k as u32, mol.first + a, e, n | (m << 8)]);
                 }
             }
-            assert_eq!(built.base_batches as usize, want.len());
-            if lod.is_some() {
-                // per type and level >= 1: first stored atom, atoms
-                let mut at = geom.len() as u32;
-                let mut coarse: Vec<Vec<(u32, u32)>> = Vec::new();
-                for mol in &inst.molecules {
-                    let atoms = &geom[mol.first as usize..(mol.first + mol.atoms) as usize];
-                    let counts = MoleculeLod::new(atoms).counts;
-                    let mut levels = Vec::new();
-                    for &n in counts.iter().skip(1) {
-                        levels.push((at, n));
-                        at += n;
-                    }
-                    coarse.push(levels);
-                }
-                assert_eq!(built.geom.len() as u32, at);
-                assert!(coarse[0].len() >= 3, "the big molecule has levels");
-                for (k, &m) in inst.instance_molecule.iter().enumerate() {
-                    for &(first, n) in &coarse[m as usize] {
-                        for a in (0..n).step_by(per as usize) {
-                            let c = (n - a).min(per) | (m << 8) | BATCH_COARSE;
-                            want.push([k as u32, first + a, inst.first[k] as u32, c]);
-                        }
-                    }
-                }
-                want.push([0; 4]);
+            want.push([0; 4]);
+            let entries = static_entries(&built.batch_first, t.shift, "test").unwrap();
+            assert_eq!(entries.len(), want.len(), "lod {lod:?}");
+            assert_eq!(built.entries.is_some(), lod.is_none());
+            for (b, (e, w)) in entries.iter().zip(&want).enumerate() {
+                assert_eq!(t.record(*e).as_ref(), Some(w), "batch {b}, lod {lod:?}");
             }
-            assert_eq!(t.words.len(), want.len(), "lod {lod:?}");
-            for (b, w) in want.iter().enumerate() {
-                assert_eq!(
-                    t.record(b as u32).as_ref(),
-                    Some(w),
-                    "batch {b}, lod {lod:?}"
-                );
+            if lod.is_none() {
+                assert_eq!(built.entries.as_ref(), Some(&entries));
+                continue;
             }
-            assert_eq!(t.record(want.len() as u32), None);
+            // per type and level >= 1: first stored atom, atoms
+            let mut at = geom.len() as u32;
+            let mut coarse: Vec<Vec<(u32, u32)>> = Vec::new();
+            for mol in &inst.molecules {
+                let atoms = &geom[mol.first as usize..(mol.first + mol.atoms) as usize];
+                let counts = MoleculeLod::new(atoms).counts;
+                let mut levels = Vec::new();
+                for &n in counts.iter().skip(1) {
+                    levels.push((at, n));
+                    at += n;
+                }
+                coarse.push(levels);
+            }
+            assert_eq!(built.geom.len() as u32, at);
+            assert!(coarse[0].len() >= 3, "the big molecule has levels");
+            for (k, &m) in inst.instance_molecule.iter().enumerate() {
+                for (l, &(first, n)) in coarse[m as usize].iter().enumerate() {
+                    let word = k as u32 | ((l as u32 + 1) << BATCH_INSTANCE_BITS);
+                    for (j, a) in (0..n).step_by(per as usize).enumerate() {
+                        let c = (n - a).min(per) | (m << 8) | BATCH_COARSE;
+                        let w = [k as u32, first + a, inst.first[k] as u32, c];
+                        assert_eq!(t.record([word, j as u32]), Some(w), "{k} {l} {j}");
+                    }
+                }
+            }
         }
     }
 
-    /// A word naming an instance the tables lack gives no record, one
-    /// naming a level its molecule lacks a batch of no atoms (no panic).
+    /// Each batch of each (type, level) has a bounding sphere that holds
+    /// every sphere of that batch (what the cull tests batches by), found
+    /// from the level's row (lodBoundTex's box w) and the batch's index.
     #[test]
-    fn a_broken_batch_word_gives_no_record() {
+    fn batch_bounds_hold_their_spheres() {
+        let scene = scene();
+        let inst = scene.instancing.as_ref().unwrap();
+        let geom: Vec<GpuSphere> = scene
+            .spheres
+            .iter()
+            .map(|s| [s.center[0], s.center[1], s.center[2], s.radius])
+            .collect();
+        let built = build_instanced(&scene, geom.clone(), vec![0; geom.len()], Some(4.0)).unwrap();
+        let (bounds, batch) = built.lod.as_ref().unwrap();
+        let per = 1usize << built.tables.shift;
+        let mut checked = 0;
+        for m in 0..inst.molecules.len() {
+            let levels = built.tables.levels[m * MAX_LOD_LEVELS as usize][0] as usize;
+            for l in 0..levels {
+                let row = m * MAX_LOD_LEVELS as usize + l;
+                let [_, first, _, n] = built.tables.levels[row];
+                let at = bounds[2 * row + 1][3] as usize;
+                let stored = &built.geom[first as usize..(first + n) as usize];
+                for (j, chunk) in stored.chunks(per).enumerate() {
+                    let b = batch[at + j];
+                    let c = glam::Vec3::new(b[0], b[1], b[2]);
+                    for a in chunk {
+                        let d = glam::Vec3::new(a[0], a[1], a[2]).distance(c) + a[3];
+                        assert!(d <= b[3], "type {m} level {l} batch {j}: {d} > {}", b[3]);
+                    }
+                    checked += 1;
+                }
+            }
+        }
+        assert_eq!(checked, batch.len());
+        assert!(checked > 10, "{checked}");
+    }
+
+    /// An entry naming an instance the tables lack gives no record, one
+    /// naming a level its molecule lacks or a batch past the level's
+    /// atoms a batch of no atoms or none (no panic).
+    #[test]
+    fn a_broken_batch_entry_gives_no_record() {
         let scene = scene();
         let geom: Vec<GpuSphere> = scene
             .spheres
             .iter()
             .map(|s| [s.center[0], s.center[1], s.center[2], s.radius])
             .collect();
-        let mut t = build_instanced(&scene, geom.clone(), vec![0; geom.len()], None)
+        let t = build_instanced(&scene, geom.clone(), vec![0; geom.len()], None)
             .unwrap()
             .tables;
-        t.words[0] = 1000;
-        assert_eq!(t.record(0), None);
-        t.words[0] = 2 | 3 << BATCH_INSTANCE_BITS; // a level instance 2 lacks
-        assert!(t.record(0).is_none_or(|r| r[3] & 0xFF == 0));
+        assert_eq!(t.record([1000, 0]), None);
+        // a level instance 2 lacks
+        assert!(
+            t.record([2 | 3 << BATCH_INSTANCE_BITS, 0])
+                .is_none_or(|r| r[3] & 0xFF == 0)
+        );
+        assert_eq!(t.record([0, 1000]), None);
+        assert_eq!(t.record([0, u32::MAX]), None);
     }
 
     /// Each level's bounds hold every sphere of that level, its grown
@@ -1162,10 +1369,12 @@ mod tests {
         assert!(bounds.iter().any(|b| b[0][3] > level0), "{bounds:?}");
     }
 
-    /// Levels of detail past the 2^32 sphere ids are refused in one line
-    /// that says how many atoms fit (before any table is built).
+    /// Past the 2^32 sphere ids a scene with levels of detail builds
+    /// (the LOD lists' slots are its ids, no static table is made), and
+    /// drawing every atom (--lod off, or a mode that draws full detail)
+    /// is refused in one line naming the ids needed.
     #[test]
-    fn too_many_slots_for_the_levels_is_one_clear_line() {
+    fn past_2_32_ids_only_the_levels_draw() {
         let mut b = InstancedBuilder::default();
         let node = b.node(&["cell"]);
         let atoms: Vec<Sphere> = (0..4096)
@@ -1181,9 +1390,8 @@ mod tests {
             })
             .collect();
         let m = b.molecule("cube", node, atoms);
-        // 3.5 * 10^9 atoms: under MAX_REPRESENTED, but with their coarse
-        // levels past 2^32 slots
-        for k in 0..854_500u32 {
+        // 4.5 * 10^9 atoms: past the static table's 2^32 slots
+        for k in 0..1_100_000u32 {
             let t = [k as f64 * 30.0, 0.0, 0.0];
             b.instance_quat("test", m, glam::DQuat::IDENTITY, t)
                 .unwrap();
@@ -1194,18 +1402,21 @@ mod tests {
             .iter()
             .map(|s| [s.center[0], s.center[1], s.center[2], s.radius])
             .collect();
-        let Err(e) = build_instanced(&scene, geom, vec![0; 4096], Some(2.0)) else {
-            panic!("built past 2^32 slots");
+        let built = build_instanced(&scene, geom.clone(), vec![0; 4096], Some(2.0)).unwrap();
+        assert!(built.entries.is_none());
+        assert_eq!(*built.batch_first.last().unwrap(), 1_100_000 * 64);
+        let Err(e) = static_entries(&built.batch_first, built.tables.shift, "big") else {
+            panic!("a static table past 2^32 slots");
         };
         let msg = e.to_string();
         assert!(!msg.contains('\n'), "{msg}");
-        assert!(msg.starts_with("big: 3500032000 atoms"), "{msg}");
-        let fit: u64 = msg
-            .split("about ")
-            .nth(1)
-            .and_then(|t| t.split(' ').next())
-            .and_then(|n| n.parse().ok())
-            .expect("the atoms that fit");
-        assert!((2_500_000_000..3_500_000_000).contains(&fit), "{msg}");
+        assert!(
+            msg.starts_with("big: drawing every atom needs 4505600064 sphere ids"),
+            "{msg}"
+        );
+        let Err(e) = build_instanced(&scene, geom, vec![0; 4096], None) else {
+            panic!("built --lod off past 2^32 slots");
+        };
+        assert_eq!(e.to_string(), msg);
     }
 }

@@ -21,7 +21,7 @@ use crate::vk::{Buffer, Context, Recorder};
 pub const PASSES: &[(&str, &str)] = &[
     (
         "lod_cull",
-        "instanced scenes with levels of detail (`--lod auto`): one invocation per instance places its molecule's bounds and chooses the coarsest level whose switch size the instance is within (a prefix of the molecule's atoms in a spatial order, radii grown; kept only where its outline keeps 95 % of the molecule's, or what half a pixel of motion keeps; a coarser one than last frame's only a band below its switch size) and keeps the level for the light, then tests that level's bounds (a sphere, and a box turned with the instance) against the camera's pixel window; the kept (instance, level) batches of those that passed the occlusion test last frame are listed with one `atomicAdd`, and the rasterizer visits the list, dispatched indirectly, instead of the view's order",
+        "instanced scenes with levels of detail (`--lod auto`): one invocation per instance places its molecule's bounds and chooses the coarsest level whose switch size the instance is within (a prefix of the molecule's atoms in a spatial order, radii grown; kept only where its outline keeps 95 % of the molecule's, or what half a pixel of motion keeps; a coarser one than last frame's only a band below its switch size) and keeps the level for the light, then tests that level's bounds (a sphere, and a box turned with the instance) against the camera's pixel window; of those that passed the occlusion test last frame, each batch of 64 atoms (its bounding sphere, placed with the instance) not hidden behind the depth tiles of last frame's final image is listed with an `atomicAdd` (entry: instance, level, batch), and the rasterizer visits the list, dispatched indirectly, instead of the view's order: a sphere's id is its slot in the lists, so ids stay 32-bit past 2^32 atoms",
     ),
     (
         "raster",
@@ -29,11 +29,11 @@ pub const PASSES: &[(&str, &str)] = &[
     ),
     (
         "lod_occlusion",
-        "instanced scenes with levels of detail: the farthest depth of each 4x4 and 32x32 pixels (coarser past 4096x4096) of the early camera image (the instances that passed last frame's test), then one invocation per instance in the window: hidden if the nearest point of its level's bounds lies behind every tile its rectangle touches (exact: it could not win a pixel); the visible ones not drawn early are listed, and the results are the next frame's history (two-phase occlusion culling, as niagara and Mol* do it)",
+        "instanced scenes with levels of detail: the farthest depth of each 4x4 and 32x32 pixels (coarser past 4096x4096) of the early camera image (the instances that passed last frame's test), then one invocation per instance in the window: hidden if the nearest point of its level's bounds lies behind every tile its rectangle touches (exact: it could not win a pixel); of the visible ones, the batches not drawn early (recomputed) and not hidden behind those tiles are listed, and the results are the next frame's history (two-phase occlusion culling of instances and of batches, as niagara does it for meshlets)",
     ),
     (
         "raster_late",
-        "the rasterizer over the late list, into the same visibility buffer",
+        "the rasterizer over the late list, into the same visibility buffer; then the final image's depth tiles, the next frame's early test of batches",
     ),
     (
         "issm_raster",
@@ -41,15 +41,15 @@ pub const PASSES: &[(&str, &str)] = &[
     ),
     (
         "light_cull",
-        "instanced scenes with levels of detail, after the camera's raster: the light-map rectangle of the points the camera sees (per 16x16 pixels, each hit unprojected, one atomic per tile), then one invocation per instance in the light's view with the camera's level, kept if over that rectangle grown by the farthest any shadow lookup reads (34 texels: nothing else can shadow a visible point) and it passed the light's occlusion test last frame",
+        "instanced scenes with levels of detail, after the camera's raster: the light-map rectangle of the points the camera sees (per 16x16 pixels, each hit unprojected, one atomic per tile), then one invocation per instance in the light's view with the camera's level, kept if over that rectangle grown by the farthest any shadow lookup reads (34 texels: nothing else can shadow a visible point) and it passed the light's occlusion test last frame; its batches tested against last frame's light-map tiles as the camera's are",
     ),
     (
         "light_occlusion",
-        "the same two-phase occlusion culling in the key light's view (instanced scenes with levels of detail): depth tiles of its early map, the instances not drawn early and not hidden listed",
+        "the same two-phase occlusion culling in the key light's view (instanced scenes with levels of detail): depth tiles of its early map, the batches not drawn early and not hidden listed",
     ),
     (
         "light_raster_late",
-        "the rasterizer over the light's late list, into the same light map",
+        "the rasterizer over the light's late list, into the same light map; then its depth tiles for the next frame",
     ),
     (
         "issm_resolve",
@@ -159,7 +159,7 @@ impl Stages {
         settings: &RenderSettings,
         levels: Vec<u32>,
         thresholds: Vec<f64>,
-        scene_buffers: &crate::passes::scene::SceneBuffers,
+        scene_buffers: &mut crate::passes::scene::SceneBuffers,
     ) -> Result<Self> {
         let scene = scene_buffers.spec;
         Ok(Stages {

@@ -168,20 +168,67 @@ impl<'r> Inspect<'r, '_> {
     }
 
     /// Visibility buffer (depth|id per pixel), without the guard words;
-    /// ids are indices in input (expanded) order, as the id AOV names them.
+    /// ids are indices in input (expanded) order, as the id AOV names them
+    /// (below 2^32 atoms: [`Inspect::read_ids`] names any).
     pub fn read_vis(&self) -> Result<Vec<u64>> {
+        if !self.ids_fit() {
+            return Err(Error::Input(format!(
+                "{} atoms: the id, depth, shadow and ao AOVs and EXR layers name visible atoms \
+                 by a 32-bit index, so they stop at 2^32 atoms (this scene renders its colour \
+                 image only)",
+                self.represented()
+            )));
+        }
         let mut v = self.read_vis_slots()?;
         if let SceneGeom::Instanced(_) = &self.r.res.geom {
-            for k in &mut v {
-                if *k != crate::gpu::VIS_EMPTY {
-                    let e = self.r.res.geom.expanded_id(*k as u32).ok_or_else(|| {
-                        Error::Internal(format!("slot {} names no sphere", *k as u32))
-                    })?;
+            // the depth word, then the expanded index below it
+            let ids = self.expanded_of(&v)?;
+            for (k, e) in v.iter_mut().zip(ids) {
+                if let Some(e) = e {
                     *k = (*k & !0xFFFF_FFFF) | e;
                 }
             }
         }
         Ok(v)
+    }
+
+    /// The expanded index of each pixel's visible sphere (None:
+    /// background), past 2^32 atoms too.
+    pub fn read_ids(&self) -> Result<Vec<Option<u64>>> {
+        self.expanded_of(&self.read_vis_slots()?)
+    }
+
+    /// The expanded indices the keys `vis` (as the GPU holds them) name.
+    fn expanded_of(&self, vis: &[u64]) -> Result<Vec<Option<u64>>> {
+        let geom = &self.r.res.geom;
+        // (ids are the LOD lists' slots in a frame that drew them)
+        let scene = &self.r.res.scene;
+        let lists: Option<Vec<[u32; 2]>> = match &scene.lod {
+            Some(l) if scene.listed.get() => {
+                Some(l.lists.download_pod(self.r.ctx, 0, l.list_entries as u64)?)
+            }
+            _ => None,
+        };
+        vis.iter()
+            .map(|&k| {
+                if k == crate::gpu::VIS_EMPTY {
+                    return Ok(None);
+                }
+                let slot = k as u32;
+                match &lists {
+                    Some(l) => geom.listed_id(l, slot),
+                    None => geom.expanded_id(slot),
+                }
+                .map(Some)
+                .ok_or_else(|| Error::Internal(format!("slot {slot} names no sphere")))
+            })
+            .collect()
+    }
+
+    /// Whether every represented sphere's expanded index fits the 32 bits
+    /// below a visibility key's depth ([`Inspect::read_vis`]).
+    pub fn ids_fit(&self) -> bool {
+        self.represented() <= u32::MAX as u64
     }
 
     /// The visibility buffer as the GPU holds it (instanced scenes: slot ids).

@@ -42,6 +42,9 @@ pub struct Renderer<'c> {
     /// one still runs (the viewer); `render_frame` uses them one at a time.
     slots: Vec<FrameSlot>,
     next_slot: usize,
+    /// The ids the last frame recorded may name (per-id buffers sized by
+    /// them are remade when they change: a frame in flight reads them).
+    last_ids: u32,
     res: Resources,
 }
 
@@ -59,9 +62,10 @@ pub(crate) struct Resources {
     bounds: (DVec3, f64),
     /// Typical sphere radius (screen-space effect radii).
     typical_radius: f64,
-    /// SSDO may use per-sphere receivers: their flags (a bit per id) fit
-    /// one storage buffer (not so past ~10^9 ids on lavapipe's 128 MiB).
-    sphere_receivers: bool,
+    /// The most bytes a storage buffer may hold: SSDO may use per-sphere
+    /// receivers where their flags (a bit per id) fit one (not so past
+    /// ~10^9 ids on lavapipe's 128 MiB).
+    storage_range: u32,
     globals: Globals,
     /// Write the colour buffer as BGRA (for BGRA swapchains).
     bgra: bool,
@@ -112,7 +116,15 @@ impl Resources {
         SceneScale {
             typical_radius: self.typical_radius,
             center: self.bounds.0,
-            sphere_receivers: self.sphere_receivers,
+            // (a bit per id this frame may name, and one per sphere of
+            // every level of every instance: past ~10^9 atoms the visible
+            // spheres outnumber the pixels and per-pixel receivers cost
+            // less; meso 10^9 overview 721 against 803 ms, SARS-CoV-2 353
+            // against 397 the other way)
+            sphere_receivers: crate::stages::ssdo::sphere_flags_fit(
+                self.scene.frame_slots().max(self.scene.all_level_slots),
+                self.storage_range,
+            ),
         }
     }
 
@@ -132,6 +144,10 @@ impl Resources {
     /// the frame's uniforms: the lookup's parameters, the half size.
     /// Returns the stages' parameters for the frame (computed once here).
     fn prepare(&mut self, ctx: &Context, settings: &RenderSettings) -> Result<FrameParams> {
+        // The batch table: the LOD lists, or the static one (made by
+        // `ensure_orders` the first time a frame draws every atom).
+        self.scene.listed.set(self.lod_lists(settings));
+        self.globals.counts[0] = self.scene.frame_slots();
         let (hw, hh) = self.targets.half();
         self.globals.counts[1] = hw;
         self.globals.counts[2] = hh;
@@ -141,11 +157,8 @@ impl Resources {
             settings.check_see_through(self.translucent)?;
             self.stages.raster.enable_see_through(ctx)?;
             if self.stages.see_through.is_none() {
-                self.stages.see_through = Some(SeeThrough::new(
-                    ctx,
-                    self.scene.spec,
-                    self.scene.base_slots,
-                )?);
+                self.stages.see_through =
+                    Some(SeeThrough::new(ctx, self.scene.spec, self.scene.slots)?);
             }
             if let Some(s) = &mut self.stages.see_through {
                 s.prepare(
@@ -181,7 +194,7 @@ impl Resources {
         self.globals.shadow_u = plain.params.u;
         self.stages.shade.prepare(ctx, shade.mode, &plain)?;
         if settings.ssdo_on() {
-            let counts = (self.scene.slots, self.targets.pixels);
+            let counts = (self.scene.frame_slots(), self.targets.pixels);
             self.stages
                 .ssdo
                 .prepare(ctx, &p, ssdo_modes(settings), &plain, counts)?;
@@ -249,7 +262,7 @@ impl<'c> Renderer<'c> {
         // Each object is guarded until the renderer owns it: an error part
         // way (a buffer over the device limit) destroys what was made.
         let (scene_buffers, geom) = SceneBuffers::new(ctx, scene, settings.lod.pixels())?;
-        let scene_buffers = ctx.guard(scene_buffers);
+        let mut scene_buffers = ctx.guard(scene_buffers);
         let win = checked_window(&cam, settings.window, settings.raster)?;
         let targets = ctx.guard(Targets::new(
             ctx,
@@ -281,7 +294,7 @@ impl<'c> Renderer<'c> {
             &settings,
             levels,
             thresholds,
-            &scene_buffers,
+            &mut scene_buffers,
         )?);
         let mut res = Resources {
             geom,
@@ -290,10 +303,7 @@ impl<'c> Renderer<'c> {
             translucent: scene.has_translucent(),
             bounds: (bs_center.as_dvec3(), bs_radius as f64),
             typical_radius: typical_radius(scene) as f64,
-            sphere_receivers: crate::stages::ssdo::sphere_flags_fit(
-                scene_buffers.slots,
-                ctx.props.limits.max_storage_buffer_range,
-            ),
+            storage_range: ctx.props.limits.max_storage_buffer_range,
             globals: Globals {
                 background: background_word(settings.look.background),
                 scene: crate::passes::scene::levels_word(scene),
@@ -313,6 +323,7 @@ impl<'c> Renderer<'c> {
             settings,
             slots: slots.keep(),
             next_slot: 0,
+            last_ids: 0,
             res,
         };
         // From here on `r` owns everything (Drop destroys it on error).
@@ -442,6 +453,10 @@ impl<'c> Renderer<'c> {
             scene,
             ..
         } = &mut self.res;
+        if matches!(mode, ShadowMode::Deep | ShadowMode::Osm) {
+            // (they draw every atom: sized by the static table's slots)
+            geom.check_full_detail()?;
+        }
         stages.shadows.choose(
             mode,
             &ShadowSetup {

@@ -23,6 +23,13 @@ impl Renderer<'_> {
         if self.res.lod_lists(&self.settings) {
             return Ok(());
         }
+        if !self.res.scene.static_made {
+            // The static batch table the orders' batches name (its error,
+            // past 2^32 ids, before any order is sorted); frames in flight
+            // may read its placeholder.
+            self.wait_idle()?;
+            self.res.scene.ensure_static(self.ctx, &self.res.geom)?;
+        }
         let views = [
             (
                 ViewIndex::Camera,
@@ -82,7 +89,11 @@ impl Renderer<'_> {
             Some(s) if see => s.after_frame(self.ctx)?,
             _ => false,
         };
-        let lod = self.res.stages.raster.after_frame(self.ctx)?;
+        let lod = self
+            .res
+            .stages
+            .raster
+            .after_frame(self.ctx, &mut self.res.scene)?;
         Ok(if grown || lod {
             FrameCheck::Retry
         } else {
@@ -135,6 +146,15 @@ impl Renderer<'_> {
     /// must have finished); returns the slot.
     fn submit(&mut self) -> Result<usize> {
         self.ensure_orders()?;
+        let ids = self
+            .res
+            .scene
+            .slots_when(self.res.lod_lists(&self.settings));
+        if ids != self.last_ids {
+            // (SSDO's per-sphere buffers are remade for them)
+            self.wait_idle()?;
+            self.last_ids = ids;
+        }
         let ctx = self.ctx;
         let dev = &ctx.device;
         let slot = self.next_slot;
@@ -209,6 +229,8 @@ impl Renderer<'_> {
     /// submitted and returns the recorder's log of steps and barriers
     /// (tests check it with [`crate::vk::barrier::check_hazards`]).
     pub fn frame_log(&mut self) -> Result<Vec<crate::vk::barrier::Event>> {
+        // (prepare may remake buffers a frame in flight reads)
+        self.wait_idle()?;
         self.ensure_orders()?;
         let ctx = self.ctx;
         let params = self.res.prepare(ctx, &self.settings)?;

@@ -270,7 +270,12 @@ impl<'a> Renderer<'a> {
                 height: cam.height,
                 color: self.inspect().read_color()?,
                 wide,
-                vis: self.inspect().read_vis()?,
+                // (a colour image of more than 2^32 atoms has no keys)
+                vis: if self.inspect().ids_fit() {
+                    self.inspect().read_vis()?
+                } else {
+                    vec![crate::gpu::VIS_EMPTY; cam.width as usize * cam.height as usize]
+                },
                 aov: if aovs {
                     Some(self.inspect().read_aov()?)
                 } else {

@@ -389,9 +389,13 @@ impl Default for InstancedBuilder {
 /// a stored batch names its instance in BATCH_INSTANCE_BITS bits).
 pub const MAX_INSTANCES: usize = 1 << crate::gpu::consts::BATCH_INSTANCE_BITS;
 
-/// Most spheres an instanced scene may represent: sphere ids are 32-bit
-/// (~0 means none) and every instance's last batch may leave slots unused.
-pub const MAX_REPRESENTED: u64 = u32::MAX as u64 - (1 << 26);
+/// Most spheres an instanced scene may represent (2^40): ids are 32-bit
+/// slots of a frame's LOD lists, expanded indices 64-bit on the CPU and
+/// 48 in the id AOV. Drawing every atom of a frame (--lod off, deep
+/// shadows, ...) needs a static table of 32-bit slots: past ~4.2 * 10^9
+/// atoms that is refused when asked (src/passes/scene.rs
+/// `static_entries`).
+pub const MAX_REPRESENTED: u64 = 1 << 40;
 
 impl InstancedBuilder {
     /// The node of a path below the root (made if new), e.g.
@@ -446,7 +450,7 @@ impl InstancedBuilder {
         if self.represented > MAX_REPRESENTED {
             return Err(SceneError::Invalid(format!(
                 "{name}: more than {MAX_REPRESENTED} spheres represented, the most sphereshade \
-                 renders (32-bit sphere ids)"
+                 renders"
             )));
         }
         Ok(())

@@ -3,7 +3,7 @@
 
 use crate::error::Result;
 use crate::gpu::blocks::RasterPush;
-use crate::gpu::consts::{R_ARGS, R_BANDS_REQ, R_BANDS_RUN};
+use crate::gpu::consts::{R_ARGS, R_BANDS_REQ, R_BANDS_RUN, RASTER_ORDER};
 use crate::passes::bands::{BandArgs, BandCounters, BandJob, BandPipelines};
 use crate::passes::scene::{SCENE_ATTRIBUTES, SCENE_GEOMETRY, SceneBuffers, SceneGeom};
 use crate::passes::{LOCAL_SIZE, spirv};
@@ -44,10 +44,12 @@ pub enum ViewIndex {
 }
 
 /// A list of batches the rasterizer visits in place of a view's order
-/// (the LOD cull's, src/stages/raster/lod.rs), dispatched indirectly.
+/// (the LOD cull's, src/stages/raster/lod.rs, in the scene's
+/// `LodBuffers::lists`), dispatched indirectly.
 #[derive(Clone, Copy)]
 pub struct LodView<'b> {
-    pub list: &'b Buffer,
+    /// Its first entry in the lists.
+    pub base: u32,
     pub counters: &'b Buffer,
     /// Byte offset of its indirect dispatch arguments in `counters`.
     pub args_offset: u64,
@@ -335,11 +337,18 @@ impl RasterPass {
             ref lod,
             clear,
         } = *io;
-        // (a view order lists level 0's batches; a LOD list any level's)
-        let sphere_count = if lod.is_some() {
-            scene.slots
-        } else {
-            scene.base_slots
+        // (a LOD list's slots are ids, from its first; a view order's
+        // batches are the static table's)
+        let (sphere_count, list_base) = match (lod.as_ref(), scene.lod.as_ref()) {
+            (Some(l), Some(buffers)) => {
+                ((buffers.list_entries - l.base) << (scene.spec >> 8), l.base)
+            }
+            (Some(_), None) => {
+                return Err(crate::error::Error::Internal(
+                    "a LOD list of a scene without levels".into(),
+                ));
+            }
+            (None, _) => (scene.slots, RASTER_ORDER),
         };
         let order = &self.orders[view as usize];
         if lod.is_none() && !self.order_ready(view) {
@@ -357,6 +366,8 @@ impl RasterPass {
             big_area: self.big_area,
             job_capacity: JOB_CAPACITY,
             sphere_count,
+            list_base,
+            pad: [0; 3],
         };
         let pipes = match (&self.see_through, see_through) {
             (Some(p), true) => p,
@@ -374,7 +385,13 @@ impl RasterPass {
             ("Jobs", &self.jobs),
             ("Counters", &self.counters),
             ("visWordTex", vis),
-            ("orderTex", lod.as_ref().map_or(&order.buf, |l| l.list)),
+            (
+                "orderTex",
+                match &scene.lod {
+                    Some(l) if lod.is_some() => &l.lists,
+                    _ => &order.buf,
+                },
+            ),
         ];
         bindings.extend(scene.geometry());
         bindings.extend(scene.attributes());

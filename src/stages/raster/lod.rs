@@ -6,7 +6,10 @@
 //! light's view with the camera's level, over the light texels the
 //! camera's visible points may read. The kept instances' batches of that
 //! level are listed per view, and the rasterizer visits a list in place of
-//! the view's order, dispatched indirectly. Each view's list is drawn in
+//! the view's order, dispatched indirectly. The four lists lie in one
+//! buffer, the scene's ([`LodBuffers::lists`]): in a frame that draws
+//! them they are its batch table, and a sphere's id is its slot there, so
+//! ids stay 32-bit however many atoms the scene represents. Each view's list is drawn in
 //! two phases: first the instances that passed its occlusion test last
 //! frame, then, against the depth tiles of that early image, the others
 //! that are not hidden (`lod_occlusion`, `raster_late`; `light_occlusion`,
@@ -16,10 +19,10 @@
 use crate::error::Result;
 use crate::gpu::blocks::{LodArgsPush, LodCullPush, LodHizPush};
 use crate::gpu::consts::{
-    HIZ_FINE_TILES, HIZ_MIN_SHIFT, LOD_ARGS, LOD_BATCHES, LOD_SPHERES, LOD_VIEWS, LOD_WORDS,
-    NO_LEVEL_YET,
+    BATCH_EMPTY, HIZ_FINE_TILES, HIZ_MIN_SHIFT, LOD_ARGS, LOD_BATCHES, LOD_LIST_TAIL, LOD_SPHERES,
+    LOD_VIEWS, LOD_WORDS, NO_LEVEL_YET,
 };
-use crate::passes::scene::{LodBuffers, SCENE_GEOMETRY, SceneBuffers};
+use crate::passes::scene::{LodBuffers, MAX_SLOTS, SCENE_GEOMETRY, SceneBuffers};
 use crate::passes::{LOCAL_SIZE, spirv};
 use crate::vk::pipeline::{Binding, PipelineDesc, ro, rw, texel, uniform};
 use crate::vk::{Buffer, ComputePipeline, Context, Grid, PassBuilder};
@@ -28,7 +31,7 @@ use ash::vk::Format;
 pub use super::compute::LodView;
 use super::compute::ViewIndex;
 
-const BINDINGS: [Binding; 8] = [
+const BINDINGS: [Binding; 10] = [
     uniform("GlobalsBlock"),
     texel("lodBoundTex", Format::R32G32B32A32_SFLOAT),
     rw("Levels"),
@@ -37,6 +40,8 @@ const BINDINGS: [Binding; 8] = [
     rw("Visible"),
     texel("hizTex", Format::R32_UINT),
     ro("Region"),
+    texel("hizPrevTex", Format::R32_UINT),
+    texel("batchBoundTex", Format::R32G32B32A32_SFLOAT),
 ];
 
 const BOUNDS_BINDINGS: [Binding; 3] = [
@@ -74,9 +79,22 @@ pub fn hiz_shift(w: u32, h: u32) -> u32 {
 /// words).
 const LATE: usize = 2;
 
-/// Entries of a list past its capacity: the empty batch the last
-/// workgroup's lanes read past the count.
-const LIST_TAIL: u64 = 64;
+/// Most entries a list may hold (its tail included): the four lists'
+/// slots are 32-bit ids, and their 8-byte entries are one storage buffer
+/// (`range` bytes at most; lavapipe: 128 MiB, 4 M entries a list, 2.7 *
+/// 10^8 spheres a view).
+fn max_list_entries(shift: u32, range: u32) -> u32 {
+    let by_ids = (MAX_SLOTS >> shift) / LOD_VIEWS as u64;
+    let by_range = range as u64 / (8 * LOD_VIEWS as u64);
+    by_ids.min(by_range) as u32
+}
+
+/// The initial capacity of a list when not given: an eighth of the
+/// full-detail batches, at least 2^16 and at most 2^20 (grown as a frame
+/// asks, [`LodCull::grow_lists`]).
+fn initial_capacity(most: u32) -> u32 {
+    (most / 8).clamp(1 << 16, 1 << 20)
+}
 
 /// Spheres and batches a frame's cull kept, per view.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -99,12 +117,14 @@ pub struct LodCull {
     args: ComputePipeline,
     /// The depth tiles (fine, coarse: [`hiz_shift`]).
     hiz: [ComputePipeline; 2],
-    /// Camera, light (early), camera, light (late): the batch lists.
-    lists: [Buffer; 4],
     /// Per instance and view: it passed the occlusion test last frame.
     visible: Buffer,
-    /// Per view: its depth tiles.
+    /// Per view: its depth tiles (of this frame's early image).
     hiz_tiles: [Buffer; 2],
+    /// Per view: the depth tiles of its last final image, and their shift
+    /// (28 until one is made: one tile).
+    hiz_prev: [Buffer; 2],
+    prev_shift: [std::cell::Cell<u32>; 2],
     /// `visible` holds a frame's result (cleared before the first).
     history: std::cell::Cell<bool>,
     /// The light texels of the camera's visible points (x0, y0, x1, y1).
@@ -115,13 +135,15 @@ pub struct LodCull {
     counters: Buffer,
     /// Per instance: the camera's level.
     levels: Buffer,
-    /// Batches a list holds (its buffer has room for [`LIST_TAIL`] more:
-    /// the last workgroup's lanes read past the count).
+    /// Batches a list holds (camera, light (early), camera, light (late)
+    /// in the scene's [`LodBuffers::lists`], each followed by
+    /// LOD_LIST_TAIL empty entries: the last workgroup's lanes read past
+    /// the count).
     capacity: u32,
-    /// The most a list can ever need: the scene's full-detail batches.
+    /// The most a list can ever need: the scene's full-detail batches
+    /// (and the most the ids allow).
     most: u32,
     instances: u32,
-    empty_batch: u32,
     per: u32,
 }
 
@@ -133,16 +155,14 @@ impl LodCull {
     pub const LIGHT_OCCLUSION: &'static str = "light_occlusion";
     pub const LIGHT_LATE: &'static str = "light_raster_late";
 
-    /// The pass for a scene with levels of detail (`lod`, its SCENE_SPEC
-    /// `scene`).
-    /// The cull of a scene (SCENE_SPEC `scene`) with levels `lod`; each
-    /// view's lists start `list_batches` long (default: an eighth of the
-    /// full-detail batches, at least 2^16) and grow on overflow
+    /// The cull of a scene (SCENE_SPEC `scene`) with levels `lod`, whose
+    /// lists it makes: each view's starts `list_batches` long (default
+    /// [`initial_capacity`]) and grows on overflow
     /// ([`LodCull::grow_lists`]).
     pub fn new(
         ctx: &Context,
         scene: u32,
-        lod: &LodBuffers,
+        lod: &mut LodBuffers,
         list_batches: Option<u32>,
     ) -> Result<Self> {
         let bindings = [&BINDINGS[..], &SCENE_GEOMETRY].concat();
@@ -192,11 +212,14 @@ impl LodCull {
         let hiz_coarse = ctx.guard(hiz("lod coarse depth tiles", 1)?);
         // (a view lists each instance once, at one level: never more than
         // the full-detail batches)
-        let most = lod.base_batches.max(1);
+        let shift = scene >> 8;
+        let most = lod.base_batches.clamp(
+            1,
+            max_list_entries(shift, ctx.props.limits.max_storage_buffer_range) - LOD_LIST_TAIL,
+        );
         let capacity = list_batches
-            .unwrap_or((most / 8).max(1 << 16))
+            .unwrap_or(initial_capacity(most))
             .clamp(1, most);
-        let lists = ctx.guard(Self::lists(ctx, capacity)?);
         let counters = ctx.guard(crate::passes::bands::counters_buffer(
             ctx,
             "LOD counters",
@@ -212,6 +235,16 @@ impl LodCull {
         let hiz_light = ctx.guard(Buffer::storage(
             ctx,
             "LOD light depth tiles",
+            HIZ_WORDS * 4,
+        )?);
+        let prev_camera = ctx.guard(Buffer::storage(
+            ctx,
+            "LOD camera last depth tiles",
+            HIZ_WORDS * 4,
+        )?);
+        let prev_light = ctx.guard(Buffer::storage(
+            ctx,
+            "LOD light last depth tiles",
             HIZ_WORDS * 4,
         )?);
         let region = ctx.guard(Buffer::storage(ctx, "LOD light region", 16)?);
@@ -231,45 +264,47 @@ impl LodCull {
         };
         let bounds_o = ctx.guard(bounds("lod light region", 0)?);
         let bounds_p = ctx.guard(bounds("lod light region perspective", 1)?);
-        let levels = Buffer::storage(ctx, "LOD levels", instances)?;
+        let levels = ctx.guard(Buffer::storage(ctx, "LOD levels", instances)?);
+        Self::set_lists(ctx, lod, capacity)?;
         Ok(LodCull {
             cull: [ortho.keep(), persp.keep()],
             args: args.keep(),
             hiz: [hiz_fine.keep(), hiz_coarse.keep()],
-            lists: lists.keep(),
             visible: visible.keep(),
             hiz_tiles: [hiz_camera.keep(), hiz_light.keep()],
+            hiz_prev: [prev_camera.keep(), prev_light.keep()],
+            prev_shift: [std::cell::Cell::new(28), std::cell::Cell::new(28)],
             history: std::cell::Cell::new(false),
             region: region.keep(),
             bounds: [bounds_o.keep(), bounds_p.keep()],
             counters: counters.keep(),
-            levels,
+            levels: levels.keep(),
             capacity,
             most,
             instances: lod.instance_count,
-            empty_batch: lod.empty_batch,
-            per: 1 << (scene >> 8),
+            per: 1 << shift,
         })
     }
 
-    /// The bindings of a cull phase of `view` writing `list`.
+    /// The bindings of a cull phase of `view`.
     fn cull_bindings<'b>(
         &'b self,
         globals: &'b Buffer,
         lod: &'b LodBuffers,
         scene: &'b SceneBuffers,
-        list: &'b Buffer,
         view: ViewIndex,
     ) -> Vec<(&'static str, &'b Buffer)> {
         let mut bindings = vec![
             ("GlobalsBlock", globals),
             ("lodBoundTex", &lod.bounds),
             ("Levels", &self.levels),
-            ("List", list),
+            ("List", &lod.lists),
             ("Counters", &self.counters),
             ("Visible", &self.visible),
             ("hizTex", &self.hiz_tiles[view as usize]),
             ("Region", &self.region),
+            ("hizPrevTex", &self.hiz_prev[view as usize]),
+            ("batchBoundTex", &lod.batch_bounds),
         ];
         bindings.extend(scene.geometry());
         bindings
@@ -307,9 +342,15 @@ impl LodCull {
         let lod = scene.lod.as_ref().ok_or_else(|| {
             crate::error::Error::Internal("the scene has no levels of detail".into())
         })?;
-        let buf = &self.lists[list];
-        p.fill(buf, buf.size, self.empty_batch);
-        let bindings = self.cull_bindings(globals, lod, scene, buf, view);
+        // (only this list: the others' entries name spheres drawn already)
+        let entries = (self.capacity + LOD_LIST_TAIL) as u64;
+        p.fill_at(
+            &lod.lists,
+            list as u64 * entries * 8,
+            entries * 8,
+            BATCH_EMPTY,
+        );
+        let bindings = self.cull_bindings(globals, lod, scene, view);
         let persp = view == ViewIndex::Camera && perspective;
         p.dispatch(
             &self.cull[persp as usize],
@@ -374,6 +415,9 @@ impl LodCull {
             if !self.history.replace(true) {
                 p.fill(&self.visible, self.visible.size, 0);
                 p.fill(&self.levels, self.levels.size, NO_LEVEL_YET);
+                for b in &self.hiz_prev {
+                    p.fill(b, b.size, 0);
+                }
             }
         }
         if let Some((vis, (w, h))) = vis {
@@ -391,30 +435,29 @@ impl LodCull {
                 ],
             );
         }
-        // (the early phases read no depth tiles)
-        self.cull_into(p, globals, scene, view as usize, view, perspective, 0)
+        // (the early phase reads the last final image's tiles)
+        let shift = self.prev_shift[view as usize].get();
+        self.cull_into(p, globals, scene, view as usize, view, perspective, shift)
     }
 
-    /// The steps of `lod_occlusion` (`light_occlusion`): the depth tiles
-    /// of `view`'s early image `vis` (`w` x `h`), its late list and the
-    /// arguments.
+    /// Dispatches that build the depth tiles of `view`'s image `vis` (`w`
+    /// x `h`) into `tiles`, fine ones of 2^shift pixels then coarse ones.
     #[allow(clippy::too_many_arguments)]
-    pub fn occlusion_steps<'b>(
+    fn tiles_steps<'b>(
         &'b self,
         p: &mut PassBuilder<'b>,
         globals: &'b Buffer,
-        scene: &'b SceneBuffers,
         vis: &'b Buffer,
+        tiles_buf: &'b Buffer,
         view: ViewIndex,
-        perspective: bool,
         (w, h): (u32, u32),
-    ) -> Result<()> {
+        shift: u32,
+    ) {
         let hb = [
             ("GlobalsBlock", globals),
             ("visWordTex", vis),
-            ("Hiz", &self.hiz_tiles[view as usize]),
+            ("Hiz", tiles_buf),
         ];
-        let shift = hiz_shift(w, h);
         let push = LodHizPush {
             view_index: view as u32,
             hiz_shift: shift,
@@ -432,8 +475,43 @@ impl LodCull {
             Grid::Invocations(tiles(w, h, 8 << shift)),
             &hb,
         );
+    }
+
+    /// The steps of `lod_occlusion` (`light_occlusion`): the depth tiles
+    /// of `view`'s early image `vis` (`w` x `h`), its late list and the
+    /// arguments.
+    #[allow(clippy::too_many_arguments)]
+    pub fn occlusion_steps<'b>(
+        &'b self,
+        p: &mut PassBuilder<'b>,
+        globals: &'b Buffer,
+        scene: &'b SceneBuffers,
+        vis: &'b Buffer,
+        view: ViewIndex,
+        perspective: bool,
+        size: (u32, u32),
+    ) -> Result<()> {
+        let shift = hiz_shift(size.0, size.1);
+        let buf = &self.hiz_tiles[view as usize];
+        self.tiles_steps(p, globals, vis, buf, view, size, shift);
         let list = LATE + view as usize;
         self.cull_into(p, globals, scene, list, view, perspective, shift)
+    }
+
+    /// After `view`'s late raster: the depth tiles of its final image
+    /// `vis` (`size`), the next frame's early phase tests batches against.
+    pub fn history_steps<'b>(
+        &'b self,
+        p: &mut PassBuilder<'b>,
+        globals: &'b Buffer,
+        vis: &'b Buffer,
+        view: ViewIndex,
+        size: (u32, u32),
+    ) {
+        let shift = hiz_shift(size.0, size.1);
+        self.prev_shift[view as usize].set(shift);
+        let buf = &self.hiz_prev[view as usize];
+        self.tiles_steps(p, globals, vis, buf, view, size, shift);
     }
 
     /// `view`'s late list.
@@ -448,7 +526,7 @@ impl LodCull {
 
     fn list_view(&self, i: usize) -> LodView<'_> {
         LodView {
-            list: &self.lists[i],
+            base: i as u32 * (self.capacity + LOD_LIST_TAIL),
             counters: &self.counters,
             args_offset: ((i as u32 * LOD_WORDS + LOD_ARGS) * 4) as u64,
         }
@@ -481,25 +559,16 @@ impl LodCull {
         })
     }
 
-    /// The four lists (camera, light, camera late, light late) of
-    /// `capacity` batches each.
-    fn lists(ctx: &Context, capacity: u32) -> Result<[Buffer; 4]> {
-        let mut made = ctx.guard(Vec::new());
-        for name in [
-            "camera LOD list",
-            "light LOD list",
-            "camera late LOD list",
-            "light late LOD list",
-        ] {
-            made.push(Buffer::storage(
-                ctx,
-                name,
-                (capacity as u64 + LIST_TAIL) * 4,
-            )?);
-        }
-        made.keep()
-            .try_into()
-            .map_err(|_| crate::error::Error::Internal("LOD lists".into()))
+    /// Makes `lod`'s lists (camera, light, camera late, light late) of
+    /// `capacity` batches each, then their tails (the old ones
+    /// destroyed).
+    fn set_lists(ctx: &Context, lod: &mut LodBuffers, capacity: u32) -> Result<()> {
+        let entries = LOD_VIEWS * (capacity + LOD_LIST_TAIL);
+        let lists = Buffer::storage(ctx, "LOD lists", entries as u64 * 8)?;
+        let mut old = std::mem::replace(&mut lod.lists, lists);
+        old.destroy(ctx);
+        lod.list_entries = entries;
+        Ok(())
     }
 
     /// Batches each list holds now.
@@ -516,7 +585,7 @@ impl LodCull {
     /// in the same frame (meso 10^8 fly-in: 272 k -> 752 k batches in one
     /// notch). Returns whether the frame overflowed and must
     /// be drawn again. The GPU must be idle.
-    pub fn grow_lists(&mut self, ctx: &Context) -> Result<bool> {
+    pub fn grow_lists(&mut self, ctx: &Context, lod: &mut LodBuffers) -> Result<bool> {
         let asked = {
             let word = self.counter_words(ctx)?;
             (0..LOD_VIEWS as usize)
@@ -531,10 +600,7 @@ impl LodCull {
         if asked as u64 * 4 <= self.capacity as u64 * 3 || capacity <= self.capacity {
             return Ok(overflow);
         }
-        let lists = Self::lists(ctx, capacity)?;
-        for mut old in std::mem::replace(&mut self.lists, lists) {
-            old.destroy(ctx);
-        }
+        Self::set_lists(ctx, lod, capacity)?;
         log::debug!(
             "LOD lists grown from {} to {capacity} batches ({asked} asked{})",
             self.capacity,
@@ -544,14 +610,15 @@ impl LodCull {
         Ok(overflow)
     }
 
-    /// Device memory: the lists, counters and levels.
+    /// Device memory: counters, levels, history and depth tiles (the
+    /// lists are the scene's).
     pub fn memory_bytes(&self) -> u64 {
-        self.lists.iter().map(|b| b.size).sum::<u64>()
-            + self.counters.size
+        self.counters.size
             + self.levels.size
             + self.visible.size
             + self.region.size
             + self.hiz_tiles.iter().map(|b| b.size).sum::<u64>()
+            + self.hiz_prev.iter().map(|b| b.size).sum::<u64>()
     }
 
     pub fn destroy(&mut self, ctx: &Context) {
@@ -562,15 +629,12 @@ impl LodCull {
         for p in &mut self.hiz {
             p.destroy(ctx);
         }
-        for b in &mut self.lists {
-            b.destroy(ctx);
-        }
         self.visible.destroy(ctx);
         self.region.destroy(ctx);
         for p in &mut self.bounds {
             p.destroy(ctx);
         }
-        for b in &mut self.hiz_tiles {
+        for b in self.hiz_tiles.iter_mut().chain(&mut self.hiz_prev) {
             b.destroy(ctx);
         }
         self.counters.destroy(ctx);

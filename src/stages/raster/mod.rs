@@ -100,7 +100,7 @@ impl RasterStage {
     pub fn new(
         ctx: &Context,
         graphics: bool,
-        scene_buffers: &SceneBuffers,
+        scene_buffers: &mut SceneBuffers,
         list_batches: Option<u32>,
     ) -> Result<Self> {
         let scene = scene_buffers.spec;
@@ -117,7 +117,7 @@ impl RasterStage {
         });
         let compute = ctx.guard(RasterPass::new(ctx, scene)?);
         let coverage = ctx.guard(CoveragePass::new(ctx)?);
-        let lod = match &scene_buffers.lod {
+        let lod = match &mut scene_buffers.lod {
             Some(l) => Some(LodCull::new(ctx, scene, l, list_batches)?),
             None => None,
         };
@@ -131,10 +131,11 @@ impl RasterStage {
     }
 
     /// After a frame: whether it must be drawn again because a LOD list
-    /// overflowed (the lists were grown). The GPU must be idle.
-    pub fn after_frame(&mut self, ctx: &Context) -> Result<bool> {
-        match &mut self.lod {
-            Some(l) if self.lod_used.get() => l.grow_lists(ctx),
+    /// overflowed (the lists, `scene`'s, were grown). The GPU must be
+    /// idle.
+    pub fn after_frame(&mut self, ctx: &Context, scene: &mut SceneBuffers) -> Result<bool> {
+        match (&mut self.lod, &mut scene.lod) {
+            (Some(l), Some(buffers)) if self.lod_used.get() => l.grow_lists(ctx, buffers),
             _ => Ok(false),
         }
     }
@@ -182,7 +183,10 @@ impl RasterStage {
         let target = camera_io(io, t, Some(l.late(ViewIndex::Camera)), false);
         rec.pass(LodCull::LATE, |p| {
             self.compute
-                .steps(p, &target, ViewIndex::Camera, io.perspective, false)
+                .steps(p, &target, ViewIndex::Camera, io.perspective, false)?;
+            // (the final image's depth tiles: next frame's early batches)
+            l.history_steps(p, io.globals, &t.vis, ViewIndex::Camera, io.size);
+            Ok(())
         })
     }
 

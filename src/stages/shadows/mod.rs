@@ -73,8 +73,13 @@ impl<'a> ShadowInputs<'a> {
         rec.pass(LodCull::LIGHT_OCCLUSION, |p| {
             l.occlusion_steps(p, self.globals, self.scene, map, light, false, (w, h))
         })?;
-        self.raster
-            .record_light_map(rec, LodCull::LIGHT_LATE, &io(Some(l.late(light)), false))
+        rec.pass(LodCull::LIGHT_LATE, |p| {
+            self.raster
+                .steps(p, &io(Some(l.late(light)), false), light, false, false)?;
+            // (the final map's depth tiles: next frame's early batches)
+            l.history_steps(p, self.globals, map, light, (w, h));
+            Ok(())
+        })
     }
 }
 
