@@ -318,18 +318,17 @@ impl SceneBuffers {
         buffers.coarse_source = coarse_source;
         let base_batches = batch_first.last().copied().unwrap_or(0);
         if let Some((bounds, batch_bounds)) = lod_tables {
-            let b = ctx.guard(Buffer::table(
-                ctx,
-                "LOD bounds",
-                (bounds.len() as u64 * 16).max(16),
-            )?);
-            b.upload(ctx, 0, bytemuck::cast_slice(&bounds))?;
-            let bb = ctx.guard(Buffer::table(
-                ctx,
-                "LOD batch bounds",
-                (batch_bounds.len() as u64 * 16).max(16),
-            )?);
-            bb.upload(ctx, 0, bytemuck::cast_slice(&batch_bounds))?;
+            let table = |name: &str, texels: &[[f32; 4]]| -> Result<Buffer> {
+                let t = ctx.guard(Buffer::table(
+                    ctx,
+                    name,
+                    (texels.len() as u64 * 16).max(16),
+                )?);
+                t.upload(ctx, 0, bytemuck::cast_slice(texels))?;
+                Ok(t.keep())
+            };
+            let b = ctx.guard(table("LOD bounds", &bounds)?);
+            let bb = ctx.guard(table("LOD batch bounds", &batch_bounds)?);
             // (src/stages/raster/lod.rs sizes them)
             let lists = Buffer::storage(ctx, "LOD lists", 16)?;
             buffers.lod = Some(LodBuffers {
@@ -1186,6 +1185,15 @@ mod tests {
         b.finish("test").unwrap()
     }
 
+    /// The scene's sphere records as the GPU stores them.
+    fn geom_of(scene: &Scene) -> Vec<GpuSphere> {
+        scene
+            .spheres
+            .iter()
+            .map(|s| [s.center[0], s.center[1], s.center[2], s.radius])
+            .collect()
+    }
+
     /// The 8-byte batch entries give the records a batch table of whole
     /// records would hold, built here the plain way: the static table is
     /// every instance's atoms in runs of 2^shift in expanded order, then
@@ -1196,11 +1204,7 @@ mod tests {
     fn batch_entries_make_the_records_of_a_full_table() {
         let scene = scene();
         let inst = scene.instancing.as_ref().unwrap();
-        let geom: Vec<GpuSphere> = scene
-            .spheres
-            .iter()
-            .map(|s| [s.center[0], s.center[1], s.center[2], s.radius])
-            .collect();
+        let geom = geom_of(&scene);
         for lod in [None, Some(4.0)] {
             let built = build_instanced(&scene, geom.clone(), vec![0; geom.len()], lod).unwrap();
             let t = &built.tables;
@@ -1260,11 +1264,7 @@ mod tests {
     fn batch_bounds_hold_their_spheres() {
         let scene = scene();
         let inst = scene.instancing.as_ref().unwrap();
-        let geom: Vec<GpuSphere> = scene
-            .spheres
-            .iter()
-            .map(|s| [s.center[0], s.center[1], s.center[2], s.radius])
-            .collect();
+        let geom = geom_of(&scene);
         let built = build_instanced(&scene, geom.clone(), vec![0; geom.len()], Some(4.0)).unwrap();
         let (bounds, batch) = built.lod.as_ref().unwrap();
         let per = 1usize << built.tables.shift;
@@ -1297,11 +1297,7 @@ mod tests {
     #[test]
     fn a_broken_batch_entry_gives_no_record() {
         let scene = scene();
-        let geom: Vec<GpuSphere> = scene
-            .spheres
-            .iter()
-            .map(|s| [s.center[0], s.center[1], s.center[2], s.radius])
-            .collect();
+        let geom = geom_of(&scene);
         let t = build_instanced(&scene, geom.clone(), vec![0; geom.len()], None)
             .unwrap()
             .tables;
@@ -1397,11 +1393,7 @@ mod tests {
                 .unwrap();
         }
         let scene = b.finish("big").unwrap();
-        let geom: Vec<GpuSphere> = scene
-            .spheres
-            .iter()
-            .map(|s| [s.center[0], s.center[1], s.center[2], s.radius])
-            .collect();
+        let geom = geom_of(&scene);
         let built = build_instanced(&scene, geom.clone(), vec![0; 4096], Some(2.0)).unwrap();
         assert!(built.entries.is_none());
         assert_eq!(*built.batch_first.last().unwrap(), 1_100_000 * 64);

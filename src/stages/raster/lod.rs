@@ -227,26 +227,11 @@ impl LodCull {
         )?);
         let instances = lod.instance_count.max(1) as u64 * 4;
         let visible = ctx.guard(Buffer::storage(ctx, "LOD visible", 2 * instances)?);
-        let hiz_camera = ctx.guard(Buffer::storage(
-            ctx,
-            "LOD camera depth tiles",
-            HIZ_WORDS * 4,
-        )?);
-        let hiz_light = ctx.guard(Buffer::storage(
-            ctx,
-            "LOD light depth tiles",
-            HIZ_WORDS * 4,
-        )?);
-        let prev_camera = ctx.guard(Buffer::storage(
-            ctx,
-            "LOD camera last depth tiles",
-            HIZ_WORDS * 4,
-        )?);
-        let prev_light = ctx.guard(Buffer::storage(
-            ctx,
-            "LOD light last depth tiles",
-            HIZ_WORDS * 4,
-        )?);
+        let tiles_buffer = |name: &str| Buffer::storage(ctx, name, HIZ_WORDS * 4);
+        let hiz_camera = ctx.guard(tiles_buffer("LOD camera depth tiles")?);
+        let hiz_light = ctx.guard(tiles_buffer("LOD light depth tiles")?);
+        let prev_camera = ctx.guard(tiles_buffer("LOD camera last depth tiles")?);
+        let prev_light = ctx.guard(tiles_buffer("LOD light last depth tiles")?);
         let region = ctx.guard(Buffer::storage(ctx, "LOD light region", 16)?);
         let bounds = |name: &str, persp: u32| {
             ComputePipeline::new(
