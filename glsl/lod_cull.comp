@@ -156,7 +156,9 @@ void main() {
                    instance_apply(k, bs.xyz + vec3(0.0, be.y, 0.0)) - p,
                    instance_apply(k, bs.xyz + vec3(0.0, 0.0, be.z)) - p);
     mat3 axes = transpose(mat3(v.right.xyz, v.up.xyz, v.dir.xyz));
-    float slack = 1e-3 * r + 1e-6 * max(max(abs(p.x), abs(p.y)), abs(p.z));
+    // (the f32 rounding of a placed point: ~1e-7 of its largest coordinate)
+    float pmax = max(max(abs(p.x), abs(p.y)), abs(p.z));
+    float slack = 1e-3 * r + 1e-6 * pmax;
     vec3 ext = min(abs(axes * ax[0]) + abs(axes * ax[1]) + abs(axes * ax[2]) + slack, vec3(r));
     ivec4 rc = PERSP && cam ? sphere_rect(v, cv, r, true)
                             : plane_rect(v, cv.x + vec2(-ext.x, ext.x), cv.y + vec2(-ext.y, ext.y));
@@ -198,7 +200,7 @@ void main() {
         // (never below 1: the atoms' radii are not scaled)
         stretch = max(sqrt(row), 1.0) * 1.001;
     }
-    float grow = 1e-6 * max(max(abs(p.x), abs(p.y)), abs(p.z)) + 1e-4;
+    float grow = 1e-6 * pmax + 1e-4;
     // Each kept batch takes its entry with an atomicAdd (a count first
     // and the entries in a second loop would need both loops to agree,
     // lane by lane).
