@@ -211,10 +211,16 @@ impl Resources {
         // Levels of detail and culling (`lod_lists`).
         self.stages.raster.no_cull();
         let lod = self.lod_lists(settings)
-            && self
-                .stages
-                .raster
-                .record_cull(rec, globals, &self.scene, cam.fov_deg.is_some())?;
+            && self.stages.raster.record_cull(
+                rec,
+                globals,
+                &self.scene,
+                cam.fov_deg.is_some(),
+                [
+                    bytemuck::bytes_of(&self.globals.cam),
+                    bytemuck::bytes_of(&self.globals.light),
+                ],
+            )?;
 
         let raster_in = RasterInputs {
             globals,

@@ -125,6 +125,13 @@ pub struct LodCull {
     /// (28 until one is made: one tile).
     hiz_prev: [Buffer; 2],
     prev_shift: [std::cell::Cell<u32>; 2],
+    /// Per view: its GPU view of the last frame recorded, and whether this
+    /// frame's differs (its last depth tiles are then emptied before the
+    /// early phase: tiles seen from elsewhere would send most batches to
+    /// the late phase, behind a sparse early image; an orbiting bench at
+    /// 506 A on 10^9 drew 2.3x as much late).
+    last_views: std::cell::RefCell<[Vec<u8>; 2]>,
+    moved: [std::cell::Cell<bool>; 2],
     /// `visible` holds a frame's result (cleared before the first).
     history: std::cell::Cell<bool>,
     /// The light texels of the camera's visible points (x0, y0, x1, y1).
@@ -259,6 +266,8 @@ impl LodCull {
             hiz_tiles: [hiz_camera.keep(), hiz_light.keep()],
             hiz_prev: [prev_camera.keep(), prev_light.keep()],
             prev_shift: [std::cell::Cell::new(28), std::cell::Cell::new(28)],
+            last_views: std::cell::RefCell::new([Vec::new(), Vec::new()]),
+            moved: [std::cell::Cell::new(true), std::cell::Cell::new(true)],
             history: std::cell::Cell::new(false),
             region: region.keep(),
             bounds: [bounds_o.keep(), bounds_p.keep()],
@@ -420,7 +429,13 @@ impl LodCull {
                 ],
             );
         }
-        // (the early phase reads the last final image's tiles)
+        // (the early phase reads the last final image's tiles, emptied
+        // when the view moved: nothing hidden, every batch of last frame's
+        // visible instances drawn early)
+        if self.moved[view as usize].get() {
+            let b = &self.hiz_prev[view as usize];
+            p.fill(b, b.size, u32::MAX);
+        }
         let shift = self.prev_shift[view as usize].get();
         self.cull_into(p, globals, scene, view as usize, view, perspective, shift)
     }
@@ -497,6 +512,18 @@ impl LodCull {
         self.prev_shift[view as usize].set(shift);
         let buf = &self.hiz_prev[view as usize];
         self.tiles_steps(p, globals, vis, buf, view, size, shift);
+    }
+
+    /// Before a frame's culls: the camera's and the light's GPU views, to
+    /// know whether each moved since the last frame.
+    pub fn note_views(&self, views: [&[u8]; 2]) {
+        let mut last = self.last_views.borrow_mut();
+        for (i, v) in views.into_iter().enumerate() {
+            self.moved[i].set(last[i] != v);
+            if last[i] != v {
+                last[i] = v.to_vec();
+            }
+        }
     }
 
     /// `view`'s late list.

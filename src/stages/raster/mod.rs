@@ -148,10 +148,12 @@ impl RasterStage {
         globals: &Buffer,
         scene: &SceneBuffers,
         perspective: bool,
+        views: [&[u8]; 2],
     ) -> Result<bool> {
         let Some(l) = &self.lod else {
             return Ok(false);
         };
+        l.note_views(views);
         self.lod_used.set(true);
         rec.pass(LodCull::NAME, |p| l.steps(p, globals, scene, perspective))?;
         Ok(true)
