@@ -2,18 +2,23 @@
 // The light texels a visible point's shadow lookup is centred on: one
 // invocation per 16x16 pixels of the camera's visibility buffer (after
 // both raster phases) unprojects each covered pixel's hit and takes the
-// light-map rectangle of those points; one atomic per word per tile. The
-// light's cull (lod_cull.comp) keeps only instances over it, grown by the
-// farthest any lookup reaches: nothing else can shadow what the camera
-// sees.
+// light-map rectangle of those points (one atomic per word per tile) and
+// marks the light's fine depth tile of each (a bit per tile, an atomic
+// where the tile changes from the last pixel's). The light's cull
+// (lod_cull.comp) keeps only instances over the rectangle, and its depth
+// tiles (lod_hiz.comp) hide everything over tiles no mark is within the
+// lookup's reach of: nothing else can shadow what the camera sees.
 #include "shared.glsl"
 
 layout(local_size_x = 64) in;
 
 layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
 layout(set = 0, binding = 1) uniform usamplerBuffer visWordTex;
-// x0, y0, x1, y1 in light texels (the host sets them empty first).
+// x0, y0, x1, y1 in light texels (the host sets them empty first), then
+// the mask: bit i of word LOD_MASK_AT + i / 32 for fine tile i (zeroed by
+// the host).
 layout(set = 0, binding = 2) buffer Region { int region[]; };
+#include "push/lod_bounds.glsl"
 
 layout(constant_id = 1) const bool PERSP = false;
 
@@ -27,6 +32,10 @@ void main() {
     View L = g.light;
     float ppu = L.center.w;
     vec2 lo = vec2(3.0e38), hi = vec2(-3.0e38);
+    int size = int(L.dims.x);
+    int S = int(pc.hiz_shift);
+    int tw = (size + (1 << S) - 1) >> S;
+    int last = -1;
     for (uint y = o.y; y < y1; ++y) {
         for (uint x = o.x; x < x1; ++x) {
             uint key = texelFetch(visWordTex, int(2u * (y * w + x) + 1u)).x;
@@ -39,6 +48,14 @@ void main() {
                           0.5 * L.up.w - dot(q, L.up.xyz) * ppu - 0.5);
             lo = min(lo, p);
             hi = max(hi, p);
+            // (the lookups' centre texel, kept in the map as the lookups
+            // keep their reads)
+            ivec2 c = clamp(ivec2(round(clamp(p, vec2(-1e9), vec2(1e9)))), ivec2(0), ivec2(size - 1));
+            int tile = (c.y >> S) * tw + (c.x >> S);
+            if (tile != last) {
+                atomicOr(region[LOD_MASK_AT + (tile >> 5)], 1 << (tile & 31));
+                last = tile;
+            }
         }
     }
     if (lo.x > hi.x) return;

@@ -12,7 +12,8 @@
 //   1 key light, early: the light's view, the camera's level, listed if it
 //     passed the light's occlusion test last frame; only instances over
 //     the light texels a visible point's lookup may read (the rectangle of
-//     the camera's visible points, lod_bounds.comp, grown by LOD_REACH):
+//     the camera's visible points, lod_bounds.comp, grown by the
+//     farthest the technique's lookup reads, pc.reach):
 //     the others cannot shadow anything the camera sees. Runs after the
 //     camera's raster.
 //   2 camera, late (after the early list was rasterized and the depth
@@ -105,6 +106,16 @@ bool hidden(bool prev, View v, vec3 cv, float r, float ez, ivec4 rc, bool persp)
     return true;
 }
 
+// Whether a rectangle of window pixels holds any, and for a light view
+// (!cam) whether it meets the texels a visible point's lookup reads: the
+// others cannot shadow anything the camera sees.
+bool over_region(bool cam, ivec4 rc) {
+    bool some = rc.x <= rc.z && rc.y <= rc.w;
+    return cam ? some
+               : some && rc.z >= region[0] - pc.reach && rc.x <= region[2] + pc.reach
+                      && rc.w >= region[1] - pc.reach && rc.y <= region[3] + pc.reach;
+}
+
 void main() {
     uint k = FLAT_ID;
     if (k >= pc.instances) return;
@@ -162,22 +173,19 @@ void main() {
     vec3 ext = min(abs(axes * ax[0]) + abs(axes * ax[1]) + abs(axes * ax[2]) + slack, vec3(r));
     ivec4 rc = PERSP && cam ? sphere_rect(v, cv, r, true)
                             : plane_rect(v, cv.x + vec2(-ext.x, ext.x), cv.y + vec2(-ext.y, ext.y));
-    bool inside = rc.x <= rc.z && rc.y <= rc.w;
     // (a light view: only what can shadow a point the camera sees)
-    if (!cam) {
-        inside = inside && rc.z >= region[0] - LOD_REACH && rc.x <= region[2] + LOD_REACH
-                        && rc.w >= region[1] - LOD_REACH && rc.y <= region[3] + LOD_REACH;
-    }
+    bool inside = over_region(cam, rc);
     uint h = 2u * k + view;
     bool persp = PERSP && cam;
-    // (the early phase's candidates: the instances seen last frame)
-    bool listed_early = true;
+    // (the early phase's candidates: the instances seen last frame that
+    // the last final image does not hide whole; the late phase recomputes
+    // the same test on the same tiles)
+    bool listed_early = inside && visible[h] != 0u && !hidden(true, v, cv, r, ext.z, rc, persp);
     if (late) {
         bool seen = inside && !hidden(false, v, cv, r, ext.z, rc, persp);
-        listed_early = inside && visible[h] != 0u;
         visible[h] = seen ? 1u : 0u;
         if (!seen) return;
-    } else if (!inside || visible[h] == 0u) {
+    } else if (!listed_early) {
         return;
     }
     uint atoms = texelFetch(levelTex, int(base + level)).w;
@@ -213,7 +221,7 @@ void main() {
         bb.w = bb.w * stretch * 1.001 + grow;
         vec3 bv = view_space(v, instance_apply(k, bb.xyz), persp);
         ivec4 br = sphere_rect(v, bv, bb.w, persp);
-        bool in_window = br.x <= br.z && br.y <= br.w;
+        bool in_window = over_region(cam, br);
         bool early = listed_early && in_window && !hidden(true, v, bv, bb.w, bb.w, br, persp);
         bool keep = late ? !early && in_window && !hidden(false, v, bv, bb.w, bb.w, br, persp)
                          : early;

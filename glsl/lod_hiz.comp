@@ -13,6 +13,9 @@ layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
 // The visibility buffer as 32-bit words (2k + 1: pixel k's depth).
 layout(set = 0, binding = 1) uniform usamplerBuffer visWordTex;
 layout(set = 0, binding = 2) buffer Hiz { uint hiz[]; };
+// The light's read mask (lod_bounds.comp: a bit per fine tile a visible
+// point's lookup is centred in).
+layout(set = 0, binding = 3) readonly buffer Region { int region[]; };
 
 layout(constant_id = 1) const uint MODE = 0u;
 #include "push/lod_hiz.glsl"
@@ -32,6 +35,22 @@ void main() {
             for (uint x = o.x; x < x1; ++x) {
                 far = max(far, texelFetch(visWordTex, int(2u * (y * w + x) + 1u)).x);
             }
+        }
+        // A light tile no visible point's lookup reads (no marked tile
+        // within its reach) hides everything: what lies only over such
+        // tiles shadows nothing the camera sees.
+        if (pc.view_index == 1u) {
+            int r = (pc.reach + int(T) - 1) >> pc.hiz_shift;
+            ivec2 t = ivec2(i % tf.x, i / tf.x);
+            ivec2 a = max(t - r, ivec2(0)), b = min(t + r, ivec2(tf) - 1);
+            bool read = false;
+            for (int y = a.y; y <= b.y; ++y) {
+                for (int x = a.x; x <= b.x; ++x) {
+                    int j = y * int(tf.x) + x;
+                    read = read || (region[LOD_MASK_AT + (j >> 5)] & (1 << (j & 31))) != 0;
+                }
+            }
+            if (!read) far = 0u;
         }
         hiz[i] = far;
     } else {

@@ -19,8 +19,8 @@
 // Receivers facing away from the light (N . L <= 0): the depth map
 // necessarily holds the receiver's own lit cap in front of P, but the shadow
 // AOV counts occlusion by OTHER spheres only (DESIGN.md). There, a tap whose
-// nearest sphere is the receiver itself (the id half of the key) counts as
-// unoccluded. The same holds within the grazing band where tan(theta) would
+// nearest sphere is the receiver itself (the id half of the key; on an
+// instanced scene, or the same placed centre) counts as unoccluded. The same holds within the grazing band where tan(theta) would
 // exceed tan_max (N . L < 1 / sqrt(1 + tan_max^2), about 5.7 degrees from the
 // terminator for tan_max = 10): no finite slope bias avoids acne there. All
 // other receivers use the plain biased depth test, so their acne and
@@ -71,7 +71,14 @@ float key_visibility(Surface s, uint pixel) {
         }
         ivec2 t = clamp(ivec2(round(uv + off)), ivec2(0), ivec2(last));
         uvec2 m = texelFetch(mapTex, t.y * int(size) + t.x).xy;
-        if (m.x == NO_SPHERE || (back && m.x == s.id)) {
+        // (the receiver's own sphere: on an instanced scene drawn through
+        // the LOD lists a sphere's id is its slot in the view's list, so
+        // the light's id of it is another; its placed centre is the same)
+        bool own = m.x == s.id;
+        if (scene_instanced() && back && m.x != NO_SPHERE) {
+            own = own || scene_sphere(m.x).xyz == s.sphere.xyz;
+        }
+        if (m.x == NO_SPHERE || (back && own)) {
             lit += 1.0;
             continue;
         }

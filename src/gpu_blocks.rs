@@ -120,6 +120,18 @@ gpu_push! {
         /// The late phases' fine depth tiles are 2^hiz_shift pixels a side
         /// (`hiz_shift`, src/stages/raster/lod.rs).
         hiz_shift: u32,
+        /// Light views: the farthest (texels) the shadow lookup reads from
+        /// the texel its point projects to (`Lookup::reach`).
+        reach: i32,
+        pad: [u32; 3],
+    }
+
+    /// `lod_bounds` (glsl/lod_bounds.comp).
+    LodBoundsPush "lod_bounds" {
+        /// The light map's fine depth tiles are 2^hiz_shift texels a side
+        /// (the read mask's bits).
+        hiz_shift: u32,
+        pad: [u32; 3],
     }
 
     /// `lod_hiz` (glsl/lod_hiz.comp).
@@ -128,7 +140,9 @@ gpu_push! {
         view_index: u32,
         /// Fine tiles of 2^hiz_shift pixels a side.
         hiz_shift: u32,
-        pad: [u32; 2],
+        /// The light: the lookup's reach (texels, `Lookup::reach`).
+        reach: i32,
+        pad: u32,
     }
 
     /// `lod_args` (glsl/lod_args.comp): the cull's counts into indirect

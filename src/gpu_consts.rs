@@ -140,14 +140,14 @@ gpu_constants! {
     /// A level coarser than last frame's is taken only below its switch
     /// size divided by this (glsl/lod_cull.comp).
     LOD_BAND: f32 = 1.15;
-    /// The farthest (texels) a shadow lookup reads from the texel its point
-    /// projects to: ISSM's largest patch half-size (32) and PCF's 2 more.
-    LOD_REACH: i32 = 34;
     /// The occlusion test's depth tiles (glsl/lod_hiz.comp): fine ones of
     /// 2^s pixels a side, s the least from HIZ_MIN_SHIFT that keeps a
     /// view's within HIZ_FINE_TILES (4 px at 1080p and on a 4096^2 light
     /// map; 16 px on a 16384^2 window), then coarse ones of 8x8 fine.
     HIZ_MIN_SHIFT: u32 = 2;
+    /// The light's read mask in the LOD region buffer: from this word
+    /// (after x0, y0, x1, y1), a bit per fine depth tile.
+    LOD_MASK_AT: i32 = 4;
     HIZ_FINE_TILES: u32 = 1048576;
     /// The cull's per-instance level before any frame chose one.
     NO_LEVEL_YET: u32 = 0xFFFF_FFFF;

@@ -1118,6 +1118,9 @@ pub fn run_stats(
     let gpu_memory = r.inspect().memory_by_class();
     let s = r.settings();
     let counts = r.inspect().instancing();
+    if let Ok(Some(c)) = r.inspect().lod_counts() {
+        log::info!("last frame's LOD cull kept {c:?}");
+    }
     RunStats {
         device: ctx.info.name.clone(),
         driver: ctx.info.driver.clone(),

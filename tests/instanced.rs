@@ -759,6 +759,56 @@ fn culled_instances_are_never_visible() {
     }
 }
 
+/// The key light draws only what may shadow a point the camera sees: the
+/// instances and batches over the light texels the visible points' lookups
+/// read (each point's texel, grown by the lookup's reach: ISSM t + 1, PCF
+/// its radius + 1), the rest hidden by the light's depth tiles. Zoomed into
+/// the meso scene (the visible points' light rectangle spans much more than
+/// the texels they read), with history over three frames, the shadows
+/// equal the expanded scene's (no cull) bit for bit in each lookup (PCF's
+/// self test compares the placed centre: the light's list slot of a sphere
+/// is not the camera's); and the light draws under 1 % of the scene.
+#[test]
+fn the_light_draws_only_what_visible_points_read() {
+    let ctx = validated_context();
+    let s = sphereshade::scene::meso::meso(1_000_000, 1).unwrap();
+    let e = s.expand().unwrap();
+    let mut cam = camera(&s, 160, 120, None);
+    cam.view_height /= 16.0;
+    let all = s.represented();
+    for (shadows, t) in [
+        (ShadowMode::IssmSoft, None),
+        (ShadowMode::Issm, Some(3)),
+        (ShadowMode::SmPcf, None),
+    ] {
+        let mut st = settings(cam, shadows);
+        st.lod.lod_pixels = 0.0;
+        st.issm.t = sphereshade::settings::IssmT(t);
+        let mut rd = Renderer::new(&ctx, &s, st.clone()).expect("renderer");
+        for _ in 0..3 {
+            rd.render_frame().expect("frame");
+        }
+        let counts = rd.inspect().lod_counts().unwrap().expect("the cull ran");
+        let b = frame(&ctx, &e, st);
+        let i = rd.inspect();
+        let what = format!("{shadows:?} t {t:?}: {counts:?} of {all}");
+        assert!(
+            i.read_vis().unwrap() == b.vis,
+            "{what}: ids or depths differ"
+        );
+        assert!(i.read_color().unwrap() == b.color, "{what}: colours differ");
+        assert!(
+            i.read_shadow().unwrap() == b.shadow,
+            "{what}: shadows differ"
+        );
+        assert!(counts.light_spheres > 0, "{what}");
+        // (the texels' rectangle alone kept 26 k spheres here, the reach of
+        // 34 texels any lookup was once given more)
+        assert!((counts.light_spheres as u64) < all / 100, "{what}");
+        assert_no_validation_messages(&ctx);
+    }
+}
+
 /// Two renderers' last frames: the same ids and depths, colours and shadow
 /// AOV, bit for bit.
 fn assert_same_frame(a: &Inspect, b: &Inspect, what: &str) {
@@ -905,7 +955,10 @@ fn levels_follow_the_size_on_screen_with_a_band() {
 /// The LOD lists told to start one batch long (`--lod-list-batches 1`):
 /// the first frame lists more, the lists grow and the frame is drawn again,
 /// and its image is the one of lists long enough from the start (colour,
-/// ids and depths, shadow AOV); the next frames fit. Under validation.
+/// ids and depths, shadow AOV); the next frames fit. Lists a frame fills
+/// past three quarters but fits grow only before the next frame: that
+/// frame's ids (slots of its lists) still name its spheres. Under
+/// validation.
 #[test]
 fn lod_lists_grow_when_a_frame_overflows() {
     let ctx = validated_context();
@@ -913,8 +966,27 @@ fn lod_lists_grow_when_a_frame_overflows() {
     let st = settings(camera(&s, 64, 48, None), ShadowMode::Issm);
     let mut short = st.clone();
     short.lod.lod_list_batches = Some(1);
-    let mut a = Renderer::new(&ctx, &s, st).expect("renderer");
+    let mut a = Renderer::new(&ctx, &s, st.clone()).expect("renderer");
     let mut b = Renderer::new(&ctx, &s, short).expect("renderer");
+    // (a first frame lists everything late: its longest list is the
+    // larger view's count)
+    a.render_frame().expect("frame");
+    let first = a.inspect().lod_counts().unwrap().expect("the cull ran");
+    let asked = first.camera_batches.max(first.light_batches);
+    let mut nearly = st;
+    nearly.lod.lod_list_batches = Some(asked + asked / 8);
+    let mut c = Renderer::new(&ctx, &s, nearly).expect("renderer");
+    c.render_frame().expect("frame");
+    assert_eq!(c.inspect().lod_list_capacity(), Some(asked + asked / 8));
+    assert_same_frame(&a.inspect(), &c.inspect(), "a frame that fit");
+    c.render_frame().expect("frame");
+    assert!(c.inspect().lod_list_capacity() > Some(asked + asked / 8));
+    let mut a = Renderer::new(
+        &ctx,
+        &s,
+        settings(camera(&s, 64, 48, None), ShadowMode::Issm),
+    )
+    .expect("renderer");
     for f in 0..2 {
         a.render_frame().expect("frame");
         b.render_frame().expect("frame");

@@ -41,11 +41,11 @@ pub const PASSES: &[(&str, &str)] = &[
     ),
     (
         "light_cull",
-        "instanced scenes with levels of detail, after the camera's raster: the light-map rectangle of the points the camera sees (per 16x16 pixels, each hit unprojected, one atomic per tile), then one invocation per instance in the light's view with the camera's level, kept if over that rectangle grown by the farthest any shadow lookup reads (34 texels: nothing else can shadow a visible point) and it passed the light's occlusion test last frame; its batches tested against last frame's light-map tiles as the camera's are",
+        "instanced scenes with levels of detail, after the camera's raster: the light-map rectangle of the points the camera sees and a bit per light depth tile one of them projects to (per 16x16 pixels, each hit unprojected; one atomic per rectangle word per tile, one per change of depth tile), then one invocation per instance in the light's view with the camera's level, kept if over that rectangle grown by the farthest its shadow lookup reads (ISSM t + 1 texels, PCF its radius + 1: nothing else can shadow a visible point), it passed the light's occlusion test last frame and last frame's light-map tiles do not hide it whole; its batches (also over the rectangle) tested against those tiles as the camera's are",
     ),
     (
         "light_occlusion",
-        "the same two-phase occlusion culling in the key light's view (instanced scenes with levels of detail): depth tiles of its early map, the batches not drawn early and not hidden listed",
+        "the same two-phase occlusion culling in the key light's view (instanced scenes with levels of detail): depth tiles of its early map (one texel each on maps up to 1024², where spheres are smaller than a texel and leave holes; a tile with no marked tile within the lookup's reach hides everything: no visible point reads it), the batches not drawn early and not hidden listed",
     ),
     (
         "light_raster_late",
@@ -234,10 +234,15 @@ impl Resources {
         self.stages.raster.record(rec, &raster_in, &t.raster)?;
         if lod {
             self.stages.raster.record_late(rec, &raster_in, &t.raster)?;
-            if settings.shadows.draws_light_view() {
+            if let (true, Some(light)) = (
+                settings.shadows.draws_light_view(),
+                self.stages.shadows.light(),
+            ) {
+                let reach = self.stages.shadows.lookup(1.0, None).reach();
+                let map = (light.width, light.height);
                 self.stages
                     .raster
-                    .record_light_cull(rec, &raster_in, &t.raster)?;
+                    .record_light_cull(rec, &raster_in, &t.raster, (reach, map))?;
             }
         }
 

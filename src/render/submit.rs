@@ -146,6 +146,14 @@ impl Renderer<'_> {
     /// must have finished); returns the slot.
     fn submit(&mut self) -> Result<usize> {
         self.ensure_orders()?;
+        // (the lists a frame that fit asked for: its ids were their slots)
+        if self.res.stages.raster.growth_pending() {
+            self.wait_idle()?;
+            self.res
+                .stages
+                .raster
+                .before_frame(self.ctx, &mut self.res.scene)?;
+        }
         let ids = self
             .res
             .scene

@@ -17,10 +17,10 @@
 //! and nothing after it.
 
 use crate::error::Result;
-use crate::gpu::blocks::{LodArgsPush, LodCullPush, LodHizPush};
+use crate::gpu::blocks::{LodArgsPush, LodBoundsPush, LodCullPush, LodHizPush};
 use crate::gpu::consts::{
-    BATCH_EMPTY, HIZ_FINE_TILES, HIZ_MIN_SHIFT, LOD_ARGS, LOD_BATCHES, LOD_LIST_TAIL, LOD_SPHERES,
-    LOD_VIEWS, LOD_WORDS, NO_LEVEL_YET,
+    BATCH_EMPTY, HIZ_FINE_TILES, HIZ_MIN_SHIFT, LOD_ARGS, LOD_BATCHES, LOD_LIST_TAIL, LOD_MASK_AT,
+    LOD_SPHERES, LOD_VIEWS, LOD_WORDS, NO_LEVEL_YET,
 };
 use crate::passes::scene::{LodBuffers, MAX_SLOTS, SCENE_GEOMETRY, SceneBuffers};
 use crate::passes::{LOCAL_SIZE, spirv};
@@ -50,11 +50,16 @@ const BOUNDS_BINDINGS: [Binding; 3] = [
     rw("Region"),
 ];
 
-const HIZ_BINDINGS: [Binding; 3] = [
+const HIZ_BINDINGS: [Binding; 4] = [
     uniform("GlobalsBlock"),
     texel("visWordTex", Format::R32_UINT),
     rw("Hiz"),
+    ro("Region"),
 ];
+
+/// Bytes of the light region buffer: its rectangle (4 words), then the read
+/// mask's bits, one per fine depth tile (glsl/lod_bounds.comp).
+const REGION_BYTES: u64 = LOD_MASK_AT as u64 * 4 + HIZ_FINE_TILES as u64 / 8;
 
 /// Depth tile words of a view: its fine tiles, then its coarse ones (8x8
 /// fine each).
@@ -65,12 +70,18 @@ fn tiles(w: u32, h: u32, side: u32) -> u64 {
     w.div_ceil(side) as u64 * h.div_ceil(side) as u64
 }
 
-/// The fine depth tiles' shift for a `w` x `h` window: the finest from
-/// HIZ_MIN_SHIFT whose tiles fit HIZ_FINE_TILES and, with the coarse ones,
-/// HIZ_WORDS.
-pub fn hiz_shift(w: u32, h: u32) -> u32 {
+/// The fine depth tiles' shift for `view`'s `w` x `h` window: the finest
+/// from its least (the camera's HIZ_MIN_SHIFT; a light map's texel: its
+/// spheres are mostly smaller than a texel, so a map of them has holes
+/// between, and a tile of several texels holding one hole hides nothing)
+/// whose tiles fit HIZ_FINE_TILES and, with the coarse ones, HIZ_WORDS.
+pub fn hiz_shift(view: ViewIndex, w: u32, h: u32) -> u32 {
     let count = |s: u32| tiles(w, h, 1 << s);
-    (HIZ_MIN_SHIFT..28)
+    let least = match view {
+        ViewIndex::Camera => HIZ_MIN_SHIFT,
+        ViewIndex::Light => 0,
+    };
+    (least..28)
         .find(|&s| count(s) <= HIZ_FINE_TILES as u64 && count(s) + count(s + 3) <= HIZ_WORDS)
         .unwrap_or(28)
 }
@@ -125,6 +136,13 @@ pub struct LodCull {
     /// (28 until one is made: one tile).
     hiz_prev: [Buffer; 2],
     prev_shift: [std::cell::Cell<u32>; 2],
+    /// This frame's light lookup reach (texels, `Lookup::reach`) and
+    /// light map size.
+    reach: std::cell::Cell<i32>,
+    light_map: std::cell::Cell<(u32, u32)>,
+    /// Batches each list will hold from the next frame on (a frame asked
+    /// more than three quarters of them).
+    pending: Option<u32>,
     /// Per view: its GPU view of the last frame recorded, and whether this
     /// frame's differs (its last depth tiles are then emptied before the
     /// early phase: tiles seen from elsewhere would send most batches to
@@ -239,7 +257,7 @@ impl LodCull {
         let hiz_light = ctx.guard(tiles_buffer("LOD light depth tiles")?);
         let prev_camera = ctx.guard(tiles_buffer("LOD camera last depth tiles")?);
         let prev_light = ctx.guard(tiles_buffer("LOD light last depth tiles")?);
-        let region = ctx.guard(Buffer::storage(ctx, "LOD light region", 16)?);
+        let region = ctx.guard(Buffer::storage(ctx, "LOD light region", REGION_BYTES)?);
         let bounds = |name: &str, persp: u32| {
             ComputePipeline::new(
                 ctx,
@@ -247,7 +265,7 @@ impl LodCull {
                     name,
                     shader: spirv::LOD_BOUNDS_COMP,
                     bindings: &BOUNDS_BINDINGS,
-                    push_size: 0,
+                    push_size: std::mem::size_of::<LodBoundsPush>() as u32,
                     local_size: 64,
                     constants: &[persp],
                     scene: 0,
@@ -266,6 +284,9 @@ impl LodCull {
             hiz_tiles: [hiz_camera.keep(), hiz_light.keep()],
             hiz_prev: [prev_camera.keep(), prev_light.keep()],
             prev_shift: [std::cell::Cell::new(28), std::cell::Cell::new(28)],
+            reach: std::cell::Cell::new(1 << 29),
+            light_map: std::cell::Cell::new((1, 1)),
+            pending: None,
             last_views: std::cell::RefCell::new([Vec::new(), Vec::new()]),
             moved: [std::cell::Cell::new(true), std::cell::Cell::new(true)],
             history: std::cell::Cell::new(false),
@@ -353,6 +374,8 @@ impl LodCull {
                 instances: self.instances,
                 capacity: self.capacity,
                 hiz_shift,
+                reach: self.reach.get(),
+                pad: [0; 3],
             },
             Grid::Invocations(self.instances as u64),
             &bindings,
@@ -375,7 +398,10 @@ impl LodCull {
 
     /// The steps of `light_cull` (after the camera's raster): the light
     /// texels of the camera's visible points (from `vis`, a `size` window)
-    /// and the light's early list over them.
+    /// and the light's early list over them grown by the lookup's `reach`
+    /// texels (`Lookup::reach`; the light's depth tiles take it too) on a
+    /// `map` (width, height) light map.
+    #[allow(clippy::too_many_arguments)]
     pub fn light_steps<'b>(
         &'b self,
         p: &mut PassBuilder<'b>,
@@ -384,7 +410,10 @@ impl LodCull {
         vis: &'b Buffer,
         perspective: bool,
         size: (u32, u32),
+        (reach, map): (i32, (u32, u32)),
     ) -> Result<()> {
+        self.reach.set(reach);
+        self.light_map.set(map);
         self.cull_steps(
             p,
             globals,
@@ -418,9 +447,15 @@ impl LodCull {
             // empty: x0, y0 the largest int, x1, y1 the least
             p.fill_at(&self.region, 0, 8, i32::MAX as u32);
             p.fill_at(&self.region, 8, 8, i32::MIN as u32);
+            let mask = LOD_MASK_AT as u64 * 4;
+            p.fill_at(&self.region, mask, self.region.size - mask, 0);
+            let (lw, lh) = self.light_map.get();
             p.dispatch(
                 &self.bounds[perspective as usize],
-                &(),
+                &LodBoundsPush {
+                    hiz_shift: hiz_shift(ViewIndex::Light, lw, lh),
+                    pad: [0; 3],
+                },
                 Grid::Invocations(tiles(w, h, 16)),
                 &[
                     ("GlobalsBlock", globals),
@@ -457,11 +492,13 @@ impl LodCull {
             ("GlobalsBlock", globals),
             ("visWordTex", vis),
             ("Hiz", tiles_buf),
+            ("Region", &self.region),
         ];
         let push = LodHizPush {
             view_index: view as u32,
             hiz_shift: shift,
-            pad: [0; 2],
+            reach: self.reach.get(),
+            pad: 0,
         };
         p.dispatch(
             &self.hiz[0],
@@ -491,7 +528,7 @@ impl LodCull {
         perspective: bool,
         size: (u32, u32),
     ) -> Result<()> {
-        let shift = hiz_shift(size.0, size.1);
+        let shift = hiz_shift(view, size.0, size.1);
         let buf = &self.hiz_tiles[view as usize];
         self.tiles_steps(p, globals, vis, buf, view, size, shift);
         let list = LATE + view as usize;
@@ -508,7 +545,7 @@ impl LodCull {
         view: ViewIndex,
         size: (u32, u32),
     ) {
-        let shift = hiz_shift(size.0, size.1);
+        let shift = hiz_shift(view, size.0, size.1);
         self.prev_shift[view as usize].set(shift);
         let buf = &self.hiz_prev[view as usize];
         self.tiles_steps(p, globals, vis, buf, view, size, shift);
@@ -612,14 +649,32 @@ impl LodCull {
         if asked as u64 * 4 <= self.capacity as u64 * 3 || capacity <= self.capacity {
             return Ok(overflow);
         }
+        // A frame that fit keeps its lists until the next one: its ids are
+        // their slots, which the AOVs read back.
+        self.pending = Some(capacity);
+        if overflow {
+            self.apply_growth(ctx, lod)?;
+        }
+        Ok(overflow)
+    }
+
+    /// Before a frame (the GPU idle): the lists the last frame asked for.
+    pub fn apply_growth(&mut self, ctx: &Context, lod: &mut LodBuffers) -> Result<()> {
+        let Some(capacity) = self.pending.take() else {
+            return Ok(());
+        };
         Self::set_lists(ctx, lod, capacity)?;
         log::debug!(
-            "LOD lists grown from {} to {capacity} batches ({asked} asked{})",
-            self.capacity,
-            if overflow { ": frame drawn again" } else { "" }
+            "LOD lists grown from {} to {capacity} batches",
+            self.capacity
         );
         self.capacity = capacity;
-        Ok(overflow)
+        Ok(())
+    }
+
+    /// Whether the lists grow before the next frame.
+    pub fn growth_pending(&self) -> bool {
+        self.pending.is_some()
     }
 
     /// Device memory: counters, levels, history and depth tiles (the
@@ -660,16 +715,21 @@ crate::impl_destroy!(LodCull);
 mod tests {
     use super::*;
 
-    /// Fine tiles of 4 px where they fit (1080p, a 4096^2 light map),
-    /// coarser on the largest windows, and never more words than the
-    /// buffer holds.
+    /// Fine tiles of 4 px where they fit (1080p, a 4096^2 light map;
+    /// a 512^2 or 1024^2 light map's of one texel), coarser on the largest
+    /// windows, and never more words than the buffer holds.
     #[test]
     fn depth_tiles_are_as_fine_as_the_buffer_allows() {
-        assert_eq!(hiz_shift(1920, 1080), 2);
-        assert_eq!(hiz_shift(4096, 4096), 2);
-        assert_eq!(hiz_shift(4097, 4096), 3);
-        assert_eq!(hiz_shift(16384, 16384), 4);
-        assert_eq!(hiz_shift(1, 1), 2);
+        use ViewIndex::{Camera, Light};
+        assert_eq!(hiz_shift(Camera, 1920, 1080), 2);
+        assert_eq!(hiz_shift(Camera, 4096, 4096), 2);
+        assert_eq!(hiz_shift(Camera, 4097, 4096), 3);
+        assert_eq!(hiz_shift(Camera, 16384, 16384), 4);
+        assert_eq!(hiz_shift(Camera, 1, 1), 2);
+        assert_eq!(hiz_shift(Light, 512, 512), 0);
+        assert_eq!(hiz_shift(Light, 1024, 1024), 0);
+        assert_eq!(hiz_shift(Light, 2048, 2048), 1);
+        assert_eq!(hiz_shift(Light, 4096, 4096), 2);
         for (w, h) in [
             (1, 16384),
             (16384, 1),
@@ -677,15 +737,18 @@ mod tests {
             (16384, 16384),
             (640, 480),
         ] {
-            let s = hiz_shift(w, h);
-            let count = |s: u32| tiles(w, h, 1 << s);
-            assert!(count(s) <= HIZ_FINE_TILES as u64, "{w}x{h}");
-            assert!(count(s) + count(s + 3) <= HIZ_WORDS, "{w}x{h}");
-            // the finest that fits
-            assert!(
-                s == HIZ_MIN_SHIFT || count(s - 1) > HIZ_FINE_TILES as u64,
-                "{w}x{h}"
-            );
+            for view in [Camera, Light] {
+                let s = hiz_shift(view, w, h);
+                let count = |s: u32| tiles(w, h, 1 << s);
+                assert!(count(s) <= HIZ_FINE_TILES as u64, "{w}x{h}");
+                assert!(count(s) + count(s + 3) <= HIZ_WORDS, "{w}x{h}");
+                // the finest that fits
+                let least = if view == Camera { HIZ_MIN_SHIFT } else { 0 };
+                assert!(
+                    s == least || count(s - 1) > HIZ_FINE_TILES as u64,
+                    "{w}x{h}"
+                );
+            }
         }
     }
 }

@@ -140,6 +140,20 @@ impl RasterStage {
         }
     }
 
+    /// Whether the LOD lists grow before the next frame.
+    pub fn growth_pending(&self) -> bool {
+        self.lod.as_ref().is_some_and(|l| l.growth_pending())
+    }
+
+    /// Before a frame, the GPU idle: the LOD lists grow to what the last
+    /// frame asked (`LodCull::apply_growth`).
+    pub fn before_frame(&mut self, ctx: &Context, scene: &mut SceneBuffers) -> Result<()> {
+        match (&mut self.lod, &mut scene.lod) {
+            (Some(l), Some(buffers)) => l.apply_growth(ctx, buffers),
+            _ => Ok(()),
+        }
+    }
+
     /// `lod_cull`: this frame's camera list, when the scene has levels of
     /// detail. Returns whether it was recorded.
     pub fn record_cull(
@@ -193,18 +207,28 @@ impl RasterStage {
     }
 
     /// `light_cull` (after `record_late`): the light's list of what may
-    /// shadow a point the camera sees.
+    /// shadow a point the camera sees (whose lookup reads `reach` texels
+    /// about it on a `map` (width, height) light map).
     pub fn record_light_cull(
         &self,
         rec: &mut Recorder,
         io: &RasterInputs,
         t: &RasterTargets,
+        reach_map: (i32, (u32, u32)),
     ) -> Result<()> {
         let Some(l) = &self.lod else {
             return Ok(());
         };
         rec.pass(LodCull::LIGHT_CULL, |p| {
-            l.light_steps(p, io.globals, io.scene, &t.vis, io.perspective, io.size)
+            l.light_steps(
+                p,
+                io.globals,
+                io.scene,
+                &t.vis,
+                io.perspective,
+                io.size,
+                reach_map,
+            )
         })
     }
 
