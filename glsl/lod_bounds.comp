@@ -48,9 +48,10 @@ void main() {
                           0.5 * L.up.w - dot(q, L.up.xyz) * ppu - 0.5);
             lo = min(lo, p);
             hi = max(hi, p);
-            // (the lookups' centre texel, kept in the map as the lookups
-            // keep their reads)
-            ivec2 c = clamp(ivec2(round(clamp(p, vec2(-1e9), vec2(1e9)))), ivec2(0), ivec2(size - 1));
+            // (the lookup's centre texel, kept one texel inside the map as
+            // ISSM's 3x3 core is: what a lookup reads lies within its
+            // reach of it, src/stages/shadows/mod.rs `Lookup::reach`)
+            ivec2 c = clamp(ivec2(round(clamp(p, vec2(-1e9), vec2(1e9)))), ivec2(1), ivec2(size - 2));
             int tile = (c.y >> S) * tw + (c.x >> S);
             if (tile != last) {
                 atomicOr(region[LOD_MASK_AT + (tile >> 5)], 1 << (tile & 31));

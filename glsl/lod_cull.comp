@@ -69,6 +69,9 @@ layout(set = 0, binding = 10) uniform usamplerBuffer hizPrevTex;
 layout(set = 0, binding = 11) uniform samplerBuffer batchBoundTex;
 // The light texels of the camera's visible points (lod_bounds.comp).
 layout(set = 0, binding = 9) readonly buffer Region { int region[]; };
+// The instances in the order invocations take them (by molecule type:
+// alike batch loops side by side).
+layout(set = 0, binding = 12) uniform usamplerBuffer cullOrderTex;
 #include "scene.glsl"
 #include "push/lod_cull.glsl"
 
@@ -109,16 +112,19 @@ bool hidden(bool prev, View v, vec3 cv, float r, float ez, ivec4 rc, bool persp)
 // Whether a rectangle of window pixels holds any, and for a light view
 // (!cam) whether it meets the texels a visible point's lookup reads: the
 // others cannot shadow anything the camera sees.
+// (grown one texel more: a lookup's centre texel is kept one inside the
+// map, which may move it out of the points' rectangle)
 bool over_region(bool cam, ivec4 rc) {
     bool some = rc.x <= rc.z && rc.y <= rc.w;
+    int e = pc.reach + 1;
     return cam ? some
-               : some && rc.z >= region[0] - pc.reach && rc.x <= region[2] + pc.reach
-                      && rc.w >= region[1] - pc.reach && rc.y <= region[3] + pc.reach;
+               : some && rc.z >= region[0] - e && rc.x <= region[2] + e
+                      && rc.w >= region[1] - e && rc.y <= region[3] + e;
 }
 
 void main() {
-    uint k = FLAT_ID;
-    if (k >= pc.instances) return;
+    if (FLAT_ID >= pc.instances) return;
+    uint k = texelFetch(cullOrderTex, int(FLAT_ID)).x;
     uint m = texelFetch(instanceRowTex, int(k)).x;
     uint base = m * MAX_LOD_LEVELS;
     // (level 0's sphere: the molecule's size, what the level is chosen by)

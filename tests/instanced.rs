@@ -761,7 +761,7 @@ fn culled_instances_are_never_visible() {
 
 /// The key light draws only what may shadow a point the camera sees: the
 /// instances and batches over the light texels the visible points' lookups
-/// read (each point's texel, grown by the lookup's reach: ISSM t + 1, PCF
+/// read (each point's texel, grown by the lookup's reach: ISSM t, PCF
 /// its radius + 1), the rest hidden by the light's depth tiles. Zoomed into
 /// the meso scene (the visible points' light rectangle spans much more than
 /// the texels they read), with history over three frames, the shadows

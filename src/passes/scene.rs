@@ -104,6 +104,10 @@ pub struct LodBuffers {
     /// Per batch of each (molecule type, level), RGBA32F: its bounding
     /// sphere in the molecule's frame ([`batch_bound`]).
     pub batch_bounds: Buffer,
+    /// The instances in the order the cull visits them: by molecule type
+    /// (stable), so the lanes of a SIMD group loop over alike batch counts
+    /// ([`cull_order`]).
+    pub cull_order: Buffer,
     pub instance_count: u32,
     /// Level-0 batches (saturated at u32::MAX): the most a view lists (an
     /// instance draws one level).
@@ -114,6 +118,16 @@ pub struct LodBuffers {
     pub lists: Buffer,
     /// Entries `lists` holds (4 lists and their tails).
     pub list_entries: u32,
+}
+
+/// The instances by molecule type, in their order within a type: the LOD
+/// cull's per-instance loop over its level's batches runs as long as the
+/// longest of a SIMD group's lanes (lavapipe: 8), and a scene's types
+/// range from one batch to thousands.
+pub fn cull_order(instance_molecule: &[u32]) -> Vec<u32> {
+    let mut order: Vec<u32> = (0..instance_molecule.len() as u32).collect();
+    order.sort_by_key(|&k| instance_molecule[k as usize]);
+    order
 }
 
 impl SceneBuffers {
@@ -187,7 +201,8 @@ impl SceneBuffers {
     }
 
     /// Device memory by class: plain `scene`; instanced `molecules` (the
-    /// atoms and their attributes), `instances`, and `scene` (batches).
+    /// atoms and their attributes), `instances`, and `scene` (batches, the
+    /// LOD lists and the cull's order).
     pub fn memory(&self) -> Vec<(&'static str, u64)> {
         let atoms = self.spheres.size + self.attrs.size + self.colors.size;
         if self.kind() == SCENE_PLAIN {
@@ -204,7 +219,11 @@ impl SceneBuffers {
             ("instances", self.instances.size + self.rows.size),
             (
                 "scene",
-                self.batches.size + self.lod.as_ref().map_or(0, |l| l.lists.size),
+                self.batches.size
+                    + self
+                        .lod
+                        .as_ref()
+                        .map_or(0, |l| l.lists.size + l.cull_order.size),
             ),
         ]
     }
@@ -329,11 +348,22 @@ impl SceneBuffers {
             };
             let b = ctx.guard(table("LOD bounds", &bounds)?);
             let bb = ctx.guard(table("LOD batch bounds", &batch_bounds)?);
+            let order = ctx.guard(Buffer::table(
+                ctx,
+                "LOD cull order",
+                (inst.instances() as u64 * 4).max(16),
+            )?);
+            order.upload(
+                ctx,
+                0,
+                bytemuck::cast_slice(&cull_order(&inst.instance_molecule)),
+            )?;
             // (src/stages/raster/lod.rs sizes them)
             let lists = Buffer::storage(ctx, "LOD lists", 16)?;
             buffers.lod = Some(LodBuffers {
                 bounds: b.keep(),
                 batch_bounds: bb.keep(),
+                cull_order: order.keep(),
                 instance_count: inst.instances() as u32,
                 base_batches: base_batches.min(u32::MAX as u64) as u32,
                 lists,
@@ -426,6 +456,7 @@ impl SceneBuffers {
         if let Some(l) = &mut self.lod {
             l.bounds.destroy(ctx);
             l.batch_bounds.destroy(ctx);
+            l.cull_order.destroy(ctx);
             l.lists.destroy(ctx);
         }
     }
@@ -1147,6 +1178,15 @@ mod tests {
     use super::*;
     use crate::scene::Sphere;
     use crate::scene::instanced::InstancedBuilder;
+
+    /// The cull's order visits every instance once, by molecule type, in
+    /// their order within a type.
+    #[test]
+    fn the_cull_visits_instances_by_type() {
+        let types = [2, 0, 1, 0, 2, 2, 1, 0];
+        assert_eq!(cull_order(&types), [1, 3, 7, 2, 6, 0, 4, 5]);
+        assert!(cull_order(&[]).is_empty());
+    }
 
     /// A scene of a 300-atom molecule, a 5-atom one and an empty one,
     /// instanced 9 times in mixed order.

@@ -41,7 +41,7 @@ pub const PASSES: &[(&str, &str)] = &[
     ),
     (
         "light_cull",
-        "instanced scenes with levels of detail, after the camera's raster: the light-map rectangle of the points the camera sees and a bit per light depth tile one of them projects to (per 16x16 pixels, each hit unprojected; one atomic per rectangle word per tile, one per change of depth tile), then one invocation per instance in the light's view with the camera's level, kept if over that rectangle grown by the farthest its shadow lookup reads (ISSM t + 1 texels, PCF its radius + 1: nothing else can shadow a visible point), it passed the light's occlusion test last frame and last frame's light-map tiles do not hide it whole; its batches (also over the rectangle) tested against those tiles as the camera's are",
+        "instanced scenes with levels of detail, after the camera's raster: the light-map rectangle of the points the camera sees and a bit per light depth tile one of them projects to (per 16x16 pixels, each hit unprojected; one atomic per rectangle word per tile, one per change of depth tile), then one invocation per instance in the light's view with the camera's level, kept if over that rectangle grown by the farthest its shadow lookup reads (ISSM t texels, at least 1, PCF its radius + 1, from the point's texel kept one inside the map: nothing else can shadow a visible point), it passed the light's occlusion test last frame and last frame's light-map tiles do not hide it whole; its batches (also over the rectangle) tested against those tiles as the camera's are",
     ),
     (
         "light_occlusion",

@@ -31,7 +31,7 @@ use ash::vk::Format;
 pub use super::compute::LodView;
 use super::compute::ViewIndex;
 
-const BINDINGS: [Binding; 10] = [
+const BINDINGS: [Binding; 11] = [
     uniform("GlobalsBlock"),
     texel("lodBoundTex", Format::R32G32B32A32_SFLOAT),
     rw("Levels"),
@@ -42,6 +42,7 @@ const BINDINGS: [Binding; 10] = [
     ro("Region"),
     texel("hizPrevTex", Format::R32_UINT),
     texel("batchBoundTex", Format::R32G32B32A32_SFLOAT),
+    texel("cullOrderTex", Format::R32_UINT),
 ];
 
 const BOUNDS_BINDINGS: [Binding; 3] = [
@@ -320,6 +321,7 @@ impl LodCull {
             ("Region", &self.region),
             ("hizPrevTex", &self.hiz_prev[view as usize]),
             ("batchBoundTex", &lod.batch_bounds),
+            ("cullOrderTex", &lod.cull_order),
         ];
         bindings.extend(scene.geometry());
         bindings

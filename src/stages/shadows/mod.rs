@@ -178,15 +178,15 @@ pub struct Lookup<'a> {
 
 impl Lookup<'_> {
     /// The farthest (texels, Chebyshev) a lookup reads from the texel
-    /// whose centre is nearest its point: ISSM the (2t+1)^2 patch (at
-    /// least the 3x3 core), one more where the core is kept inside the map
-    /// at its edge; PCF its disk's radius rounded up, one more for the
-    /// rounding of each tap. The light's cull keeps only instances over
-    /// the camera's visible points' texels grown by this (every texel for
-    /// a lookup of another kind).
+    /// whose centre is nearest its point, that texel kept one texel inside
+    /// the map (as ISSM's 3x3 core is; glsl/lod_bounds.comp): ISSM the
+    /// (2t+1)^2 patch (at least the core); PCF its disk's radius rounded
+    /// up, one more for the rounding of each tap. The light's cull keeps
+    /// only instances over the camera's visible points' texels grown by
+    /// this (every texel for a lookup of another kind).
     pub fn reach(&self) -> i32 {
         match self.kind {
-            LookupKind::Issm => self.params.u[0].clamp(1, 1 << 20) as i32 + 1,
+            LookupKind::Issm => self.params.u[0].clamp(1, 1 << 20) as i32,
             LookupKind::ShadowMap => self.params.f0[3].clamp(0.0, 1e6).ceil() as i32 + 1,
             _ => 1 << 29,
         }
