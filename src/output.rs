@@ -540,26 +540,27 @@ pub const WIDE_IDS: u64 = 1 << 24;
 
 /// `id`: (index + 1) little-endian in R, G, B; A = 255; background
 /// 0,0,0,255. A scene of `spheres` >= 2^24 (DESIGN.md): RGBA16, index + 1
-/// in R (bits 0-15), G (16-31), B (32-47), A = 65535.
+/// in R (bits 0-15), G (16-31), B (32-47), A = 65535. `visible`: each
+/// pixel's sphere as an index in expanded order (None: background).
 pub fn id_image(
     w: u32,
     h: u32,
-    vis: &[u64],
+    visible: &[Option<u64>],
     spheres: u64,
     ids: Option<&crate::scene::paint::IdMap>,
 ) -> AovImage {
     let spheres = ids.and_then(|m| m.total()).unwrap_or(spheres);
-    let input = |id: Option<u32>| id.map(|i| ids.map_or(i as u64, |m| m.input(i as u64)));
+    let input = |id: Option<u64>| id.map(|i| ids.map_or(i, |m| m.input(i)));
     if spheres >= WIDE_IDS {
         let mut img = image::ImageBuffer::<image::Rgba<u16>, Vec<u16>>::new(w, h);
-        for (p, id) in img.pixels_mut().zip(ids_from_vis(vis)) {
+        for (p, &id) in img.pixels_mut().zip(visible) {
             let v = input(id).map_or(0, |i| i + 1);
             *p = image::Rgba([v as u16, (v >> 16) as u16, (v >> 32) as u16, 65535]);
         }
         return AovImage::Rgba16(img);
     }
     let mut img = image::RgbaImage::new(w, h);
-    for (p, id) in img.pixels_mut().zip(ids_from_vis(vis)) {
+    for (p, &id) in img.pixels_mut().zip(visible) {
         let v = input(id).map_or(0, |i| i + 1);
         *p = image::Rgba([
             (v & 0xFF) as u8,

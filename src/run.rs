@@ -365,7 +365,7 @@ pub fn aov_image(r: &Renderer, aov: Aov) -> Result<output::AovImage> {
         Aov::Id => output::id_image(
             w,
             h,
-            &r.inspect().read_vis()?,
+            &r.inspect().read_ids()?,
             r.inspect().represented(),
             r.inspect().id_map().as_deref(),
         ),
@@ -376,7 +376,7 @@ pub fn aov_image(r: &Renderer, aov: Aov) -> Result<output::AovImage> {
         Aov::Shadow | Aov::Ao => {
             let covered: Vec<bool> = r
                 .inspect()
-                .read_vis()?
+                .read_vis_slots()?
                 .iter()
                 .map(|&k| k != crate::gpu::VIS_EMPTY)
                 .collect();
@@ -587,7 +587,7 @@ pub fn image_aov(img: &crate::render::tiles::Image, aov: Aov) -> output::AovImag
                 output::color_image(w, h, &img.color)
             }
         }
-        Aov::Id => output::id_image(w, h, &img.vis, img.spheres, img.ids.as_deref()),
+        Aov::Id => output::id_image(w, h, &img.expanded_ids(), img.spheres, img.ids.as_deref()),
         Aov::Depth => {
             let d: Vec<f32> = img.vis.iter().map(|&k| depth_of(k)).collect();
             output::depth_image(w, h, &d)
@@ -780,6 +780,7 @@ fn band_layers(
         (Vec::new(), Vec::new())
     };
     let words = img.aov.as_deref().unwrap_or(&[]);
+    let expanded = img.expanded_ids();
     let base = if cam.fov_deg.is_some() {
         cam.eye()
     } else {
@@ -793,11 +794,9 @@ fn band_layers(
             rgba[k][i] = c[k].powf(2.2);
         }
         rgba[3][i] = c[3];
-        let key = img.vis[j];
-        if key == crate::gpu::VIS_EMPTY {
+        let Some(sid) = expanded[j] else {
             continue;
-        }
-        let sid = key & 0xFFFF_FFFF;
+        };
         // (input order: after --hide, what the scene id came from)
         let (input, loc) = match ids {
             Some(m) => m.locate(sid),
@@ -963,10 +962,6 @@ impl<'c> PreparedRun<'c> {
         let samples = settings.ssaa_for(aov);
         let tile = settings.tile_size;
         let r = Renderer::new_windowed(ctx, scene, settings, tile)?;
-        if aov != Aov::Color && !r.inspect().ids_fit() {
-            // (before any frame: read_vis's one line)
-            r.inspect().read_vis()?;
-        }
         let mut run = PreparedRun {
             r,
             input: input.to_string(),

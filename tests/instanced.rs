@@ -13,7 +13,7 @@ use sphereshade::output::ids_from_vis;
 use sphereshade::render::{Inspect, Renderer};
 use sphereshade::scene::instanced::{LevelKind, Transforms};
 use sphereshade::scene::{self, LoadOptions, ModelSelect, Scene};
-use sphereshade::settings::{Levels, RenderSettings, ShadowMode, SsdoMode};
+use sphereshade::settings::{Aov, Levels, RenderSettings, ShadowMode, SsdoMode};
 use sphereshade::stages::ssdo::record::region_hash;
 use sphereshade::vk::Context;
 
@@ -1057,9 +1057,10 @@ fn ids_past_2_pow_24_are_rgba16() {
 /// represented) the LOD lists draw the scene, their slots being the
 /// ids: four cubes in view, placed last, render the colour of a scene of
 /// those four alone (the rest lies outside the window and is culled), and
-/// their pixels name the same atoms, at expanded indices past 2^32. What
-/// names atoms by 32 bits (read_vis, the id AOV) and what draws every atom
-/// (deep shadows) are refused in one line each.
+/// their pixels name the same atoms, at expanded indices past 2^32, in
+/// `read_ids` and in the id AOV (RGBA16, 48 bits; read back whole and
+/// assembled from tiles). What names atoms by 32 bits (read_vis) and what
+/// draws every atom (deep shadows) are refused in one line each.
 #[test]
 fn past_2_pow_32_atoms_draw_through_the_lod_lists() {
     use sphereshade::scene::instanced::InstancedBuilder;
@@ -1104,21 +1105,42 @@ fn past_2_pow_32_atoms_draw_through_the_lod_lists() {
     let near_only = build(&mut std::iter::empty());
     let mut st = settings(camera(&near_only, 64, 48, None), ShadowMode::None);
     st.lod.lod_pixels = 2.0;
+    // (the id AOV's pixels: index + 1, 0 the background; in 48 bits from
+    // 2^24 spheres on, else 24)
+    let decode = |img: sphereshade::output::AovImage| -> Vec<Option<u64>> {
+        use sphereshade::output::AovImage::{Rgba8, Rgba16};
+        let v: Vec<u64> = match img {
+            Rgba16(img) => img
+                .pixels()
+                .map(|p| p.0[0] as u64 | (p.0[1] as u64) << 16 | (p.0[2] as u64) << 32)
+                .collect(),
+            Rgba8(img) => img
+                .pixels()
+                .map(|p| p.0[0] as u64 | (p.0[1] as u64) << 8 | (p.0[2] as u64) << 16)
+                .collect(),
+            _ => panic!("the id AOV is RGBA8 or RGBA16"),
+        };
+        v.into_iter().map(|v| v.checked_sub(1)).collect()
+    };
     let read = |s: &Scene| {
         let mut r = Renderer::new(&ctx, s, st.clone()).expect("renderer");
         r.render_frame().expect("frame");
+        let aov = decode(sphereshade::run::aov_image(&r, Aov::Id).unwrap());
         let i = r.inspect();
         let drawn = i
             .lod_counts()
             .unwrap()
             .expect("the cull ran")
             .camera_spheres;
-        (
-            i.read_color().unwrap(),
-            i.read_ids().unwrap(),
-            drawn,
-            i.read_vis().map(|_| ()),
-        )
+        let ids = i.read_ids().unwrap();
+        let (color, vis) = (i.read_color().unwrap(), i.read_vis().map(|_| ()));
+        assert!(aov == ids, "the id AOV names other atoms");
+        // (the same image in tiles, each window drawn through its own lists)
+        let (tiled, _) = r.render_image(Some(32)).expect("tiles");
+        assert!(tiled.tiles > 1);
+        let tiled = decode(sphereshade::run::image_aov(&tiled, Aov::Id));
+        assert!(tiled == ids, "the tiled id AOV names other atoms");
+        (color, ids, drawn, vis)
     };
     let (color_b, ids_b, drawn_b, vis_b) = read(&big);
     let (color_s, ids_s, drawn_s, _) = read(&small);

@@ -173,9 +173,8 @@ impl<'r> Inspect<'r, '_> {
     pub fn read_vis(&self) -> Result<Vec<u64>> {
         if !self.ids_fit() {
             return Err(Error::Input(format!(
-                "{} atoms: the id, depth, shadow and ao AOVs and EXR layers name visible atoms \
-                 by a 32-bit index, so they stop at 2^32 atoms (this scene renders its colour \
-                 image only)",
+                "{} atoms: visibility keys name visible atoms by a 32-bit index, so they stop \
+                 at 2^32 atoms (read_keys and read_ids name them past)",
                 self.represented()
             )));
         }
@@ -190,6 +189,19 @@ impl<'r> Inspect<'r, '_> {
             }
         }
         Ok(v)
+    }
+
+    /// The visibility keys for an image: `read_vis`'s, or past 2^32 atoms
+    /// the GPU's keys (depth word, slot) with each pixel's expanded index +
+    /// 1 (0: background) beside them (`Image::wide_ids`).
+    pub fn read_keys(&self) -> Result<(Vec<u64>, Option<Vec<u64>>)> {
+        if self.ids_fit() {
+            return Ok((self.read_vis()?, None));
+        }
+        let slots = self.read_vis_slots()?;
+        let ids = self.expanded_of(&slots)?;
+        let wide = ids.into_iter().map(|e| e.map_or(0, |e| e + 1)).collect();
+        Ok((slots, Some(wide)))
     }
 
     /// The expanded index of each pixel's visible sphere (None:

@@ -33,7 +33,12 @@ pub struct Image {
     /// RGBA8 words, or with `wide` two words (RGBA16) per pixel.
     pub color: Vec<u32>,
     pub wide: bool,
+    /// Visibility keys: depth word, then the sphere's expanded index (a
+    /// scene past 2^32 atoms: its slot; `wide_ids` names it).
     pub vis: Vec<u64>,
+    /// A scene past 2^32 atoms (`Inspect::ids_fit` false): each pixel's
+    /// expanded index + 1 (0: background), read with `Inspect::read_ids`.
+    pub wide_ids: Option<Vec<u64>>,
     pub aov: Option<Vec<u32>>,
     /// Tiles rendered (1 = untiled).
     pub tiles: usize,
@@ -265,17 +270,14 @@ impl<'a> Renderer<'a> {
             if !read {
                 return Ok((None, times));
             }
+            let (vis, wide_ids) = self.inspect().read_keys()?;
             let image = Image {
                 width: cam.width,
                 height: cam.height,
                 color: self.inspect().read_color()?,
                 wide,
-                // (a colour image of more than 2^32 atoms has no keys)
-                vis: if self.inspect().ids_fit() {
-                    self.inspect().read_vis()?
-                } else {
-                    vec![crate::gpu::VIS_EMPTY; cam.width as usize * cam.height as usize]
-                },
+                vis,
+                wide_ids,
                 aov: if aovs {
                     Some(self.inspect().read_aov()?)
                 } else {
@@ -294,6 +296,7 @@ impl<'a> Renderer<'a> {
             color: vec![0; if wide { 2 * n } else { n }],
             wide,
             vis: vec![crate::gpu::VIS_EMPTY; n],
+            wide_ids: (!self.inspect().ids_fit()).then(|| vec![0; n]),
             aov: aovs.then(|| vec![0; n]),
             tiles: tiles.len(),
             spheres: self.inspect().represented(),
@@ -313,6 +316,9 @@ impl<'a> Renderer<'a> {
                 image.color[per * at..per * at + band.image.color.len()]
                     .copy_from_slice(&band.image.color);
                 image.vis[at..at + band.image.vis.len()].copy_from_slice(&band.image.vis);
+                if let (Some(a), Some(b)) = (image.wide_ids.as_mut(), &band.image.wide_ids) {
+                    a[at..at + b.len()].copy_from_slice(b);
+                }
                 if let (Some(a), Some(b)) = (image.aov.as_mut(), &band.image.aov) {
                     a[at..at + b.len()].copy_from_slice(b);
                 }
@@ -349,6 +355,7 @@ impl<'a> Renderer<'a> {
             } else {
                 Vec::new()
             },
+            wide_ids: (keep.vis && !self.inspect().ids_fit()).then(|| vec![0; n]),
             aov: aovs.then(|| vec![0; n]),
             tiles: tiles.len(),
             spheres: self.inspect().represented(),
@@ -372,19 +379,31 @@ impl<'a> Renderer<'a> {
                 place(&mut image.color, cam.width, y0, tile, &color);
             }
             if keep.vis {
-                place(
-                    &mut image.vis,
-                    cam.width,
-                    y0,
-                    tile,
-                    &self.inspect().read_vis()?,
-                );
+                let (vis, wide_ids) = self.inspect().read_keys()?;
+                place(&mut image.vis, cam.width, y0, tile, &vis);
+                if let (Some(a), Some(b)) = (image.wide_ids.as_mut(), wide_ids) {
+                    place(a, cam.width, y0, tile, &b);
+                }
             }
             if let Some(a) = image.aov.as_mut() {
                 place(a, cam.width, y0, tile, &self.inspect().read_aov()?);
             }
         }
         Ok((Band { y0, image }, sum))
+    }
+}
+
+impl Image {
+    /// Each pixel's visible sphere as an index in expanded order (None:
+    /// background), past 2^32 atoms too.
+    pub fn expanded_ids(&self) -> Vec<Option<u64>> {
+        match &self.wide_ids {
+            Some(w) => w.iter().map(|&v| v.checked_sub(1)).collect(),
+            None => crate::output::ids_from_vis(&self.vis)
+                .into_iter()
+                .map(|i| i.map(u64::from))
+                .collect(),
+        }
     }
 }
 
