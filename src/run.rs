@@ -961,7 +961,9 @@ impl<'c> PreparedRun<'c> {
         settings.aovs |= matches!(aov, Aov::Shadow | Aov::Ao);
         let samples = settings.ssaa_for(aov);
         let tile = settings.tile_size;
-        let r = Renderer::new_windowed(ctx, scene, settings, tile)?;
+        let mut r = Renderer::new_windowed(ctx, scene, settings, tile)?;
+        // (a colour image past 2^32 atoms: no LOD lists read back)
+        r.set_read_keys(aov != Aov::Color);
         let mut run = PreparedRun {
             r,
             input: input.to_string(),

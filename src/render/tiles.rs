@@ -227,6 +227,13 @@ impl<'a> Renderer<'a> {
         px + p.blur_reach_px() + outline + 2 * ALIGN
     }
 
+    /// Whether images read back name their visible spheres (default; see
+    /// `Image::vis`): false when only their colour is taken, which past
+    /// 2^32 atoms spares reading the LOD lists back.
+    pub fn set_read_keys(&mut self, on: bool) {
+        self.read_keys = on;
+    }
+
     /// Renders the whole image, in tiles when one window cannot hold it on
     /// this device or `forced_tile` asks for a tile side, and reads it back.
     /// The pass times are summed over the tiles.
@@ -270,7 +277,12 @@ impl<'a> Renderer<'a> {
             if !read {
                 return Ok((None, times));
             }
-            let (vis, wide_ids) = self.inspect().read_keys()?;
+            let (vis, wide_ids) = if self.read_keys || self.inspect().ids_fit() {
+                self.inspect().read_keys()?
+            } else {
+                let n = cam.width as usize * cam.height as usize;
+                (vec![crate::gpu::VIS_EMPTY; n], None)
+            };
             let image = Image {
                 width: cam.width,
                 height: cam.height,
