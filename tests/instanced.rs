@@ -740,17 +740,7 @@ fn culled_instances_are_never_visible() {
             let mut se = st.clone();
             se.camera = cam;
             let b = frame(&ctx, &e, se);
-            let i = rd.inspect();
-            let what = format!("{what} frame {f}");
-            assert!(
-                i.read_vis().unwrap() == b.vis,
-                "{what}: ids or depths differ"
-            );
-            assert!(i.read_color().unwrap() == b.color, "{what}: colours differ");
-            assert!(
-                i.read_shadow().unwrap() == b.shadow,
-                "{what}: shadow AOVs differ"
-            );
+            assert_frame_is(&rd.inspect(), &b, &format!("{what} frame {f}"));
             assert_no_validation_messages(&ctx);
         }
         // the first frame draws everything late (no history); the second,
@@ -790,23 +780,28 @@ fn the_light_draws_only_what_visible_points_read() {
         }
         let counts = rd.inspect().lod_counts().unwrap().expect("the cull ran");
         let b = frame(&ctx, &e, st);
-        let i = rd.inspect();
         let what = format!("{shadows:?} t {t:?}: {counts:?} of {all}");
-        assert!(
-            i.read_vis().unwrap() == b.vis,
-            "{what}: ids or depths differ"
-        );
-        assert!(i.read_color().unwrap() == b.color, "{what}: colours differ");
-        assert!(
-            i.read_shadow().unwrap() == b.shadow,
-            "{what}: shadows differ"
-        );
+        assert_frame_is(&rd.inspect(), &b, &what);
         assert!(counts.light_spheres > 0, "{what}");
         // (the texels' rectangle alone kept 26 k spheres here, the reach of
         // 34 texels any lookup was once given more)
         assert!((counts.light_spheres as u64) < all / 100, "{what}");
         assert_no_validation_messages(&ctx);
     }
+}
+
+/// A renderer's last frame is `b`: the same ids and depths, colours and
+/// shadow AOV, bit for bit.
+fn assert_frame_is(a: &Inspect, b: &Frame, what: &str) {
+    assert!(
+        a.read_vis().unwrap() == b.vis,
+        "{what}: ids or depths differ"
+    );
+    assert!(a.read_color().unwrap() == b.color, "{what}: colours differ");
+    assert!(
+        a.read_shadow().unwrap() == b.shadow,
+        "{what}: shadows differ"
+    );
 }
 
 /// Two renderers' last frames: the same ids and depths, colours and shadow
