@@ -20,9 +20,10 @@
 // necessarily holds the receiver's own lit cap in front of P, but the shadow
 // AOV counts occlusion by OTHER spheres only (DESIGN.md). There, a tap whose
 // nearest sphere is the receiver itself (the id half of the key; on an
-// instanced scene, or the same placed centre) counts as unoccluded. The same holds within the grazing band where tan(theta) would
-// exceed tan_max (N . L < 1 / sqrt(1 + tan_max^2), about 5.7 degrees from the
-// terminator for tan_max = 10): no finite slope bias avoids acne there. All
+// instanced scene, or the same placed centre) counts as unoccluded. The
+// same holds within the grazing band where tan(theta) would exceed tan_max
+// (N . L < 1 / sqrt(1 + tan_max^2), about 5.7 degrees from the terminator
+// for tan_max = 10): no finite slope bias avoids acne there. All
 // other receivers use the plain biased depth test, so their acne and
 // peter-panning are exactly those of a classic shadow map.
 // Parameters: shadow_f0 = (bias_const, bias_slope, tan_max, PCF radius in

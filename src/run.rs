@@ -1115,7 +1115,10 @@ pub fn run_stats(
     let gpu_memory = r.inspect().memory_by_class();
     let s = r.settings();
     let counts = r.inspect().instancing();
-    if let Ok(Some(c)) = r.inspect().lod_counts() {
+    // (a second read of the counters spheres_drawn reads: only when shown)
+    if log::log_enabled!(log::Level::Info)
+        && let Ok(Some(c)) = r.inspect().lod_counts()
+    {
         log::info!("last frame's LOD cull kept {c:?}");
     }
     RunStats {

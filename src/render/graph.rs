@@ -208,6 +208,9 @@ impl Resources {
             .as_ref()
             .filter(|_| params.see_through);
 
+        // How shade (and the light's cull) read the key light's visibility.
+        let lookup = self.lookup(settings, &params.ssdo);
+
         // Levels of detail and culling (`lod_lists`).
         self.stages.raster.no_cull();
         let lod = self.lod_lists(settings)
@@ -238,11 +241,13 @@ impl Resources {
                 settings.shadows.draws_light_view(),
                 self.stages.shadows.light(),
             ) {
-                let reach = self.stages.shadows.lookup(1.0, None).reach();
                 let map = (light.width, light.height);
-                self.stages
-                    .raster
-                    .record_light_cull(rec, &raster_in, &t.raster, (reach, map))?;
+                self.stages.raster.record_light_cull(
+                    rec,
+                    &raster_in,
+                    &t.raster,
+                    (lookup.reach(), map),
+                )?;
             }
         }
 
@@ -291,7 +296,6 @@ impl Resources {
         )?;
 
         let ssdo_params = &params.ssdo;
-        let lookup = self.lookup(settings, ssdo_params);
         let screen = ScreenInputs {
             globals,
             vis: &t.raster.vis,

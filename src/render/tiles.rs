@@ -234,6 +234,12 @@ impl<'a> Renderer<'a> {
         self.read_keys = on;
     }
 
+    /// Whether an image read back now carries its keys: asked for, or
+    /// cheap (the ids fit the keys: no lists to read back).
+    fn keys_wanted(&self) -> bool {
+        self.read_keys || self.inspect().ids_fit()
+    }
+
     /// Renders the whole image, in tiles when one window cannot hold it on
     /// this device or `forced_tile` asks for a tile side, and reads it back.
     /// The pass times are summed over the tiles.
@@ -277,7 +283,7 @@ impl<'a> Renderer<'a> {
             if !read {
                 return Ok((None, times));
             }
-            let (vis, wide_ids) = if self.read_keys || self.inspect().ids_fit() {
+            let (vis, wide_ids) = if self.keys_wanted() {
                 self.inspect().read_keys()?
             } else {
                 let n = cam.width as usize * cam.height as usize;
@@ -308,7 +314,7 @@ impl<'a> Renderer<'a> {
             color: vec![0; if wide { 2 * n } else { n }],
             wide,
             vis: vec![crate::gpu::VIS_EMPTY; n],
-            wide_ids: (!self.inspect().ids_fit()).then(|| vec![0; n]),
+            wide_ids: (self.read_keys && !self.inspect().ids_fit()).then(|| vec![0; n]),
             aov: aovs.then(|| vec![0; n]),
             tiles: tiles.len(),
             spheres: self.inspect().represented(),
@@ -320,8 +326,12 @@ impl<'a> Renderer<'a> {
         self.set_light_cache(true);
         let result = (|| {
             let mut done = 0;
+            let keep = Keep {
+                vis: self.keys_wanted(),
+                aov: true,
+            };
             for row in tile_rows(&tiles) {
-                let (band, t) = self.render_row(&tiles[row.clone()], Keep::ALL)?;
+                let (band, t) = self.render_row(&tiles[row.clone()], keep)?;
                 sum.add(&t);
                 let at = band.y0 as usize * cam.width as usize;
                 let per = if wide { 2 } else { 1 };

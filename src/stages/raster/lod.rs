@@ -137,10 +137,9 @@ pub struct LodCull {
     /// (28 until one is made: one tile).
     hiz_prev: [Buffer; 2],
     prev_shift: [std::cell::Cell<u32>; 2],
-    /// This frame's light lookup reach (texels, `Lookup::reach`) and
-    /// light map size.
+    /// This frame's light lookup reach (texels, `Lookup::reach`): the
+    /// light's cull phases and depth tiles read it.
     reach: std::cell::Cell<i32>,
-    light_map: std::cell::Cell<(u32, u32)>,
     /// Batches each list will hold from the next frame on (a frame asked
     /// more than three quarters of them).
     pending: Option<u32>,
@@ -286,7 +285,6 @@ impl LodCull {
             hiz_prev: [prev_camera.keep(), prev_light.keep()],
             prev_shift: [std::cell::Cell::new(28), std::cell::Cell::new(28)],
             reach: std::cell::Cell::new(1 << 29),
-            light_map: std::cell::Cell::new((1, 1)),
             pending: None,
             last_views: std::cell::RefCell::new([Vec::new(), Vec::new()]),
             moved: [std::cell::Cell::new(true), std::cell::Cell::new(true)],
@@ -415,14 +413,15 @@ impl LodCull {
         (reach, map): (i32, (u32, u32)),
     ) -> Result<()> {
         self.reach.set(reach);
-        self.light_map.set(map);
+        // (the read mask's bits are the light's fine depth tiles)
+        let mask_shift = hiz_shift(ViewIndex::Light, map.0, map.1);
         self.cull_steps(
             p,
             globals,
             scene,
             ViewIndex::Light,
             perspective,
-            Some((vis, size)),
+            Some((vis, size, mask_shift)),
         )
     }
 
@@ -433,7 +432,7 @@ impl LodCull {
         scene: &'b SceneBuffers,
         view: ViewIndex,
         perspective: bool,
-        vis: Option<(&'b Buffer, (u32, u32))>,
+        vis: Option<(&'b Buffer, (u32, u32), u32)>,
     ) -> Result<()> {
         if view == ViewIndex::Camera {
             p.fill(&self.counters, self.counters.size, 0);
@@ -445,17 +444,16 @@ impl LodCull {
                 }
             }
         }
-        if let Some((vis, (w, h))) = vis {
+        if let Some((vis, (w, h), mask_shift)) = vis {
             // empty: x0, y0 the largest int, x1, y1 the least
             p.fill_at(&self.region, 0, 8, i32::MAX as u32);
             p.fill_at(&self.region, 8, 8, i32::MIN as u32);
             let mask = LOD_MASK_AT as u64 * 4;
             p.fill_at(&self.region, mask, self.region.size - mask, 0);
-            let (lw, lh) = self.light_map.get();
             p.dispatch(
                 &self.bounds[perspective as usize],
                 &LodBoundsPush {
-                    hiz_shift: hiz_shift(ViewIndex::Light, lw, lh),
+                    hiz_shift: mask_shift,
                     pad: [0; 3],
                 },
                 Grid::Invocations(tiles(w, h, 16)),
@@ -558,8 +556,9 @@ impl LodCull {
     pub fn note_views(&self, views: [&[u8]; 2]) {
         let mut last = self.last_views.borrow_mut();
         for (i, v) in views.into_iter().enumerate() {
-            self.moved[i].set(last[i] != v);
-            if last[i] != v {
+            let moved = last[i] != v;
+            self.moved[i].set(moved);
+            if moved {
                 last[i] = v.to_vec();
             }
         }
