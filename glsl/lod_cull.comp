@@ -124,15 +124,21 @@ bool over_region(bool cam, ivec4 rc) {
 
 void main() {
     if (FLAT_ID >= pc.instances) return;
-    uint k = texelFetch(cullOrderTex, int(FLAT_ID)).x;
-    uint m = texelFetch(instanceRowTex, int(k)).x;
-    uint base = m * MAX_LOD_LEVELS;
-    // (level 0's sphere: the molecule's size, what the level is chosen by)
-    vec4 bs = texelFetch(lodBoundTex, int(2u * base));
     uint view = pc.view_index & 1u;
     bool late = pc.view_index >= 2u;
     bool cam = view == 0u;
     View v = cam ? g.cam : g.light;
+    // The cull order runs along a Morton curve within each molecule type
+    // (x, y, z bits weighing 1, 2, 4): walked backwards where the view
+    // looks down it, the lists run near to far, and the rasterizers'
+    // early-depth test turns more visits away before their atomics (meso
+    // 10^9 at 2,025 A: camera raster 695 ms the wrong way, 584 this way).
+    bool backwards = dot(v.dir.xyz, vec3(1.0, 2.0, 4.0)) < 0.0;
+    uint k = texelFetch(cullOrderTex, int(backwards ? pc.instances - 1u - FLAT_ID : FLAT_ID)).x;
+    uint m = texelFetch(instanceRowTex, int(k)).x;
+    uint base = m * MAX_LOD_LEVELS;
+    // (level 0's sphere: the molecule's size, what the level is chosen by)
+    vec4 bs = texelFetch(lodBoundTex, int(2u * base));
     vec3 p = instance_apply(k, bs.xyz);
     vec3 cv = view_space(v, p, PERSP && cam);
     uint level;

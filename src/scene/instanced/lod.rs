@@ -48,6 +48,18 @@ pub fn strides(n: usize) -> Vec<usize> {
     s
 }
 
+/// The Morton (Z-order) code of a point on a 1024^3 grid: its coordinates'
+/// bits interleaved, x lowest (coordinates above 1023 are cut to 10 bits).
+pub fn morton3(q: [u32; 3]) -> u32 {
+    let mut code = 0u32;
+    for (i, q) in q.iter().enumerate() {
+        for b in 0..10 {
+            code |= ((q >> b) & 1) << (3 * b + i);
+        }
+    }
+    code
+}
+
 /// The levels of one molecule type.
 #[derive(Clone, Debug, PartialEq)]
 pub struct MoleculeLod {
@@ -88,14 +100,9 @@ impl MoleculeLod {
             if e > 0.0 { 1023.0 / e } else { 0.0 }
         });
         let morton = |a: &[f32; 4]| -> u32 {
-            let mut code = 0u32;
-            for i in 0..3 {
-                let q = ((a[i] - lo[i]) * scale[i]).clamp(0.0, 1023.0) as u32;
-                for b in 0..10 {
-                    code |= ((q >> b) & 1) << (3 * b + i);
-                }
-            }
-            code
+            morton3(std::array::from_fn(|i| {
+                ((a[i] - lo[i]) * scale[i]).clamp(0.0, 1023.0) as u32
+            }))
         };
         let mut sorted: Vec<u32> = (0..n as u32).collect();
         sorted.sort_by_key(|&i| (morton(&atoms[i as usize]), i));
