@@ -1,20 +1,30 @@
 #version 460
-// The LOD cull's batch counts (camera early, light, camera late) into the rasterizer's indirect
-// dispatch arguments: enough workgroups for every slot of the listed
-// batches, 2D as band_args.comp makes them.
+// The LOD cull's counts into indirect dispatch arguments: per list
+// (camera early, light early, camera late, light late) the rasterizer's,
+// enough workgroups for every slot of the listed batches; per view the
+// late phase's two cull passes', one invocation per deferred instance and
+// per deferred batch (lod_cull.comp, 64 a workgroup). 2D as
+// band_args.comp makes them.
 #include "constants.glsl"
 
 layout(local_size_x = 1) in;
 layout(set = 0, binding = 0) buffer Counters { uint counters[]; };
 #include "push/lod_args.glsl"
 
+void dispatch_args(uint at, uint invocations, uint local_size) {
+    uint groups = (invocations + local_size - 1u) / local_size;
+    counters[at] = min(groups, MAX_GROUPS_X);
+    counters[at + 1u] = groups == 0u ? 0u : (groups + MAX_GROUPS_X - 1u) / MAX_GROUPS_X;
+    counters[at + 2u] = 1u;
+}
+
 void main() {
     for (uint v = 0u; v < LOD_VIEWS; ++v) {
         uint w = v * LOD_WORDS;
-        uint n = min(counters[w + LOD_BATCHES], pc.capacity);
-        uint groups = (n * pc.per + pc.local_size - 1u) / pc.local_size;
-        counters[w + LOD_ARGS] = min(groups, MAX_GROUPS_X);
-        counters[w + LOD_ARGS + 1u] = groups == 0u ? 0u : (groups + MAX_GROUPS_X - 1u) / MAX_GROUPS_X;
-        counters[w + LOD_ARGS + 2u] = 1u;
+        dispatch_args(w + LOD_ARGS, min(counters[w + LOD_BATCHES], pc.capacity) * pc.per, pc.local_size);
+        if (v < 2u) {
+            dispatch_args(w + LOD_DEFER_INSTANCE_ARGS, counters[w + LOD_DEFER_INSTANCES], 64u);
+            dispatch_args(w + LOD_DEFER_BATCH_ARGS, min(counters[w + LOD_DEFER_BATCHES], pc.deferred), 64u);
+        }
     }
 }

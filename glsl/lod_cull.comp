@@ -1,45 +1,47 @@
 #version 460
-// Levels of detail and culling of an instanced scene, one invocation per
-// instance, in phases (pc.view_index):
-//   0 camera, early: the instance's level is chosen from its size on
-//     screen (the coarsest whose switch size it is within,
-//     src/scene/instanced/lod.rs) and kept for the other phases, so every
-//     view draws the same (instance, atom) slots and the ISSM's self-shadow
-//     test stays exact; that level's bounds (sphere and box), placed with
-//     the instance's transform, are tested against the camera's pixel
-//     window (the frustum, and a tile's window when tiling). Listed if it
-//     passed the occlusion test last frame.
-//   1 key light, early: the light's view, the camera's level, listed if it
-//     passed the light's occlusion test last frame; only instances over
-//     the light texels a visible point's lookup may read (the rectangle of
-//     the camera's visible points, lod_bounds.comp, grown by the
-//     farthest the technique's lookup reads, pc.reach):
-//     the others cannot shadow anything the camera sees. Runs after the
-//     camera's raster.
-//   2 camera, late (after the early list was rasterized and the depth
-//     tiles built, lod_hiz.comp): an instance in the window whose nearest
-//     point is farther than the farthest depth of every pixel tile its
-//     rectangle touches is hidden (two-phase occlusion culling, as niagara
-//     and Mol* do it: exact, what it drops could not win a pixel); a
-//     visible one not drawn early is listed; the result is the next
-//     frame's history.
-//   3 key light, late: the same against the light map.
-// Within a kept instance each batch of its level (64 atoms in a spatial
-// run: a protein at full detail is ~26 spheres deep on its own) is tested
-// by its bounding sphere, the same way: an early phase lists the batches
-// not hidden behind the view's last final image (its depth tiles, kept
-// from last frame: `hizPrevTex`), the late phase, of the instances seen,
-// the batches that early phase did not list (recomputed: the same tests on
-// the same tiles) and that the early image does not hide. What is visible
-// in the final image is drawn in one phase or the other: exact, whatever
-// the last frame was (a camera that moved only moves work to the late
-// phase).
-// A kept instance appends its kept batches to the view's list, which
-// the rasterizer visits instead of the view order (dispatched indirectly,
-// lod_args.comp). The four lists lie in one buffer, list v from entry
-// v * (pc.capacity + LOD_LIST_TAIL): in a frame that draws them, a
-// sphere's id is its slot in that buffer (scene.glsl's batchTex is the
-// lists). Entries past a count name the empty batch (the host fills them).
+// Levels of detail and culling of an instanced scene, per view in two
+// phases (pc.view_index: the list filled, 0 camera early, 1 key light
+// early, 2 camera late, 3 key light late):
+//   early (MODE CULL_EARLY, one invocation per instance): the camera's
+//     chooses the instance's level from its size on screen (the coarsest
+//     whose switch size it is within, src/scene/instanced/lod.rs) and
+//     keeps it for the other phases, so every view draws the same
+//     (instance, atom) slots and the ISSM's self-shadow test stays exact;
+//     that level's bounds (sphere and box), placed with the instance's
+//     transform, are tested against the view's window (the camera's pixel
+//     window: the frustum, and a tile's window when tiling; the key
+//     light's: only the light texels a visible point's lookup may read,
+//     the rectangle of the camera's visible points, lod_bounds.comp, grown
+//     by the farthest the technique's lookup reads, pc.reach: the others
+//     cannot shadow anything the camera sees; it runs after the camera's
+//     raster). An instance in the window that passed the occlusion test
+//     last frame and that last frame's final depth tiles (`hizPrevTex`)
+//     do not hide whole has each batch of its level (64 atoms in a
+//     spatial run: a protein at full detail is ~26 spheres deep on its
+//     own) tested by its bounding sphere, the same way: listed if those
+//     tiles do not hide it, else deferred. The other instances in the
+//     window are deferred whole.
+//   late (after the early list was rasterized and this frame's depth
+//     tiles built, lod_hiz.comp): what the early phase deferred is tested
+//     against the early image: a deferred batch on its own
+//     (CULL_DEFERRED_BATCHES, one invocation each), a deferred instance
+//     (CULL_DEFERRED_INSTANCES) whole and then each of its batches not
+//     listed early; what is not hidden is listed. An instance or batch
+//     whose nearest point is farther than the farthest depth of every
+//     pixel tile its rectangle touches is hidden (two-phase occlusion
+//     culling, as niagara and Mol* do it: exact, what it drops could not
+//     win a pixel); the instances' results are the next frame's history.
+// What is visible in the final image is drawn in one phase or the other:
+// exact, whatever the last frame was (a camera that moved only moves work
+// to the late phase). Where the deferral buffer is full, the instance is
+// deferred from the batch that did not fit on, and the late phase tests
+// the rest of it as before, recomputing the early tests.
+// A kept batch is appended to the view's list, which the rasterizer visits
+// instead of the view order (dispatched indirectly, lod_args.comp). The
+// four lists lie in one buffer, list v from entry v * (pc.capacity +
+// LOD_LIST_TAIL): in a frame that draws them, a sphere's id is its slot in
+// that buffer (scene.glsl's batchTex is the lists). Entries past a count
+// name the empty batch (the host fills them).
 #include "raster_common.glsl"
 
 layout(local_size_x = 64) in;
@@ -72,10 +74,18 @@ layout(set = 0, binding = 9) readonly buffer Region { int region[]; };
 // The instances in the order invocations take them (by molecule type:
 // alike batch loops side by side).
 layout(set = 0, binding = 12) uniform usamplerBuffer cullOrderTex;
+// What a view's early phase leaves to its late one: per instance (first
+// pc.instances entries) the instance and the batch its late test starts
+// from, then (pc.deferred entries) batches as the lists hold them.
+layout(set = 0, binding = 13) buffer Deferred { uvec2 deferred[]; };
 #include "scene.glsl"
 #include "push/lod_cull.glsl"
 
 layout(constant_id = 1) const bool PERSP = false;
+// The pass: CULL_EARLY (over every instance, in the cull order),
+// CULL_DEFERRED_INSTANCES or CULL_DEFERRED_BATCHES (the late phase, over
+// what the early one deferred).
+layout(constant_id = 2) const uint MODE = CULL_EARLY;
 
 // Whether every pixel an instance or batch (bounds centred at view
 // coordinates cv: sphere radius r, box half-extent ez along the view)
@@ -122,25 +132,95 @@ bool over_region(bool cam, ivec4 rc) {
                       && rc.w >= region[1] - e && rc.y <= region[3] + e;
 }
 
+// A batch's bounding sphere placed with instance k (radius times the
+// transform's largest stretch, grown for the rounding of the placed
+// centre) in view coordinates, and its rectangle.
+void place_batch(View v, bool persp, uint k, uint at, float stretch, float grow,
+                 out vec3 bv, out float br, out ivec4 rc) {
+    vec4 bb = texelFetch(batchBoundTex, int(at));
+    br = bb.w * stretch * 1.001 + grow;
+    bv = view_space(v, instance_apply(k, bb.xyz), persp);
+    rc = sphere_rect(v, bv, br, persp);
+}
+
+// A batch sphere's radius placed with instance k (p: its molecule's
+// centre c placed) is times the transform's largest stretch: 1 for a
+// rigid one; an affine one's bounded by Gershgorin's circles of A^T A,
+// its columns taken from unit offsets.
+float instance_stretch(uint k, vec3 c, vec3 p) {
+    if (SCENE_KIND != SCENE_AFFINE) return 1.0;
+    mat3 a = mat3(instance_apply(k, c + vec3(1.0, 0.0, 0.0)) - p,
+                  instance_apply(k, c + vec3(0.0, 1.0, 0.0)) - p,
+                  instance_apply(k, c + vec3(0.0, 0.0, 1.0)) - p);
+    mat3 ata = transpose(a) * a;
+    float row = 0.0;
+    for (int i = 0; i < 3; ++i) {
+        row = max(row, abs(ata[i].x) + abs(ata[i].y) + abs(ata[i].z));
+    }
+    // (never below 1: the atoms' radii are not scaled)
+    return max(sqrt(row), 1.0) * 1.001;
+}
+
+// (the f32 rounding of a placed point: ~1e-7 of its largest coordinate)
+float coord_max(vec3 p) { return max(max(abs(p.x), abs(p.y)), abs(p.z)); }
+
 void main() {
-    if (FLAT_ID >= pc.instances) return;
     uint view = pc.view_index & 1u;
-    bool late = pc.view_index >= 2u;
     bool cam = view == 0u;
     View v = cam ? g.cam : g.light;
-    // The cull order runs along a Morton curve within each molecule type
-    // (x, y, z bits weighing 1, 2, 4): walked backwards where the view
-    // looks down it, the lists run near to far, and the rasterizers'
-    // early-depth test turns more visits away before their atomics (meso
-    // 10^9 at 2,025 A: camera raster 695 ms the wrong way, 584 this way).
-    bool backwards = dot(v.dir.xyz, vec3(1.0, 2.0, 4.0)) < 0.0;
-    uint k = texelFetch(cullOrderTex, int(backwards ? pc.instances - 1u - FLAT_ID : FLAT_ID)).x;
+    bool persp = PERSP && cam;
+    // (the early list's counter words hold what it deferred)
+    uint dw = view * LOD_WORDS;
+    uint late_list = 2u + view;
+    if (MODE == CULL_DEFERRED_BATCHES) {
+        // One batch the early phase found hidden behind last frame's
+        // image (and in the window): listed late if this frame's early
+        // image does not hide it.
+        if (FLAT_ID >= min(counters[dw + LOD_DEFER_BATCHES], pc.deferred)) return;
+        uvec2 e = deferred[pc.instances + FLAT_ID];
+        uint k = e.x & BATCH_INSTANCE_MASK, level = e.x >> BATCH_INSTANCE_BITS;
+        uint m = texelFetch(instanceRowTex, int(k)).x;
+        uint base = m * MAX_LOD_LEVELS;
+        vec3 c = texelFetch(lodBoundTex, int(2u * base)).xyz;
+        vec3 p = instance_apply(k, c);
+        float stretch = instance_stretch(k, c, p);
+        uint first = uint(texelFetch(lodBoundTex, int(2u * (base + level) + 1u)).w);
+        vec3 bv;
+        float br;
+        ivec4 rc;
+        place_batch(v, persp, k, first + e.y, stretch, 1e-6 * coord_max(p) + 1e-4, bv, br, rc);
+        if (hidden(false, v, bv, br, br, rc, persp)) return;
+        uint at = atomicAdd(counters[late_list * LOD_WORDS + LOD_BATCHES], 1u);
+        if (at < pc.capacity) list[late_list * (pc.capacity + LOD_LIST_TAIL) + at] = e;
+        uint atoms = texelFetch(levelTex, int(base + level)).w;
+        atomicAdd(counters[late_list * LOD_WORDS + LOD_SPHERES],
+                  min(atoms - (e.y << BATCH_SHIFT), 1u << BATCH_SHIFT));
+        return;
+    }
+    uint k, from = 0u;
+    if (MODE == CULL_EARLY) {
+        if (FLAT_ID >= pc.instances) return;
+        // The cull order runs along a Morton curve within each molecule
+        // type (x, y, z bits weighing 1, 2, 4): walked backwards where the
+        // view looks down it, the lists run near to far, and the
+        // rasterizers' early-depth test turns more visits away before
+        // their atomics (meso 10^9 at 2,025 A: camera raster 695 ms the
+        // wrong way, 584 this way).
+        bool backwards = dot(v.dir.xyz, vec3(1.0, 2.0, 4.0)) < 0.0;
+        k = texelFetch(cullOrderTex, int(backwards ? pc.instances - 1u - FLAT_ID : FLAT_ID)).x;
+    } else {
+        if (FLAT_ID >= counters[dw + LOD_DEFER_INSTANCES]) return;
+        uvec2 e = deferred[FLAT_ID];
+        k = e.x;
+        from = e.y;
+    }
+    bool late = MODE != CULL_EARLY;
     uint m = texelFetch(instanceRowTex, int(k)).x;
     uint base = m * MAX_LOD_LEVELS;
     // (level 0's sphere: the molecule's size, what the level is chosen by)
     vec4 bs = texelFetch(lodBoundTex, int(2u * base));
     vec3 p = instance_apply(k, bs.xyz);
-    vec3 cv = view_space(v, p, PERSP && cam);
+    vec3 cv = view_space(v, p, persp);
     uint level;
     if (pc.view_index == 0u) {
         // pixels per world unit at the instance's nearest point
@@ -179,16 +259,13 @@ void main() {
                    instance_apply(k, bs.xyz + vec3(0.0, be.y, 0.0)) - p,
                    instance_apply(k, bs.xyz + vec3(0.0, 0.0, be.z)) - p);
     mat3 axes = transpose(mat3(v.right.xyz, v.up.xyz, v.dir.xyz));
-    // (the f32 rounding of a placed point: ~1e-7 of its largest coordinate)
-    float pmax = max(max(abs(p.x), abs(p.y)), abs(p.z));
-    float slack = 1e-3 * r + 1e-6 * pmax;
+    float slack = 1e-3 * r + 1e-6 * coord_max(p);
     vec3 ext = min(abs(axes * ax[0]) + abs(axes * ax[1]) + abs(axes * ax[2]) + slack, vec3(r));
-    ivec4 rc = PERSP && cam ? sphere_rect(v, cv, r, true)
-                            : plane_rect(v, cv.x + vec2(-ext.x, ext.x), cv.y + vec2(-ext.y, ext.y));
+    ivec4 rc = persp ? sphere_rect(v, cv, r, true)
+                     : plane_rect(v, cv.x + vec2(-ext.x, ext.x), cv.y + vec2(-ext.y, ext.y));
     // (a light view: only what can shadow a point the camera sees)
     bool inside = over_region(cam, rc);
     uint h = 2u * k + view;
-    bool persp = PERSP && cam;
     // (the early phase's candidates: the instances seen last frame that
     // the last final image does not hide whole; the late phase recomputes
     // the same test on the same tiles)
@@ -198,50 +275,53 @@ void main() {
         visible[h] = seen ? 1u : 0u;
         if (!seen) return;
     } else if (!listed_early) {
+        // (outside: not seen; inside: the late phase tests it whole)
+        if (!inside) {
+            visible[h] = 0u;
+        } else {
+            deferred[atomicAdd(counters[dw + LOD_DEFER_INSTANCES], 1u)] = uvec2(k, 0u);
+        }
         return;
     }
     uint atoms = texelFetch(levelTex, int(base + level)).w;
     uint batches = (atoms + BATCH_MASK) >> BATCH_SHIFT;
     uint first = uint(texelFetch(lodBoundTex, int(2u * (base + level) + 1u)).w);
-    // A batch sphere's radius placed with the instance: times the
-    // transform's largest stretch (1 for a rigid one; an affine one's
-    // bounded by Gershgorin's circles of A^T A, its columns taken from
-    // unit offsets), grown for the rounding of the placed centre.
-    float stretch = 1.0;
-    if (SCENE_KIND == SCENE_AFFINE) {
-        mat3 a = mat3(instance_apply(k, bs.xyz + vec3(1.0, 0.0, 0.0)) - p,
-                      instance_apply(k, bs.xyz + vec3(0.0, 1.0, 0.0)) - p,
-                      instance_apply(k, bs.xyz + vec3(0.0, 0.0, 1.0)) - p);
-        mat3 ata = transpose(a) * a;
-        float row = 0.0;
-        for (int i = 0; i < 3; ++i) {
-            row = max(row, abs(ata[i].x) + abs(ata[i].y) + abs(ata[i].z));
-        }
-        // (never below 1: the atoms' radii are not scaled)
-        stretch = max(sqrt(row), 1.0) * 1.001;
-    }
-    float grow = 1e-6 * pmax + 1e-4;
-    // Each kept batch takes its entry with an atomicAdd (a count first
-    // and the entries in a second loop would need both loops to agree,
-    // lane by lane).
-    uint from = pc.view_index * (pc.capacity + LOD_LIST_TAIL);
+    float stretch = instance_stretch(k, bs.xyz, p);
+    float grow = 1e-6 * coord_max(p) + 1e-4;
+    uint li = late ? late_list : view;
     uint word = k | (level << BATCH_INSTANCE_BITS);
-    uint w = pc.view_index * LOD_WORDS;
     uint spheres = 0u;
-    for (uint j = 0u; j < batches; ++j) {
-        vec4 bb = texelFetch(batchBoundTex, int(first + j));
-        bb.w = bb.w * stretch * 1.001 + grow;
-        vec3 bv = view_space(v, instance_apply(k, bb.xyz), persp);
-        ivec4 br = sphere_rect(v, bv, bb.w, persp);
-        bool in_window = over_region(cam, br);
-        bool early = listed_early && in_window && !hidden(true, v, bv, bb.w, bb.w, br, persp);
-        bool keep = late ? !early && in_window && !hidden(false, v, bv, bb.w, bb.w, br, persp)
+    // (early: the first batch the deferral buffer had no room for; the
+    // late phase tests it and the rest as a deferred instance)
+    uint full = batches;
+    for (uint j = from; j < batches; ++j) {
+        vec3 bv;
+        float br;
+        ivec4 brc;
+        place_batch(v, persp, k, first + j, stretch, grow, bv, br, brc);
+        bool in_window = over_region(cam, brc);
+        bool early = listed_early && in_window && !hidden(true, v, bv, br, br, brc, persp);
+        bool keep = late ? !early && in_window && !hidden(false, v, bv, br, br, brc, persp)
                          : early;
         if (keep) {
-            uint at = atomicAdd(counters[w + LOD_BATCHES], 1u);
-            if (at < pc.capacity) list[from + at] = uvec2(word, j);
+            uint at = atomicAdd(counters[li * LOD_WORDS + LOD_BATCHES], 1u);
+            if (at < pc.capacity) list[li * (pc.capacity + LOD_LIST_TAIL) + at] = uvec2(word, j);
             spheres += min(atoms - (j << BATCH_SHIFT), 1u << BATCH_SHIFT);
         }
+        // Early: a batch in the window that last frame's image hides is
+        // deferred; the late phase tests it alone against this frame's
+        // early image (no instance loop recomputed).
+        if (!late && in_window && !early && full == batches) {
+            uint at = atomicAdd(counters[dw + LOD_DEFER_BATCHES], 1u);
+            if (at < pc.deferred) {
+                deferred[pc.instances + at] = uvec2(word, j);
+            } else {
+                full = j;
+            }
+        }
     }
-    if (spheres > 0u) atomicAdd(counters[w + LOD_SPHERES], spheres);
+    if (spheres > 0u) atomicAdd(counters[li * LOD_WORDS + LOD_SPHERES], spheres);
+    if (full < batches) {
+        deferred[atomicAdd(counters[dw + LOD_DEFER_INSTANCES], 1u)] = uvec2(k, full);
+    }
 }

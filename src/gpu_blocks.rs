@@ -123,7 +123,10 @@ gpu_push! {
         /// Light views: the farthest (texels) the shadow lookup reads from
         /// the texel its point projects to (`Lookup::reach`).
         reach: i32,
-        pad: [u32; 3],
+        /// Batch entries the early phase may defer to the late one (after
+        /// one entry per instance in the deferral buffer).
+        deferred: u32,
+        pad: [u32; 2],
     }
 
     /// `lod_bounds` (glsl/lod_bounds.comp).
@@ -154,7 +157,8 @@ gpu_push! {
         capacity: u32,
         /// Invocations per workgroup of the rasterizer.
         local_size: u32,
-        pad: u32,
+        /// Batch entries the early phases may defer (LodCullPush.deferred).
+        deferred: u32,
     }
 
     /// A band sequence's counter words (glsl/band_args.comp): where they

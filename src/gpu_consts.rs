@@ -129,8 +129,11 @@ gpu_constants! {
     MAX_LOD_LEVELS: u32 = 16;
     /// Counter words per list of the LOD cull (glsl/lod_cull.comp): batches
     /// listed, spheres drawn, then the three indirect dispatch words; lists
-    /// camera (early), light (early), camera (late), light (late).
-    LOD_WORDS: u32 = 8;
+    /// camera (early), light (early), camera (late), light (late). An early
+    /// list's words then count what its view's early phase deferred to the
+    /// late one (instances, batches) and hold the late phase's two
+    /// dispatches' arguments.
+    LOD_WORDS: u32 = 16;
     LOD_VIEWS: u32 = 4;
     /// RasterPush.list_base of a view drawn in its order (not a LOD list).
     RASTER_ORDER: u32 = 0xFFFF_FFFF;
@@ -154,6 +157,17 @@ gpu_constants! {
     LOD_BATCHES: u32 = 0;
     LOD_SPHERES: u32 = 1;
     LOD_ARGS: u32 = 2;
+    LOD_DEFER_INSTANCES: u32 = 5;
+    LOD_DEFER_BATCHES: u32 = 6;
+    LOD_DEFER_INSTANCE_ARGS: u32 = 7;
+    LOD_DEFER_BATCH_ARGS: u32 = 10;
+    /// The LOD cull's passes (specialization constant 2 of
+    /// glsl/lod_cull.comp): an early phase over every instance, a late one
+    /// over the instances the early one deferred, a late one over the
+    /// batches it deferred.
+    CULL_EARLY: u32 = 0;
+    CULL_DEFERRED_INSTANCES: u32 = 1;
+    CULL_DEFERRED_BATCHES: u32 = 2;
     /// Globals.scene.zw: no molecule / chain level.
     NO_LEVEL: u32 = 0xFFFF_FFFF;
 }

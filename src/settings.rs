@@ -585,6 +585,10 @@ pub struct LodParams {
     /// the scene's full-detail batches, at least 65,536).
     #[arg(long, value_name = "BATCHES")]
     pub lod_list_batches: Option<u32>,
+    /// Batches the cull's early phases may defer to the late ones (default:
+    /// a quarter of a list's; tests force the overflow path with less).
+    #[arg(skip)]
+    pub lod_deferred_batches: Option<u32>,
 }
 
 default_from_args!(LodParams);
@@ -601,7 +605,7 @@ impl LodParams {
                 "--lod-pixels must be between 0 and 1000".into(),
             ));
         }
-        if self.lod_list_batches == Some(0) {
+        if self.lod_list_batches == Some(0) || self.lod_deferred_batches == Some(0) {
             return Err(Error::Input("--lod-list-batches must be at least 1".into()));
         }
         Ok(())

@@ -877,6 +877,56 @@ fn culled_coarse_levels_are_never_visible() {
     assert!(coarse > 0, "no instance drew a coarse level");
 }
 
+/// The late phase tests only what the early one deferred: a batch the
+/// last frame's image hides on its own, an instance whole. Where the
+/// deferral room is full, the instance is deferred from the batch that did
+/// not fit on and the late phase recomputes the early tests for the rest.
+/// Panning over the meso scene with ISSM (the light's view stays, so its
+/// early phase defers the batches its last, masked, depth tiles hide; after
+/// a pan some of them shadow what the camera now sees), a renderer with
+/// room for one batch draws every frame exactly as one with the default
+/// room, and both defer. (Skipping the batch that did not fit fails it.)
+#[test]
+fn deferred_batches_past_the_room_are_tested_with_their_instance() {
+    let ctx = validated_context();
+    let s = sphereshade::scene::meso::meso(1_000_000, 1).unwrap();
+    let r = s.bounding_sphere().1 as f64;
+    let whole = camera(&s, 128, 96, None);
+    let pan = |shift: f64| {
+        let mut cam = whole;
+        cam.view_height = whole.view_height / 8.0;
+        cam.center = whole.center + whole.right * (r * shift);
+        cam
+    };
+    let st = settings(pan(0.0), ShadowMode::IssmSoft);
+    let mut tight = st.clone();
+    tight.lod.lod_deferred_batches = Some(1);
+    let mut a = Renderer::new(&ctx, &s, st).expect("renderer");
+    let mut b = Renderer::new(&ctx, &s, tight).expect("renderer");
+    let (mut deferred, mut overflowed) = (0, 0);
+    for (f, shift) in [0.0, 0.0, 0.0, 0.1, 0.1, 0.2].into_iter().enumerate() {
+        for rd in [&mut a, &mut b] {
+            rd.update(|x| x.camera = pan(shift)).expect("camera");
+            rd.render_frame().expect("frame");
+        }
+        let (ia, ib) = (a.inspect(), b.inspect());
+        assert_same_frame(&ia, &ib, &format!("frame {f}"));
+        let (x, y) = (
+            ia.lod_counts().unwrap().unwrap(),
+            ib.lod_counts().unwrap().unwrap(),
+        );
+        let room = ia.lod_list_capacity().unwrap() / 4;
+        for v in 0..2 {
+            assert!(x.deferred[v][1] <= room, "frame {f}: {x:?} past {room}");
+            deferred += x.deferred[v][1];
+            overflowed += (y.deferred[v][1] > 1) as u32;
+        }
+        assert_no_validation_messages(&ctx);
+    }
+    assert!(deferred > 0, "no batch was deferred");
+    assert!(overflowed > 0, "the room of one batch never overflowed");
+}
+
 /// Levels of detail: each instance's level follows its size on screen
 /// (the coarsest whose switch size it is within: level 0 close up), and a
 /// level coarser than last frame's is taken only once the size is a band

@@ -21,7 +21,7 @@ use crate::vk::{Buffer, Context, Recorder};
 pub const PASSES: &[(&str, &str)] = &[
     (
         "lod_cull",
-        "instanced scenes with levels of detail (`--lod auto`): one invocation per instance (visited by molecule type: a SIMD group's batch loops alike) places its molecule's bounds and chooses the coarsest level whose switch size the instance is within (a prefix of the molecule's atoms in a spatial order, radii grown; kept only where its outline keeps 95 % of the molecule's, or what half a pixel of motion keeps; a coarser one than last frame's only a band below its switch size) and keeps the level for the light, then tests that level's bounds (a sphere, and a box turned with the instance) against the camera's pixel window; of those that passed the occlusion test last frame and that last frame's final depth tiles do not hide whole, each batch of 64 atoms (its bounding sphere, placed with the instance) not hidden behind the depth tiles of last frame's final image is listed with an `atomicAdd` (entry: instance, level, batch), and the rasterizer visits the list, dispatched indirectly, instead of the view's order: a sphere's id is its slot in the lists, so ids stay 32-bit past 2^32 atoms",
+        "instanced scenes with levels of detail (`--lod auto`): one invocation per instance (visited by molecule type, and within a type along a Morton curve through the instances, walked backwards where the view looks down it: a SIMD group's batch loops alike, neighbours kept or culled together, and the lists near to far) places its molecule's bounds and chooses the coarsest level whose switch size the instance is within (a prefix of the molecule's atoms in a spatial order, radii grown; kept only where its outline keeps 95 % of the molecule's, or what half a pixel of motion keeps; a coarser one than last frame's only a band below its switch size) and keeps the level for the light, then tests that level's bounds (a sphere, and a box turned with the instance) against the camera's pixel window; of those that passed the occlusion test last frame and that last frame's final depth tiles do not hide whole, each batch of 64 atoms (its bounding sphere, placed with the instance) not hidden behind the depth tiles of last frame's final image is listed with an `atomicAdd` (entry: instance, level, batch), and those hidden behind them are deferred to the late phase, as are the other instances in the window (a batch past the deferral room defers its instance from that batch on), and the rasterizer visits the list, dispatched indirectly, instead of the view's order: a sphere's id is its slot in the lists, so ids stay 32-bit past 2^32 atoms",
     ),
     (
         "raster",
@@ -29,7 +29,7 @@ pub const PASSES: &[(&str, &str)] = &[
     ),
     (
         "lod_occlusion",
-        "instanced scenes with levels of detail: the farthest depth of each 4x4 and 32x32 pixels (coarser past 4096x4096) of the early camera image (the instances that passed last frame's test), then one invocation per instance in the window: hidden if the nearest point of its level's bounds lies behind every tile its rectangle touches (exact: it could not win a pixel); of the visible ones, the batches not drawn early (recomputed) and not hidden behind those tiles are listed, and the results are the next frame's history (two-phase occlusion culling of instances and of batches, as niagara does it for meshlets)",
+        "instanced scenes with levels of detail: the farthest depth of each 4x4 and 32x32 pixels (coarser past 4096x4096) of the early camera image (the instances that passed last frame's test), then, dispatched indirectly over what the early phase deferred, one invocation per deferred batch (listed unless hidden behind every tile its rectangle touches: exact, it could not win a pixel) and one per deferred instance (the same test of its level's bounds, then of its batches not drawn early); the instances' results are the next frame's history (two-phase occlusion culling of instances and of batches, as niagara does it for meshlets)",
     ),
     (
         "raster_late",
@@ -45,7 +45,7 @@ pub const PASSES: &[(&str, &str)] = &[
     ),
     (
         "light_occlusion",
-        "the same two-phase occlusion culling in the key light's view (instanced scenes with levels of detail): depth tiles of its early map (one texel each on maps up to 1024², where spheres are smaller than a texel and leave holes; a tile with no marked tile within the lookup's reach hides everything: no visible point reads it), the batches not drawn early and not hidden listed",
+        "the same two-phase occlusion culling in the key light's view (instanced scenes with levels of detail): depth tiles of its early map (one texel each on maps up to 1024², where spheres are smaller than a texel and leave holes; a tile with no marked tile within the lookup's reach hides everything: no visible point reads it), the deferred batches and instances not hidden listed",
     ),
     (
         "light_raster_late",
@@ -167,7 +167,7 @@ impl Stages {
                 ctx,
                 settings.raster == RasterMode::Graphics,
                 scene_buffers,
-                settings.lod.lod_list_batches,
+                &settings.lod,
             )?,
             see_through: None,
             shadows: ShadowStage::new(),

@@ -10,17 +10,21 @@
 //! buffer, the scene's ([`LodBuffers::lists`]): in a frame that draws
 //! them they are its batch table, and a sphere's id is its slot there, so
 //! ids stay 32-bit however many atoms the scene represents. Each view's list is drawn in
-//! two phases: first the instances that passed its occlusion test last
-//! frame, then, against the depth tiles of that early image, the others
-//! that are not hidden (`lod_occlusion`, `raster_late`; `light_occlusion`,
+//! two phases: first the batches of the instances that passed its
+//! occlusion test last frame that last frame's image does not hide, then,
+//! against the depth tiles of that early image, what the early phase
+//! deferred (those batches, the other instances) that is not hidden
+//! (`lod_occlusion`, `raster_late`; `light_occlusion`,
 //! `light_raster_late`). Culled instances cost one invocation of a cull
 //! and nothing after it.
 
 use crate::error::Result;
 use crate::gpu::blocks::{LodArgsPush, LodBoundsPush, LodCullPush, LodHizPush};
 use crate::gpu::consts::{
-    BATCH_EMPTY, HIZ_FINE_TILES, HIZ_MIN_SHIFT, LOD_ARGS, LOD_BATCHES, LOD_LIST_TAIL, LOD_MASK_AT,
-    LOD_SPHERES, LOD_VIEWS, LOD_WORDS, NO_LEVEL_YET,
+    BATCH_EMPTY, CULL_DEFERRED_BATCHES, CULL_DEFERRED_INSTANCES, CULL_EARLY, HIZ_FINE_TILES,
+    HIZ_MIN_SHIFT, LOD_ARGS, LOD_BATCHES, LOD_DEFER_BATCH_ARGS, LOD_DEFER_BATCHES,
+    LOD_DEFER_INSTANCE_ARGS, LOD_DEFER_INSTANCES, LOD_LIST_TAIL, LOD_MASK_AT, LOD_SPHERES,
+    LOD_VIEWS, LOD_WORDS, NO_LEVEL_YET,
 };
 use crate::passes::scene::{LodBuffers, MAX_SLOTS, SCENE_GEOMETRY, SceneBuffers};
 use crate::passes::{LOCAL_SIZE, spirv};
@@ -31,7 +35,7 @@ use ash::vk::Format;
 pub use super::compute::LodView;
 use super::compute::ViewIndex;
 
-const BINDINGS: [Binding; 11] = [
+const BINDINGS: [Binding; 12] = [
     uniform("GlobalsBlock"),
     texel("lodBoundTex", Format::R32G32B32A32_SFLOAT),
     rw("Levels"),
@@ -43,6 +47,7 @@ const BINDINGS: [Binding; 11] = [
     texel("hizPrevTex", Format::R32_UINT),
     texel("batchBoundTex", Format::R32G32B32A32_SFLOAT),
     texel("cullOrderTex", Format::R32_UINT),
+    rw("Deferred"),
 ];
 
 const BOUNDS_BINDINGS: [Binding; 3] = [
@@ -87,6 +92,20 @@ pub fn hiz_shift(view: ViewIndex, w: u32, h: u32) -> u32 {
         .unwrap_or(28)
 }
 
+/// Batches the early phases may defer with lists of `capacity`: a
+/// quarter (meso 10^9 deferred at most 148 k batches a view at 8,100 /
+/// 2,025 / 506 A, where the lists held 0.5-4 M; the lists grow 4x past
+/// what a frame asks).
+fn deferral_room(capacity: u32) -> u32 {
+    (capacity / 4).max(1)
+}
+
+/// The deferral buffer: an entry (8 bytes) per instance, then `batches`.
+fn deferral_buffer(ctx: &Context, instances: u32, batches: u32) -> Result<Buffer> {
+    let entries = instances.max(1) as u64 + batches as u64;
+    Buffer::storage(ctx, "LOD deferred", entries * 8)
+}
+
 /// A view's late list is `LATE + view` (index in `lists` and the counter
 /// words).
 const LATE: usize = 2;
@@ -121,16 +140,30 @@ pub struct LodCounts {
     pub late_spheres: u32,
     /// Of the light's: drawn late.
     pub light_late_spheres: u32,
+    /// Per view (camera, light): the instances and batches its early
+    /// phase deferred to the late one (batches past the deferral room were
+    /// counted, not kept: their instances were deferred from them on).
+    pub deferred: [[u32; 2]; 2],
 }
 
 pub struct LodCull {
-    /// Orthographic and perspective cameras (constant 1).
-    cull: [ComputePipeline; 2],
+    /// Orthographic and perspective cameras (constant 1), each per pass
+    /// (constant 2: CULL_EARLY, CULL_DEFERRED_INSTANCES,
+    /// CULL_DEFERRED_BATCHES).
+    cull: [[ComputePipeline; 3]; 2],
     args: ComputePipeline,
     /// The depth tiles (fine, coarse: [`hiz_shift`]).
     hiz: [ComputePipeline; 2],
     /// Per instance and view: it passed the occlusion test last frame.
     visible: Buffer,
+    /// What a view's early phase defers to its late one: an entry per
+    /// instance, then `deferred` batch entries (one view at a time: the
+    /// camera's late phase reads them before the light's early one).
+    deferral: Buffer,
+    deferred: u32,
+    /// `deferred` as given (else it follows the lists' capacity,
+    /// [`deferral_room`]).
+    deferred_given: Option<u32>,
     /// Per view: its depth tiles (of this frame's early image).
     hiz_tiles: [Buffer; 2],
     /// Per view: the depth tiles of its last final image, and their shift
@@ -189,9 +222,10 @@ impl LodCull {
         scene: u32,
         lod: &mut LodBuffers,
         list_batches: Option<u32>,
+        deferred_batches: Option<u32>,
     ) -> Result<Self> {
         let bindings = [&BINDINGS[..], &SCENE_GEOMETRY].concat();
-        let make = |name: &str, persp: u32| {
+        let make = |name: &str, persp: u32, mode: u32| {
             ComputePipeline::new(
                 ctx,
                 &PipelineDesc {
@@ -200,13 +234,33 @@ impl LodCull {
                     bindings: &bindings,
                     push_size: std::mem::size_of::<LodCullPush>() as u32,
                     local_size: 64,
-                    constants: &[persp],
+                    constants: &[persp, mode],
                     scene,
                 },
             )
         };
-        let ortho = ctx.guard(make("lod cull", 0)?);
-        let persp = ctx.guard(make("lod cull perspective", 1)?);
+        let passes = |persp: u32, names: [&str; 3]| -> Result<[ComputePipeline; 3]> {
+            let early = ctx.guard(make(names[0], persp, CULL_EARLY)?);
+            let inst = ctx.guard(make(names[1], persp, CULL_DEFERRED_INSTANCES)?);
+            let batches = make(names[2], persp, CULL_DEFERRED_BATCHES)?;
+            Ok([early.keep(), inst.keep(), batches])
+        };
+        let ortho = ctx.guard(passes(
+            0,
+            [
+                "lod cull",
+                "lod cull deferred instances",
+                "lod cull deferred batches",
+            ],
+        )?);
+        let persp = ctx.guard(passes(
+            1,
+            [
+                "lod cull perspective",
+                "lod cull deferred instances perspective",
+                "lod cull deferred batches perspective",
+            ],
+        )?);
         let args = ctx.guard(ComputePipeline::new(
             ctx,
             &PipelineDesc {
@@ -275,9 +329,14 @@ impl LodCull {
         let bounds_o = ctx.guard(bounds("lod light region", 0)?);
         let bounds_p = ctx.guard(bounds("lod light region perspective", 1)?);
         let levels = ctx.guard(Buffer::storage(ctx, "LOD levels", instances)?);
+        let deferred = deferred_batches.unwrap_or(deferral_room(capacity));
+        let deferral = ctx.guard(deferral_buffer(ctx, lod.instance_count, deferred)?);
         Self::set_lists(ctx, lod, capacity)?;
         Ok(LodCull {
             cull: [ortho.keep(), persp.keep()],
+            deferral: deferral.keep(),
+            deferred,
+            deferred_given: deferred_batches,
             args: args.keep(),
             hiz: [hiz_fine.keep(), hiz_coarse.keep()],
             visible: visible.keep(),
@@ -320,6 +379,7 @@ impl LodCull {
             ("hizPrevTex", &self.hiz_prev[view as usize]),
             ("batchBoundTex", &lod.batch_bounds),
             ("cullOrderTex", &lod.cull_order),
+            ("Deferred", &self.deferral),
         ];
         bindings.extend(scene.geometry());
         bindings
@@ -332,7 +392,7 @@ impl LodCull {
                 per: self.per,
                 capacity: self.capacity,
                 local_size: LOCAL_SIZE,
-                pad: 0,
+                deferred: self.deferred,
             },
             Grid::Groups([1, 1, 1]),
             &[("Counters", &self.counters)],
@@ -340,9 +400,10 @@ impl LodCull {
     }
 
     /// The last steps of every cull phase: `list` (of `view`; counter
-    /// words `list` too) emptied, the cull dispatched into it (a late one
-    /// reading depth tiles of 2^hiz_shift pixels), and the dispatch
-    /// arguments of every list.
+    /// words `list` too) emptied, the cull dispatched into it (an early
+    /// phase over every instance; a late one, reading depth tiles of
+    /// 2^hiz_shift pixels, over what the early one deferred), and the
+    /// dispatch arguments of every list and deferral.
     #[allow(clippy::too_many_arguments)]
     fn cull_into<'b>(
         &'b self,
@@ -367,19 +428,38 @@ impl LodCull {
         );
         let bindings = self.cull_bindings(globals, lod, scene, view);
         let persp = view == ViewIndex::Camera && perspective;
-        p.dispatch(
-            &self.cull[persp as usize],
-            &LodCullPush {
-                view_index: list as u32,
-                instances: self.instances,
-                capacity: self.capacity,
-                hiz_shift,
-                reach: self.reach.get(),
-                pad: [0; 3],
-            },
-            Grid::Invocations(self.instances as u64),
-            &bindings,
-        );
+        let push = LodCullPush {
+            view_index: list as u32,
+            instances: self.instances,
+            capacity: self.capacity,
+            hiz_shift,
+            reach: self.reach.get(),
+            deferred: self.deferred,
+            pad: [0; 2],
+        };
+        let cull = &self.cull[persp as usize];
+        if list < LATE {
+            p.dispatch(
+                &cull[CULL_EARLY as usize],
+                &push,
+                Grid::Invocations(self.instances as u64),
+                &bindings,
+            );
+        } else {
+            // (the early list's counter words hold its deferrals' arguments)
+            let args = |word: u32| ((view as u32 * LOD_WORDS + word) * 4) as u64;
+            for (mode, word) in [
+                (CULL_DEFERRED_INSTANCES, LOD_DEFER_INSTANCE_ARGS),
+                (CULL_DEFERRED_BATCHES, LOD_DEFER_BATCH_ARGS),
+            ] {
+                p.dispatch(
+                    &cull[mode as usize],
+                    &push,
+                    Grid::Indirect(&self.counters, args(word)),
+                    &bindings,
+                );
+            }
+        }
         self.args_step(p);
         Ok(())
     }
@@ -606,6 +686,7 @@ impl LodCull {
             light_spheres: word(1, LOD_SPHERES) + word(LATE + 1, LOD_SPHERES),
             late_spheres: word(LATE, LOD_SPHERES),
             light_late_spheres: word(LATE + 1, LOD_SPHERES),
+            deferred: [0, 1].map(|v| [word(v, LOD_DEFER_INSTANCES), word(v, LOD_DEFER_BATCHES)]),
         })
     }
 
@@ -665,6 +746,13 @@ impl LodCull {
             return Ok(());
         };
         Self::set_lists(ctx, lod, capacity)?;
+        if self.deferred_given.is_none() {
+            let room = deferral_room(capacity);
+            let d = deferral_buffer(ctx, self.instances, room)?;
+            let mut old = std::mem::replace(&mut self.deferral, d);
+            old.destroy(ctx);
+            self.deferred = room;
+        }
         log::debug!(
             "LOD lists grown from {} to {capacity} batches",
             self.capacity
@@ -684,13 +772,14 @@ impl LodCull {
         self.counters.size
             + self.levels.size
             + self.visible.size
+            + self.deferral.size
             + self.region.size
             + self.hiz_tiles.iter().map(|b| b.size).sum::<u64>()
             + self.hiz_prev.iter().map(|b| b.size).sum::<u64>()
     }
 
     pub fn destroy(&mut self, ctx: &Context) {
-        for p in &mut self.cull {
+        for p in self.cull.iter_mut().flatten() {
             p.destroy(ctx);
         }
         self.args.destroy(ctx);
@@ -698,6 +787,7 @@ impl LodCull {
             p.destroy(ctx);
         }
         self.visible.destroy(ctx);
+        self.deferral.destroy(ctx);
         self.region.destroy(ctx);
         for p in &mut self.bounds {
             p.destroy(ctx);

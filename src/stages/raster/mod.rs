@@ -96,12 +96,13 @@ pub struct RasterStage {
 
 impl RasterStage {
     /// The stage for a scene (its SCENE_SPEC and levels of detail).
-    /// `list_batches`: the LOD lists' initial length (`--lod-list-batches`).
+    /// `lod`: the LOD lists' initial length (`--lod-list-batches`) and
+    /// the cull's deferral room.
     pub fn new(
         ctx: &Context,
         graphics: bool,
         scene_buffers: &mut SceneBuffers,
-        list_batches: Option<u32>,
+        lod: &crate::settings::LodParams,
     ) -> Result<Self> {
         let scene = scene_buffers.spec;
         if graphics && scene & 0xFF != crate::gpu::consts::SCENE_PLAIN {
@@ -118,7 +119,13 @@ impl RasterStage {
         let compute = ctx.guard(RasterPass::new(ctx, scene)?);
         let coverage = ctx.guard(CoveragePass::new(ctx)?);
         let lod = match &mut scene_buffers.lod {
-            Some(l) => Some(LodCull::new(ctx, scene, l, list_batches)?),
+            Some(l) => Some(LodCull::new(
+                ctx,
+                scene,
+                l,
+                lod.lod_list_batches,
+                lod.lod_deferred_batches,
+            )?),
             None => None,
         };
         Ok(RasterStage {
