@@ -76,6 +76,25 @@ impl Transforms {
         }
     }
 
+    /// Instance `k`'s transform as stored, bit for bit (rigid: the last
+    /// four words 0): equal keys place a molecule's atoms at equal bits.
+    pub fn key(&self, k: usize) -> [u32; 12] {
+        let mut key = [0u32; 12];
+        match self {
+            Transforms::Rigid(v) => {
+                for (w, x) in key.iter_mut().zip(v[k].q.iter().chain(&v[k].t)) {
+                    *w = x.to_bits();
+                }
+            }
+            Transforms::Affine(v) => {
+                for (w, x) in key.iter_mut().zip(v[k].iter().flatten()) {
+                    *w = x.to_bits();
+                }
+            }
+        }
+        key
+    }
+
     /// GPU bytes per instance.
     pub fn bytes_per_instance(&self) -> usize {
         match self {
