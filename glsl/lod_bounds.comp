@@ -15,9 +15,9 @@ layout(local_size_x = 64) in;
 layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
 layout(set = 0, binding = 1) uniform usamplerBuffer visWordTex;
 // x0, y0, x1, y1 in light texels (the host sets them empty first), then
-// the mask: bit i of word LOD_MASK_AT + i / 32 for fine tile i (zeroed by
-// the host).
+// the read mask (lod_mask.glsl; zeroed by the host).
 layout(set = 0, binding = 2) buffer Region { int region[]; };
+#include "lod_mask.glsl"
 #include "push/lod_bounds.glsl"
 
 layout(constant_id = 1) const bool PERSP = false;
@@ -54,7 +54,7 @@ void main() {
             ivec2 c = clamp(ivec2(round(clamp(p, vec2(-1e9), vec2(1e9)))), ivec2(1), ivec2(size - 2));
             int tile = (c.y >> S) * tw + (c.x >> S);
             if (tile != last) {
-                atomicOr(region[LOD_MASK_AT + (tile >> 5)], 1 << (tile & 31));
+                atomicOr(region[mask_word(tile)], mask_bit(tile));
                 last = tile;
             }
         }

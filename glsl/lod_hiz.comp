@@ -16,6 +16,7 @@ layout(set = 0, binding = 2) buffer Hiz { uint hiz[]; };
 // The light's read mask (lod_bounds.comp: a bit per fine tile a visible
 // point's lookup is centred in).
 layout(set = 0, binding = 3) readonly buffer Region { int region[]; };
+#include "lod_mask.glsl"
 
 layout(constant_id = 1) const uint MODE = 0u;
 #include "push/lod_hiz.glsl"
@@ -47,7 +48,7 @@ void main() {
             for (int y = a.y; y <= b.y; ++y) {
                 for (int x = a.x; x <= b.x; ++x) {
                     int j = y * int(tf.x) + x;
-                    read = read || (region[LOD_MASK_AT + (j >> 5)] & (1 << (j & 31))) != 0;
+                    read = read || (region[mask_word(j)] & mask_bit(j)) != 0;
                 }
             }
             if (!read) far = 0u;
