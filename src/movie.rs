@@ -9,6 +9,7 @@ use crate::camera::Camera;
 use crate::error::{Error, Result};
 use crate::output::{self, RunStats, shown};
 use crate::render::Renderer;
+use crate::render::tiles::Keep;
 use crate::run;
 use crate::scene::Scene;
 use crate::settings::{Aov, RenderSettings};
@@ -306,7 +307,8 @@ pub fn render_trajectory(
             let cam = camera_for(&base, fitted, k, args.orbit_deg)?;
             r.update(|s| s.camera = cam)?;
             lap(&mut t_upload);
-            let (img, times) = run::render_supersampled(r, n, tile, true, &mut |_, _| {})?;
+            let (img, times) =
+                run::render_supersampled(r, n, tile, Some(Keep::ALL), &mut |_, _| {})?;
             lap(&mut t_render);
             let img = img.ok_or_else(|| Error::Internal("no image read back".into()))?;
             let image = run::image_aov(&img, args.aov);

@@ -411,7 +411,7 @@ pub fn render_supersampled(
     r: &mut Renderer,
     n: u32,
     tile: Option<u32>,
-    read: bool,
+    read: Option<crate::render::tiles::Keep>,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<(Option<crate::render::tiles::Image>, PassTimes)> {
     if n <= 1 {
@@ -432,7 +432,9 @@ pub fn render_supersampled(
                 let cam = base.shifted(off(sx), off(sy)).camera;
                 r.update(|s| s.camera = cam)?;
                 let k = (sy * n + sx) as usize;
-                let (img, t) = r.render_image_with(tile, true, &mut |done, tiles| {
+                // (every sample is read: its colour is averaged)
+                let keep = read.unwrap_or(crate::render::tiles::Keep::ALL);
+                let (img, t) = r.render_image_with(tile, Some(keep), &mut |done, tiles| {
                     progress(k * tiles + done, samples * tiles)
                 })?;
                 let img = img.ok_or_else(|| Error::Internal("no image read back".into()))?;
@@ -467,7 +469,7 @@ pub fn render_bands(
 ) -> Result<PassTimes> {
     let tiles = r.tile_plan(tile)?;
     if tiles.len() == 1 {
-        let (img, t) = render_supersampled(r, n, tile, true, progress)?;
+        let (img, t) = render_supersampled(r, n, tile, Some(keep), progress)?;
         let image = img.ok_or_else(|| Error::Internal("no image read back".into()))?;
         on_band(crate::render::tiles::Band { y0: 0, image })?;
         return Ok(t);
@@ -693,7 +695,7 @@ pub fn render_layer_bands(
     let times = if tiles.len() == 1 {
         let (img, times) = r.render_image(tile)?;
         let color = if n > 1 {
-            render_supersampled(&mut r, n, tile, true, &mut |_, _| {})?
+            render_supersampled(&mut r, n, tile, Some(Keep::ALL), &mut |_, _| {})?
                 .0
                 .map(|i| i.color)
                 .unwrap_or_default()
@@ -933,6 +935,8 @@ pub struct PreparedRun<'c> {
     tile: Option<u32>,
     load_ms: f64,
     progress: StepProgress,
+    /// What a measured frame's image reads back besides colour.
+    keep: crate::render::tiles::Keep,
     times: Vec<PassTimes>,
     cached: Vec<PassTimes>,
     last: Option<crate::render::tiles::Image>,
@@ -961,9 +965,7 @@ impl<'c> PreparedRun<'c> {
         settings.aovs |= matches!(aov, Aov::Shadow | Aov::Ao);
         let samples = settings.ssaa_for(aov);
         let tile = settings.tile_size;
-        let mut r = Renderer::new_windowed(ctx, scene, settings, tile)?;
-        // (a colour image past 2^32 atoms: no LOD lists read back)
-        r.set_read_keys(aov != Aov::Color);
+        let r = Renderer::new_windowed(ctx, scene, settings, tile)?;
         let mut run = PreparedRun {
             r,
             input: input.to_string(),
@@ -972,6 +974,11 @@ impl<'c> PreparedRun<'c> {
             tile,
             load_ms,
             progress: StepProgress::new("rendering"),
+            // (a colour image past 2^32 atoms: no LOD lists read back)
+            keep: crate::render::tiles::Keep {
+                vis: aov != Aov::Color,
+                aov: true,
+            },
             times: Vec::new(),
             cached: Vec::new(),
             last: None,
@@ -979,7 +986,7 @@ impl<'c> PreparedRun<'c> {
         };
         for _ in 0..warmup {
             let (r, p) = (&mut run.r, &mut run.progress);
-            render_supersampled(r, samples, tile, false, &mut |d, t| p.tick(d, t))?;
+            render_supersampled(r, samples, tile, None, &mut |d, t| p.tick(d, t))?;
         }
         Ok(run)
     }
@@ -1001,8 +1008,13 @@ impl<'c> PreparedRun<'c> {
     /// Renders one measured frame; `read` keeps its image.
     pub fn frame(&mut self, read: bool) -> Result<()> {
         let (r, p) = (&mut self.r, &mut self.progress);
-        let (img, t) =
-            render_supersampled(r, self.samples, self.tile, read, &mut |d, n| p.tick(d, n))?;
+        let (img, t) = render_supersampled(
+            r,
+            self.samples,
+            self.tile,
+            read.then_some(self.keep),
+            &mut |d, n| p.tick(d, n),
+        )?;
         self.times.push(t);
         self.last = img.or(self.last.take());
         Ok(())

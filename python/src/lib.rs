@@ -235,7 +235,13 @@ impl Inner {
         let s = r.settings();
         let n = s.ssaa_for(aov);
         let tile = s.tile_size;
-        let (img, times) = sphereshade::run::render_supersampled(r, n, tile, true, &mut |_, _| {})?;
+        let (img, times) = sphereshade::run::render_supersampled(
+            r,
+            n,
+            tile,
+            Some(sphereshade::render::tiles::Keep::ALL),
+            &mut |_, _| {},
+        )?;
         let img = img.ok_or_else(|| sphereshade::Error::Internal("no image read back".into()))?;
         let image = sphereshade::run::image_aov(&img, aov);
         self.timings = times.iter().map(|(n, t)| (n.to_string(), *t)).collect();

@@ -45,10 +45,6 @@ pub struct Renderer<'c> {
     /// The ids the last frame recorded may name (per-id buffers sized by
     /// them are remade when they change: a frame in flight reads them).
     last_ids: u32,
-    /// Images read back name their visible spheres (`Image::vis`, and past
-    /// 2^32 atoms `Image::wide_ids`, which reads the LOD lists back);
-    /// false for images only their colour is taken from.
-    read_keys: bool,
     res: Resources,
 }
 
@@ -328,7 +324,6 @@ impl<'c> Renderer<'c> {
             slots: slots.keep(),
             next_slot: 0,
             last_ids: 0,
-            read_keys: true,
             res,
         };
         // From here on `r` owns everything (Drop destroys it on error).

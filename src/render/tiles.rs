@@ -227,24 +227,18 @@ impl<'a> Renderer<'a> {
         px + p.blur_reach_px() + outline + 2 * ALIGN
     }
 
-    /// Whether images read back name their visible spheres (default; see
-    /// `Image::vis`): false when only their colour is taken, which past
-    /// 2^32 atoms spares reading the LOD lists back.
-    pub fn set_read_keys(&mut self, on: bool) {
-        self.read_keys = on;
-    }
-
-    /// Whether an image read back now carries its keys: asked for, or
-    /// cheap (the ids fit the keys: no lists to read back).
-    fn keys_wanted(&self) -> bool {
-        self.read_keys || self.inspect().ids_fit()
+    /// Whether an image read back carries its keys (`Image::vis`): asked
+    /// for (`vis`), or cheap (the ids fit the keys: past 2^32 atoms naming
+    /// the visible spheres reads the LOD lists back).
+    fn keys_wanted(&self, vis: bool) -> bool {
+        vis || self.inspect().ids_fit()
     }
 
     /// Renders the whole image, in tiles when one window cannot hold it on
     /// this device or `forced_tile` asks for a tile side, and reads it back.
     /// The pass times are summed over the tiles.
     pub fn render_image(&mut self, forced_tile: Option<u32>) -> Result<(Image, PassTimes)> {
-        let (img, t) = self.render_image_with(forced_tile, true, &mut |_, _| {})?;
+        let (img, t) = self.render_image_with(forced_tile, Some(Keep::ALL), &mut |_, _| {})?;
         let img = img.ok_or_else(|| Error::Internal("render_image read nothing".into()))?;
         Ok((img, t))
     }
@@ -261,13 +255,15 @@ impl<'a> Renderer<'a> {
         )
     }
 
-    /// `render_image` that reads an untiled frame back only when `read`
-    /// (measured frames before the last need no pixels; tiles always do),
-    /// calling `on_tile(done, tiles)` after each tile.
+    /// `render_image` that reads back colour and what `read` keeps (the
+    /// keys whenever they name the spheres cheaply), or an untiled frame
+    /// not at all with None (measured frames before the last need no
+    /// pixels; tiles are read, all of them with None), calling
+    /// `on_tile(done, tiles)` after each tile.
     pub fn render_image_with(
         &mut self,
         forced_tile: Option<u32>,
-        read: bool,
+        read: Option<Keep>,
         on_tile: &mut dyn FnMut(usize, usize),
     ) -> Result<(Option<Image>, PassTimes)> {
         let cam = self.settings.camera;
@@ -280,10 +276,10 @@ impl<'a> Renderer<'a> {
             }
             let times = self.render_frame()?;
             on_tile(1, 1);
-            if !read {
+            let Some(keep) = read else {
                 return Ok((None, times));
-            }
-            let (vis, wide_ids) = if self.keys_wanted() {
+            };
+            let (vis, wide_ids) = if self.keys_wanted(keep.vis) {
                 self.inspect().read_keys()?
             } else {
                 let n = cam.width as usize * cam.height as usize;
@@ -296,7 +292,7 @@ impl<'a> Renderer<'a> {
                 wide,
                 vis,
                 wide_ids,
-                aov: if aovs {
+                aov: if aovs && keep.aov {
                     Some(self.inspect().read_aov()?)
                 } else {
                     None
@@ -308,14 +304,19 @@ impl<'a> Renderer<'a> {
             return Ok((Some(image), times));
         }
         let n = cam.width as usize * cam.height as usize;
+        let read = read.unwrap_or(Keep::ALL);
+        let keep = Keep {
+            vis: self.keys_wanted(read.vis),
+            aov: read.aov,
+        };
         let mut image = Image {
             width: cam.width,
             height: cam.height,
             color: vec![0; if wide { 2 * n } else { n }],
             wide,
             vis: vec![crate::gpu::VIS_EMPTY; n],
-            wide_ids: (self.read_keys && !self.inspect().ids_fit()).then(|| vec![0; n]),
-            aov: aovs.then(|| vec![0; n]),
+            wide_ids: (keep.vis && !self.inspect().ids_fit()).then(|| vec![0; n]),
+            aov: (aovs && keep.aov).then(|| vec![0; n]),
             tiles: tiles.len(),
             spheres: self.inspect().represented(),
             ids: self.inspect().id_map(),
@@ -326,10 +327,6 @@ impl<'a> Renderer<'a> {
         self.set_light_cache(true);
         let result = (|| {
             let mut done = 0;
-            let keep = Keep {
-                vis: self.keys_wanted(),
-                aov: true,
-            };
             for row in tile_rows(&tiles) {
                 let (band, t) = self.render_row(&tiles[row.clone()], keep)?;
                 sum.add(&t);
