@@ -821,6 +821,19 @@ fn assert_same_frame(a: &Inspect, b: &Inspect, what: &str) {
     );
 }
 
+/// A camera on scene `s` (128x96, orthographic) zoomed 8x into its
+/// default view and panned `shift` of its radius to the right.
+fn meso_pan(s: &Scene) -> impl Fn(f64) -> sphereshade::camera::Camera {
+    let r = s.bounding_sphere().1 as f64;
+    let whole = camera(s, 128, 96, None);
+    move |shift| {
+        let mut cam = whole;
+        cam.view_height = whole.view_height / 8.0;
+        cam.center = whole.center + whole.right * (r * shift);
+        cam
+    }
+}
+
 /// Culling at coarse levels (their spheres grown past the atoms: each
 /// (type, level) has its own bounds) never drops a visible sphere: on one
 /// renderer panning over the meso scene (orthographic, so every frame
@@ -834,14 +847,7 @@ fn culled_coarse_levels_are_never_visible() {
     let ctx = validated_context();
     // (a virion in plasma: proteins of thousands of atoms behind others)
     let s = sphereshade::scene::meso::meso(1_000_000, 1).unwrap();
-    let r = s.bounding_sphere().1 as f64;
-    let whole = camera(&s, 128, 96, None);
-    let pan = |shift: f64| {
-        let mut cam = whole;
-        cam.view_height = whole.view_height / 8.0;
-        cam.center = whole.center + whole.right * (r * shift);
-        cam
-    };
+    let pan = meso_pan(&s);
     let st = settings(pan(0.0), ShadowMode::IssmSoft);
     let mut rd = Renderer::new(&ctx, &s, st.clone()).expect("renderer");
     let mut coarse = 0;
@@ -890,14 +896,7 @@ fn culled_coarse_levels_are_never_visible() {
 fn deferred_batches_past_the_room_are_tested_with_their_instance() {
     let ctx = validated_context();
     let s = sphereshade::scene::meso::meso(1_000_000, 1).unwrap();
-    let r = s.bounding_sphere().1 as f64;
-    let whole = camera(&s, 128, 96, None);
-    let pan = |shift: f64| {
-        let mut cam = whole;
-        cam.view_height = whole.view_height / 8.0;
-        cam.center = whole.center + whole.right * (r * shift);
-        cam
-    };
+    let pan = meso_pan(&s);
     let st = settings(pan(0.0), ShadowMode::IssmSoft);
     let mut tight = st.clone();
     tight.lod.lod_deferred_batches = Some(1);
