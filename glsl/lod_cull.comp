@@ -164,6 +164,21 @@ float instance_stretch(uint k, vec3 c, vec3 p) {
 // (the f32 rounding of a placed point: ~1e-7 of its largest coordinate)
 float coord_max(vec3 p) { return max(max(abs(p.x), abs(p.y)), abs(p.z)); }
 
+// How much a batch sphere placed with an instance at p grows for the
+// rounding of its placed centre.
+float batch_grow(vec3 p) { return 1e-6 * coord_max(p) + 1e-4; }
+
+// Appends batch entry e to list li (an atomicAdd each: a count first and
+// the entries in a second loop would need both loops to agree, lane by
+// lane; past the capacity it is only counted).
+void list_batch(uint li, uvec2 e) {
+    uint at = atomicAdd(counters[li * LOD_WORDS + LOD_BATCHES], 1u);
+    if (at < pc.capacity) list[li * (pc.capacity + LOD_LIST_TAIL) + at] = e;
+}
+
+// Atoms of batch j of a level of `atoms` atoms.
+uint batch_atoms(uint atoms, uint j) { return min(atoms - (j << BATCH_SHIFT), 1u << BATCH_SHIFT); }
+
 void main() {
     uint view = pc.view_index & 1u;
     bool cam = view == 0u;
@@ -188,13 +203,11 @@ void main() {
         vec3 bv;
         float br;
         ivec4 rc;
-        place_batch(v, persp, k, first + e.y, stretch, 1e-6 * coord_max(p) + 1e-4, bv, br, rc);
+        place_batch(v, persp, k, first + e.y, stretch, batch_grow(p), bv, br, rc);
         if (hidden(false, v, bv, br, br, rc, persp)) return;
-        uint at = atomicAdd(counters[late_list * LOD_WORDS + LOD_BATCHES], 1u);
-        if (at < pc.capacity) list[late_list * (pc.capacity + LOD_LIST_TAIL) + at] = e;
+        list_batch(late_list, e);
         uint atoms = texelFetch(levelTex, int(base + level)).w;
-        atomicAdd(counters[late_list * LOD_WORDS + LOD_SPHERES],
-                  min(atoms - (e.y << BATCH_SHIFT), 1u << BATCH_SHIFT));
+        atomicAdd(counters[late_list * LOD_WORDS + LOD_SPHERES], batch_atoms(atoms, e.y));
         return;
     }
     uint k, from = 0u;
@@ -287,7 +300,7 @@ void main() {
     uint batches = (atoms + BATCH_MASK) >> BATCH_SHIFT;
     uint first = uint(texelFetch(lodBoundTex, int(2u * (base + level) + 1u)).w);
     float stretch = instance_stretch(k, bs.xyz, p);
-    float grow = 1e-6 * coord_max(p) + 1e-4;
+    float grow = batch_grow(p);
     uint li = late ? late_list : view;
     uint word = k | (level << BATCH_INSTANCE_BITS);
     uint spheres = 0u;
@@ -304,9 +317,8 @@ void main() {
         bool keep = late ? !early && in_window && !hidden(false, v, bv, br, br, brc, persp)
                          : early;
         if (keep) {
-            uint at = atomicAdd(counters[li * LOD_WORDS + LOD_BATCHES], 1u);
-            if (at < pc.capacity) list[li * (pc.capacity + LOD_LIST_TAIL) + at] = uvec2(word, j);
-            spheres += min(atoms - (j << BATCH_SHIFT), 1u << BATCH_SHIFT);
+            list_batch(li, uvec2(word, j));
+            spheres += batch_atoms(atoms, j);
         }
         // Early: a batch in the window that last frame's image hides is
         // deferred; the late phase tests it alone against this frame's

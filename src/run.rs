@@ -418,6 +418,8 @@ pub fn render_supersampled(
         return r.render_image_with(tile, read, progress);
     }
     let samples = (n * n) as usize;
+    // (every sample is read: its colour is averaged)
+    let keep = read.unwrap_or(crate::render::tiles::Keep::ALL);
     let base = r.settings().clone();
     let cache = r.inspect().light_cache();
     r.set_light_cache(true);
@@ -432,8 +434,6 @@ pub fn render_supersampled(
                 let cam = base.shifted(off(sx), off(sy)).camera;
                 r.update(|s| s.camera = cam)?;
                 let k = (sy * n + sx) as usize;
-                // (every sample is read: its colour is averaged)
-                let keep = read.unwrap_or(crate::render::tiles::Keep::ALL);
                 let (img, t) = r.render_image_with(tile, Some(keep), &mut |done, tiles| {
                     progress(k * tiles + done, samples * tiles)
                 })?;

@@ -157,12 +157,11 @@ pub struct LodCull {
     /// Per instance and view: it passed the occlusion test last frame.
     visible: Buffer,
     /// What a view's early phase defers to its late one: an entry per
-    /// instance, then `deferred` batch entries (one view at a time: the
-    /// camera's late phase reads them before the light's early one).
+    /// instance, then [`LodCull::deferred`] batch entries (one view at a
+    /// time: the camera's late phase reads them before the light's early
+    /// one).
     deferral: Buffer,
-    deferred: u32,
-    /// `deferred` as given (else it follows the lists' capacity,
-    /// [`deferral_room`]).
+    /// The batch entries as given (else they follow the lists' capacity).
     deferred_given: Option<u32>,
     /// Per view: its depth tiles (of this frame's early image).
     hiz_tiles: [Buffer; 2],
@@ -331,11 +330,11 @@ impl LodCull {
         let levels = ctx.guard(Buffer::storage(ctx, "LOD levels", instances)?);
         let deferred = deferred_batches.unwrap_or(deferral_room(capacity));
         let deferral = ctx.guard(deferral_buffer(ctx, lod.instance_count, deferred)?);
+        // (`deferred` is derived from here on: LodCull::deferred)
         Self::set_lists(ctx, lod, capacity)?;
         Ok(LodCull {
             cull: [ortho.keep(), persp.keep()],
             deferral: deferral.keep(),
-            deferred,
             deferred_given: deferred_batches,
             args: args.keep(),
             hiz: [hiz_fine.keep(), hiz_coarse.keep()],
@@ -392,7 +391,7 @@ impl LodCull {
                 per: self.per,
                 capacity: self.capacity,
                 local_size: LOCAL_SIZE,
-                deferred: self.deferred,
+                deferred: self.deferred(),
             },
             Grid::Groups([1, 1, 1]),
             &[("Counters", &self.counters)],
@@ -434,7 +433,7 @@ impl LodCull {
             capacity: self.capacity,
             hiz_shift,
             reach: self.reach.get(),
-            deferred: self.deferred,
+            deferred: self.deferred(),
             pad: [0; 2],
         };
         let cull = &self.cull[persp as usize];
@@ -707,6 +706,13 @@ impl LodCull {
         self.capacity
     }
 
+    /// Batch entries the deferral buffer holds now (after one per
+    /// instance): as given, else [`deferral_room`] of the lists' capacity.
+    fn deferred(&self) -> u32 {
+        self.deferred_given
+            .unwrap_or_else(|| deferral_room(self.capacity))
+    }
+
     /// After a frame that drew the lists: if a list was given more batches
     /// than it holds (the cull dropped the rest), or more than three
     /// quarters of them (a viewer zooming in asks more frame after frame),
@@ -747,11 +753,9 @@ impl LodCull {
         };
         Self::set_lists(ctx, lod, capacity)?;
         if self.deferred_given.is_none() {
-            let room = deferral_room(capacity);
-            let d = deferral_buffer(ctx, self.instances, room)?;
+            let d = deferral_buffer(ctx, self.instances, deferral_room(capacity))?;
             let mut old = std::mem::replace(&mut self.deferral, d);
             old.destroy(ctx);
-            self.deferred = room;
         }
         log::debug!(
             "LOD lists grown from {} to {capacity} batches",
