@@ -269,6 +269,15 @@ fn cases(d: &Path) -> Vec<Case> {
             ),
             "the meso scene holds between 1 and",
         ),
+        // (10^12 built for an hour towards ~50 GB before it was refused)
+        c(
+            "--scene meso --atoms 1e12",
+            render(
+                vec!["--scene".into(), "meso".into(), "--atoms".into(), "1000000000000".into()],
+                &[],
+            ),
+            "the meso scene holds between 1 and 100000000000 atoms (an instance record per protein copy; more needs nested instancing)",
+        ),
         c(
             "--deep-pool-chunks 4e9",
             render(
