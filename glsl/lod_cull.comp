@@ -86,6 +86,10 @@ layout(constant_id = 1) const bool PERSP = false;
 // CULL_DEFERRED_INSTANCES or CULL_DEFERRED_BATCHES (the late phase, over
 // what the early one deferred).
 layout(constant_id = 2) const uint MODE = CULL_EARLY;
+// The view (0 camera, 1 key light): lavapipe runs both sides of a branch
+// on data, so the light's pipeline has no level choice and the camera's
+// no light-region test.
+layout(constant_id = 3) const uint VIEW = 0u;
 
 // Whether every pixel an instance or batch (bounds centred at view
 // coordinates cv: sphere radius r, box half-extent ez along the view)
@@ -97,8 +101,9 @@ bool hidden(bool prev, View v, vec3 cv, float r, float ez, ivec4 rc, bool persp)
     // (less a margin for the f32 rounding of the atoms' keys: a grazing
     // ray's perspective key may lose ~|cv| * 3e-4 to cancellation; the
     // distance from the eye is at least the depth along the view)
+    float margin = 1e-4 * (abs(cv.z) + abs(v.depth.x) + r) + 1e-3;
     float zmin = persp ? max(length(cv) - r, cv.z - ez) - 1e-3 * (length(cv) + r)
-                       : cv.z - ez + v.depth.x - 1e-4 * (abs(cv.z) + abs(v.depth.x) + r) - 1e-3;
+                       : cv.z - ez + v.depth.x - margin;
     uint near = floatBitsToUint(max(zmin, 0.0));
     ivec2 o = ivec2(v.dims.zw);
     ivec4 b = rc - ivec4(o, o); // window pixels
@@ -108,12 +113,35 @@ bool hidden(bool prev, View v, vec3 cv, float r, float ez, ivec4 rc, bool persp)
     int sh = fine ? S : S + 3;
     uint base = fine ? 0u : tf.x * tf.y;
     uint tw = fine ? tf.x : (v.dims.x + (8u << S) - 1u) >> (S + 3);
+    // The key light (orthographic, a texel wider than an atom): per
+    // tile, the nearest depth of the bounds over the texel centres the
+    // tile holds (the sphere's front at their least distance from its
+    // axis, never nearer than the box), and a tile the disc misses hides
+    // it whatever it holds. One-texel tiles at an atom's scale: meso 10^9
+    // at 2,025 A, the light's spheres 9.42 -> 8.35 M and issm_raster 140
+    // -> 92 ms for light_cull +11 ms. (The camera's 4-px tiles gained 3 %
+    // of its spheres for more cull time than that saved.)
+    float ppu = v.center.w;
+    // (a texel centre's offset from the centre, in texels: x + c.x, -(y + c.y);
+    // the radius grown past the rasterizer's f32 disc test)
+    vec2 c = vec2(0.5 - 0.5 * v.right.w - cv.x * ppu, 0.5 - 0.5 * v.up.w + cv.y * ppu);
+    float rp = r * ppu * (1.0 + 1e-4) + 1e-3;
     for (int y = b.y >> sh; y <= (b.w >> sh); ++y) {
         for (int x = b.x >> sh; x <= (b.z >> sh); ++x) {
             // (clamped: the last image's tiles may be of another size)
             int at = min(int(base + uint(y) * tw + uint(x)), textureSize(hizTex) - 1);
             uint word = prev ? texelFetch(hizPrevTex, at).x : texelFetch(hizTex, at).x;
-            if (word >= near) return false;
+            uint near_t = near;
+            if (VIEW == 1u) {
+                // the tile's texel centres, in texels from the centre
+                vec2 lo = vec2(ivec2(max(x << sh, b.x), max(y << sh, b.y)) + o) + c;
+                vec2 hi = vec2(ivec2(min(((x + 1) << sh) - 1, b.z), min(((y + 1) << sh) - 1, b.w)) + o) + c;
+                vec2 d = max(max(lo, -hi), vec2(0.0));
+                float h2 = rp * rp - dot(d, d);
+                float zt = cv.z - min(ez, sqrt(max(h2, 0.0)) / ppu) + v.depth.x - margin;
+                near_t = h2 < 0.0 ? 0xFFFFFFFFu : floatBitsToUint(max(zt, 0.0)); // (above every word)
+            }
+            if (word >= near_t) return false;
         }
     }
     return true;
@@ -180,8 +208,8 @@ void list_batch(uint li, uvec2 e) {
 uint batch_atoms(uint atoms, uint j) { return min(atoms - (j << BATCH_SHIFT), 1u << BATCH_SHIFT); }
 
 void main() {
-    uint view = pc.view_index & 1u;
-    bool cam = view == 0u;
+    uint view = VIEW;
+    bool cam = VIEW == 0u;
     View v = cam ? g.cam : g.light;
     bool persp = PERSP && cam;
     // (the early list's counter words hold what it deferred)
@@ -235,7 +263,7 @@ void main() {
     vec3 p = instance_apply(k, bs.xyz);
     vec3 cv = view_space(v, p, persp);
     uint level;
-    if (pc.view_index == 0u) {
+    if (cam) {
         // pixels per world unit at the instance's nearest point
         float ppu = v.center.w;
         if (PERSP) {

@@ -766,10 +766,16 @@ fn the_light_draws_only_what_visible_points_read() {
     let mut cam = camera(&s, 160, 120, None);
     cam.view_height /= 16.0;
     let all = s.represented();
-    for (shadows, t) in [
-        (ShadowMode::IssmSoft, None),
-        (ShadowMode::Issm, Some(3)),
-        (ShadowMode::SmPcf, None),
+    // (wide: more light texels with atoms near their depth, where the
+    // light's per-tile front test hides least; it failed with a front
+    // half a radius too deep)
+    let mut wide = camera(&s, 320, 240, None);
+    wide.view_height /= 2.0;
+    for (cam, shadows, t) in [
+        (wide, ShadowMode::Issm, Some(0)),
+        (cam, ShadowMode::IssmSoft, None),
+        (cam, ShadowMode::Issm, Some(3)),
+        (cam, ShadowMode::SmPcf, None),
     ] {
         let mut st = settings(cam, shadows);
         st.lod.lod_pixels = 0.0;
@@ -785,7 +791,9 @@ fn the_light_draws_only_what_visible_points_read() {
         assert!(counts.light_spheres > 0, "{what}");
         // (the texels' rectangle alone kept 26 k spheres here, the reach of
         // 34 texels any lookup was once given more)
-        assert!((counts.light_spheres as u64) < all / 100, "{what}");
+        if cam.view_height < wide.view_height {
+            assert!((counts.light_spheres as u64) < all / 100, "{what}");
+        }
         assert_no_validation_messages(&ctx);
     }
 }

@@ -147,10 +147,10 @@ pub struct LodCounts {
 }
 
 pub struct LodCull {
-    /// Orthographic and perspective cameras (constant 1), each per pass
-    /// (constant 2: CULL_EARLY, CULL_DEFERRED_INSTANCES,
-    /// CULL_DEFERRED_BATCHES).
-    cull: [[ComputePipeline; 3]; 2],
+    /// The orthographic and perspective cameras' (constant 1) and the
+    /// key light's (constant 3, the view), each per pass (constant 2:
+    /// CULL_EARLY, CULL_DEFERRED_INSTANCES, CULL_DEFERRED_BATCHES).
+    cull: [[ComputePipeline; 3]; 3],
     args: ComputePipeline,
     /// The depth tiles (fine, coarse: [`hiz_shift`]).
     hiz: [ComputePipeline; 2],
@@ -224,7 +224,7 @@ impl LodCull {
         deferred_batches: Option<u32>,
     ) -> Result<Self> {
         let bindings = [&BINDINGS[..], &SCENE_GEOMETRY].concat();
-        let make = |name: &str, persp: u32, mode: u32| {
+        let make = |name: &str, (persp, view): (u32, u32), mode: u32| {
             ComputePipeline::new(
                 ctx,
                 &PipelineDesc {
@@ -233,19 +233,19 @@ impl LodCull {
                     bindings: &bindings,
                     push_size: std::mem::size_of::<LodCullPush>() as u32,
                     local_size: 64,
-                    constants: &[persp, mode],
+                    constants: &[persp, mode, view],
                     scene,
                 },
             )
         };
-        let passes = |persp: u32, names: [&str; 3]| -> Result<[ComputePipeline; 3]> {
-            let early = ctx.guard(make(names[0], persp, CULL_EARLY)?);
-            let inst = ctx.guard(make(names[1], persp, CULL_DEFERRED_INSTANCES)?);
-            let batches = make(names[2], persp, CULL_DEFERRED_BATCHES)?;
+        let passes = |pv: (u32, u32), names: [&str; 3]| -> Result<[ComputePipeline; 3]> {
+            let early = ctx.guard(make(names[0], pv, CULL_EARLY)?);
+            let inst = ctx.guard(make(names[1], pv, CULL_DEFERRED_INSTANCES)?);
+            let batches = make(names[2], pv, CULL_DEFERRED_BATCHES)?;
             Ok([early.keep(), inst.keep(), batches])
         };
         let ortho = ctx.guard(passes(
-            0,
+            (0, 0),
             [
                 "lod cull",
                 "lod cull deferred instances",
@@ -253,11 +253,19 @@ impl LodCull {
             ],
         )?);
         let persp = ctx.guard(passes(
-            1,
+            (1, 0),
             [
                 "lod cull perspective",
                 "lod cull deferred instances perspective",
                 "lod cull deferred batches perspective",
+            ],
+        )?);
+        let light = ctx.guard(passes(
+            (0, 1),
+            [
+                "light cull",
+                "light cull deferred instances",
+                "light cull deferred batches",
             ],
         )?);
         let args = ctx.guard(ComputePipeline::new(
@@ -333,7 +341,7 @@ impl LodCull {
         // (`deferred` is derived from here on: LodCull::deferred)
         Self::set_lists(ctx, lod, capacity)?;
         Ok(LodCull {
-            cull: [ortho.keep(), persp.keep()],
+            cull: [ortho.keep(), persp.keep(), light.keep()],
             deferral: deferral.keep(),
             deferred_given: deferred_batches,
             args: args.keep(),
@@ -426,7 +434,11 @@ impl LodCull {
             BATCH_EMPTY,
         );
         let bindings = self.cull_bindings(globals, lod, scene, view);
-        let persp = view == ViewIndex::Camera && perspective;
+        // (camera orthographic, perspective; the light)
+        let pipes = match view {
+            ViewIndex::Camera => perspective as usize,
+            ViewIndex::Light => 2,
+        };
         let push = LodCullPush {
             view_index: list as u32,
             instances: self.instances,
@@ -436,7 +448,7 @@ impl LodCull {
             deferred: self.deferred(),
             pad: [0; 2],
         };
-        let cull = &self.cull[persp as usize];
+        let cull = &self.cull[pipes];
         if list < LATE {
             p.dispatch(
                 &cull[CULL_EARLY as usize],
