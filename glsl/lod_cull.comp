@@ -1,7 +1,7 @@
 #version 460
 // Levels of detail and culling of an instanced scene, per view in two
-// phases (pc.view_index: the list filled, 0 camera early, 1 key light
-// early, 2 camera late, 3 key light late):
+// phases (the list filled: VIEW early, 2 + VIEW late; 0 camera, 1 key
+// light):
 //   early (MODE CULL_EARLY, one invocation per instance): the camera's
 //     chooses the instance's level from its size on screen (the coarsest
 //     whose switch size it is within, src/scene/instanced/lod.rs) and
@@ -117,10 +117,11 @@ bool hidden(bool prev, View v, vec3 cv, float r, float ez, ivec4 rc, bool persp)
     // tile, the nearest depth of the bounds over the texel centres the
     // tile holds (the sphere's front at their least distance from its
     // axis, never nearer than the box), and a tile the disc misses hides
-    // it unless empty (an empty texel's word is all ones). One-texel tiles at an atom's scale: meso 10^9
-    // at 2,025 A, the light's spheres 9.42 -> 8.35 M and issm_raster 140
-    // -> 92 ms for light_cull +11 ms. (The camera's 4-px tiles gained 3 %
-    // of its spheres for more cull time than that saved.)
+    // it unless empty (an empty texel's word is all ones). One-texel
+    // tiles at an atom's scale: meso 10^9 at 2,025 A, the light's spheres
+    // 9.42 -> 8.35 M and issm_raster 140 -> 92 ms for light_cull +11 ms.
+    // (The camera's 4-px tiles gained 3 % of its spheres for more cull
+    // time than that saved.)
     float ppu = v.center.w;
     // (a texel centre's offset from the centre, in texels: x + c.x, -(y + c.y);
     // the radius grown past the rasterizer's f32 disc test)

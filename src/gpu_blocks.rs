@@ -111,9 +111,8 @@ gpu_push! {
 
     /// `lod_cull` (glsl/lod_cull.comp): one invocation per instance.
     LodCullPush "lod_cull" {
-        /// 0 camera (chooses the levels), 1 key light (takes them); + 2:
-        /// the late phase of that view.
-        view_index: u32,
+        /// (the view and phase are the pipeline's specialization
+        /// constants VIEW and MODE)
         instances: u32,
         /// Entries of the view's batch list.
         capacity: u32,
@@ -126,7 +125,7 @@ gpu_push! {
         /// Batch entries the early phase may defer to the late one (after
         /// one entry per instance in the deferral buffer).
         deferred: u32,
-        pad: [u32; 2],
+        pad: [u32; 3],
     }
 
     /// `lod_bounds` (glsl/lod_bounds.comp).

@@ -440,13 +440,12 @@ impl LodCull {
             ViewIndex::Light => 2,
         };
         let push = LodCullPush {
-            view_index: list as u32,
             instances: self.instances,
             capacity: self.capacity,
             hiz_shift,
             reach: self.reach.get(),
             deferred: self.deferred(),
-            pad: [0; 2],
+            pad: [0; 3],
         };
         let cull = &self.cull[pipes];
         if list < LATE {
