@@ -101,9 +101,33 @@ fn sorted_hits(spheres: &[Sphere], cam: &Camera, px: u32, py: u32) -> Option<Vec
     Some(hits)
 }
 
-/// Checks one camera; returns the pixels compared.
-fn composite_matches(ctx: &Context, name: &str, fov: Option<f64>) -> usize {
-    let spheres = stack();
+/// Twelve faint translucent spheres one behind the other in front of an
+/// opaque one: more layers than one of shade's selection scans keeps (8).
+fn deep_stack() -> Vec<Sphere> {
+    let mut v: Vec<Sphere> = (0..12)
+        .map(|k| {
+            let f = k as f32;
+            let rgb = [
+                (40 + 17 * k) as u8,
+                (230 - 15 * k) as u8,
+                (60 + 13 * k) as u8,
+            ];
+            ball([0.07 * f - 0.4, 0.05 * f - 0.3, -0.45 * f], 1.0, rgb, 40)
+        })
+        .collect();
+    v.push(ball([0.3, 0.2, -6.5], 1.3, [200, 200, 200], 255));
+    v
+}
+
+/// Checks one camera on `spheres`, with at least 20 pixels behind
+/// `layers` translucent spheres; returns the pixels compared.
+fn composite_matches(
+    ctx: &Context,
+    name: &str,
+    fov: Option<f64>,
+    spheres: Vec<Sphere>,
+    layers_seen: usize,
+) -> usize {
     let scene = scene_of(spheres.clone(), name);
     let cam = camera(&scene, W, H, fov);
     let all = render(ctx, &scene, flat(cam));
@@ -120,7 +144,7 @@ fn composite_matches(ctx: &Context, name: &str, fov: Option<f64>) -> usize {
             f.color
         })
         .collect();
-    let (mut compared, mut worst, mut four) = (0, 0.0f64, 0);
+    let (mut compared, mut worst, mut deep) = (0, 0.0f64, 0);
     let mut diff = image::RgbaImage::new(W, H);
     for py in 0..H {
         for px in 0..W {
@@ -162,8 +186,8 @@ fn composite_matches(ctx: &Context, name: &str, fov: Option<f64>) -> usize {
             };
             worst = worst.max(e);
             compared += 1;
-            if layers >= 4 {
-                four += 1;
+            if layers >= layers_seen {
+                deep += 1;
             }
             let v = (e * 255.0 * 64.0).min(255.0) as u8;
             diff.put_pixel(px, py, image::Rgba([v, 0, 0, 255]));
@@ -185,12 +209,12 @@ fn composite_matches(ctx: &Context, name: &str, fov: Option<f64>) -> usize {
         );
     }
     eprintln!(
-        "{name}: {compared} px, worst {:.3}/255, {four} px behind 4 layers",
+        "{name}: {compared} px, worst {:.3}/255, {deep} px behind {layers_seen} layers",
         worst * 255.0
     );
     assert!(
-        four > 20,
-        "{name}: too few pixels see all four translucent spheres"
+        deep > 20,
+        "{name}: too few pixels behind {layers_seen} translucent spheres"
     );
     compared
 }
@@ -198,10 +222,13 @@ fn composite_matches(ctx: &Context, name: &str, fov: Option<f64>) -> usize {
 #[test]
 fn overlapping_translucent_spheres_composite_like_sorted_ray_hits() {
     let ctx = validated_context();
-    let n = composite_matches(&ctx, "see-through-ortho", None);
+    let n = composite_matches(&ctx, "see-through-ortho", None, stack(), 4);
     assert!(n > (W * H / 4) as usize);
-    let n = composite_matches(&ctx, "see-through-persp", Some(35.0));
+    let n = composite_matches(&ctx, "see-through-persp", Some(35.0), stack(), 4);
     assert!(n > (W * H / 4) as usize);
+    // more layers than one selection scan takes (shade keeps 8 a scan)
+    let n = composite_matches(&ctx, "see-through-deep", None, deep_stack(), 12);
+    assert!(n > (W * H / 8) as usize);
     assert_no_validation_messages(&ctx);
 }
 

@@ -93,7 +93,7 @@ pub const PASSES: &[(&str, &str)] = &[
     ),
     (
         "oit_fill",
-        "the same enumeration as the count, writing (depth key, sphere id) at head + an atomic per-pixel cursor; `shade` takes each pixel's fragments in depth order (a selection scan per step, stopping once the transmittance is below 1/1024) and composites them, lit, front to back over the opaque surface",
+        "the same enumeration as the count, writing (depth key, sphere id) at head + an atomic per-pixel cursor; `shade` takes each pixel's fragments in depth order (selection scans of its run, each keeping the least 8 after the last taken, stopping once the transmittance is below 1/1024) and composites them, lit, front to back over the opaque surface",
     ),
     (
         "coverage",

@@ -13,9 +13,10 @@
 //!   a tile that does not fit is flagged, the pool grown and the frame
 //!   rendered again (as the deep lists do);
 //! - `oit_fill`: the same enumeration writing (depth key, sphere id);
-//! - `shade` takes each pixel's fragments in (depth, id) order, a
-//!   selection scan per step until the transmittance is below 1/1024, and
-//!   composites them, lit, front to back over the opaque surface.
+//! - `shade` takes each pixel's fragments in (depth, id) order (selection
+//!   scans, each keeping the least 8 after the last taken) until the
+//!   transmittance is below 1/1024, and composites them, lit, front to back
+//!   over the opaque surface.
 //!
 //! Host memory: nothing. Device memory: 12 B per pixel (count, cursor,
 //! head) and 8 B per fragment of the pool, plus band jobs.
