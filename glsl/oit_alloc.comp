@@ -3,7 +3,8 @@
 // deep_alloc.comp does for the light's, one invocation per 8x8-pixel tile:
 // a running sum over the tile's 64 counts, one atomicAdd on the pool
 // counter for the whole tile; each pixel's fragments are contiguous from
-// its head. (Serial per tile, not a 64-lane shared-memory scan: on
+// its head, written with its count (fill and shade read the pair with
+// one fetch). (Serial per tile, not a 64-lane shared-memory scan: on
 // lavapipe the scan's barriers cost 13 ms at 480x360, the loop about a
 // tenth; on a GPU the pass is small either way.) A tile that does not fit
 // gets no heads (F_NONE) and the overflow flag is set; the counter still
@@ -15,7 +16,7 @@ layout(local_size_x = 64) in;
 
 layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
 layout(set = 0, binding = 1) readonly buffer Count { uint counts[]; };
-layout(set = 0, binding = 2) writeonly buffer Head { uint heads[]; };
+layout(set = 0, binding = 2) writeonly buffer Head { uvec2 heads[]; };
 layout(set = 0, binding = 3) buffer Counters { uint counters[]; };
 
 #include "push/oit_alloc.glsl"
@@ -52,7 +53,7 @@ void main() {
         for (uint x = o.x; x < x1; ++x) {
             uint k = y * w + x;
             uint c = counts[k];
-            heads[k] = (c > 0u && base != F_NONE) ? base + run : F_NONE;
+            heads[k] = uvec2((c > 0u && base != F_NONE) ? base + run : F_NONE, c);
             run += c;
         }
     }

@@ -21,8 +21,8 @@ layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
 layout(set = 0, binding = 1) uniform usamplerBuffer visWordTex;
 layout(set = 0, binding = 2) buffer Count { uint counts[]; };
 layout(set = 0, binding = 3) buffer Cursor { uint cursor[]; };
-// (read as texels: a gather, where a storage load at per-lane addresses is
-// a scalar loop on lavapipe)
+// Per pixel (head, count) from oit_alloc (read as texels: a gather, where a
+// storage load at per-lane addresses is a scalar loop on lavapipe).
 layout(set = 0, binding = 4) uniform usamplerBuffer oitHeadTex;
 layout(set = 0, binding = 5) writeonly buffer Frags { uvec2 frags[]; };
 layout(set = 0, binding = 6) buffer Counters { uint counters[]; };
@@ -33,8 +33,6 @@ layout(set = 0, binding = 8) buffer Inline { uint inline_bits[]; };
 // back, neighbours in space visited together (cache locality; a pixel's
 // fragments still arrive in no useful order: shade selects them).
 layout(set = 0, binding = 9) uniform usamplerBuffer orderTex;
-// The counts again, read by the fill (the count pass's atomics are done).
-layout(set = 0, binding = 10) uniform usamplerBuffer oitCountTex;
 #define SCENE_ATTRIBUTES
 #include "scene.glsl"
 #define SPHERE_AT(i) (scene_instanced() \
@@ -63,11 +61,11 @@ void visit(uint id, Footprint f, ivec2 t) {
         atomicAdd(counts[k], 1u);
         return;
     }
-    uint head = texelFetch(oitHeadTex, int(k)).x;
-    if (head == F_NONE) return; // its tile did not fit: the frame is rendered again
+    uvec2 hc = texelFetch(oitHeadTex, int(k)).xy;
+    if (hc.x == F_NONE) return; // its tile did not fit: the frame is rendered again
     uint slot = atomicAdd(cursor[k], 1u);
-    uint addr = head + slot;
-    if (slot >= texelFetch(oitCountTex, int(k)).x || addr >= pc.capacity) {
+    uint addr = hc.x + slot;
+    if (slot >= hc.y || addr >= pc.capacity) {
         atomicAdd(counters[F_FILL_ERRORS], 1u);
         return;
     }

@@ -39,10 +39,9 @@ layout(set = 0, binding = 3) uniform usamplerBuffer wordBaseTex;
 #define TILE_LIST_BINDING 9
 #include "tiles.glsl"
 
-// See-through spheres (SEE_THROUGH): per pixel the count and head of its
+// See-through spheres (SEE_THROUGH): per pixel the head and count of its
 // fragments in front of the opaque surface (oit_splat.comp, oit_alloc.comp)
-// and the fragments (depth key, sphere id), sorted here in place.
-layout(set = 0, binding = 10) uniform usamplerBuffer oitCountTex;
+// and the fragments (depth key, sphere id).
 layout(set = 0, binding = 11) uniform usamplerBuffer oitHeadTex;
 // (the pool as RG32UI texels: a gather per scan step, where a storage load
 // at per-lane addresses is a scalar loop on lavapipe)
@@ -259,8 +258,8 @@ Surface surface_for(uvec2 q, uint id) {
 // later, in one run: one a scan 275, the least 4 in named registers (a
 // min/max network, no indexing) 211, 6 201, 8 202 ms.
 vec4 composite(uvec2 px, uint i, vec4 base) {
-    uint n = texelFetch(oitCountTex, int(i)).x;
-    uint head = texelFetch(oitHeadTex, int(i)).x;
+    uvec2 hc = texelFetch(oitHeadTex, int(i)).xy;
+    uint head = hc.x, n = hc.y;
     if (n == 0u || head == F_NONE) return base;
     vec3 o, vdir;
     view_ray(g.cam, vec2(px + g.cam.dims.zw), PERSP, o, vdir);

@@ -18,8 +18,9 @@
 //!   transmittance is below 1/1024, and composites them, lit, front to back
 //!   over the opaque surface.
 //!
-//! Host memory: nothing. Device memory: 12 B per pixel (count, cursor,
-//! head) and 8 B per fragment of the pool, plus band jobs.
+//! Host memory: nothing. Device memory: 16 B per pixel (count, cursor,
+//! head and count again: the pair fill and shade read with one fetch) and
+//! 8 B per fragment of the pool, plus band jobs.
 
 use crate::error::{Error, Result};
 use crate::gpu::blocks::{OitAllocPush, OitSplatPush};
@@ -99,7 +100,7 @@ impl Lists {
     fn new(ctx: &Context, pixels: u64, capacity: u32) -> Result<Self> {
         let counts = ctx.guard(guarded(ctx, "fragment counts", pixels)?);
         let cursor = ctx.guard(guarded(ctx, "fragment cursors", pixels)?);
-        let heads = ctx.guard(guarded(ctx, "fragment heads", pixels)?);
+        let heads = ctx.guard(guarded(ctx, "fragment heads", 2 * pixels)?);
         let frags = guarded(ctx, "fragments", capacity as u64 * 2)?;
         Ok(Lists {
             pixels,
@@ -115,7 +116,7 @@ impl Lists {
         [
             (&self.counts, self.pixels),
             (&self.cursor, self.pixels),
-            (&self.heads, self.pixels),
+            (&self.heads, 2 * self.pixels),
             (&self.frags, self.capacity as u64 * 2),
         ]
     }
@@ -193,13 +194,12 @@ impl SeeThrough {
                     texel("visWordTex", vk::Format::R32_UINT),
                     rw("Count"),
                     rw("Cursor"),
-                    texel("oitHeadTex", vk::Format::R32_UINT),
+                    texel("oitHeadTex", vk::Format::R32G32_UINT),
                     wo("Frags"),
                     rw("Counters"),
                     rw("Jobs"),
                     rw("Inline"),
                     texel("orderTex", vk::Format::R32_UINT),
-                    texel("oitCountTex", vk::Format::R32_UINT),
                 ][..],
                 &SCENE_GEOMETRY,
                 &SCENE_ATTRIBUTES,
@@ -332,7 +332,6 @@ impl SeeThrough {
             ("Jobs", &self.jobs),
             ("Inline", &self.inline_bits),
             ("orderTex", io.order),
-            ("oitCountTex", &l.counts),
         ];
         bufs.extend(io.scene.geometry());
         bufs.extend(io.scene.attributes());
@@ -466,7 +465,8 @@ impl SeeThrough {
     pub fn read_lists(&self, ctx: &Context) -> Result<FragmentLists> {
         let l = self.lists()?;
         let counts = l.counts.download_pod(ctx, 0, l.pixels)?;
-        let heads = l.heads.download_pod(ctx, 0, l.pixels)?;
+        let pairs: Vec<[u32; 2]> = l.heads.download_pod(ctx, 0, l.pixels)?;
+        let heads = pairs.iter().map(|p| p[0]).collect();
         let used = (self.read_counters(ctx)?[F_TOTAL as usize] as u64).min(l.capacity as u64);
         let frags = l.frags.download_pod(ctx, 0, used)?;
         Ok(FragmentLists {

@@ -160,7 +160,7 @@ impl ShadeMode {
     }
 }
 
-const SHADE_OUTPUTS: [Binding; 10] = [
+const SHADE_OUTPUTS: [Binding; 9] = [
     texel("aoTex", Format::R32_UINT),
     texel("recordTex", Format::R32G32B32A32_UINT),
     wo("Color"),
@@ -168,8 +168,7 @@ const SHADE_OUTPUTS: [Binding; 10] = [
     texel("sphereAoTex", Format::R32G32B32A32_UINT),
     texel("flagTex", Format::R32_UINT),
     texel("wordBaseTex", Format::R32_UINT),
-    texel("oitCountTex", Format::R32_UINT),
-    texel("oitHeadTex", Format::R32_UINT),
+    texel("oitHeadTex", Format::R32G32_UINT),
     texel("oitFragTex", Format::R32G32_UINT),
 ];
 
@@ -242,7 +241,6 @@ impl ShadePass {
         // (bound and unread without see-through spheres)
         let see = io.see_through;
         bufs.extend([
-            ("oitCountTex", see.map_or(io.ssdo.records, |s| s.counts)),
             ("oitHeadTex", see.map_or(io.ssdo.records, |s| s.heads)),
             ("oitFragTex", see.map_or(io.ssdo.records, |s| s.frags)),
         ]);
