@@ -764,8 +764,15 @@ pub fn run(cmd: ViewCmd) -> Result<Exit> {
     }
     let mean_ms = |v: &[f64]| 1e3 * v.iter().sum::<f64>() / v.len().max(1) as f64;
     if app.cmd.script.is_some() && !app.intervals.is_empty() {
-        let each: Vec<String> = app.intervals.iter().map(|t| format!("{:.0}", 1e3 * t)).collect();
-        log::info!("view: frame intervals (ms, from frame 2): {}", each.join(" "));
+        let each: Vec<String> = app
+            .intervals
+            .iter()
+            .map(|t| format!("{:.0}", 1e3 * t))
+            .collect();
+        log::info!(
+            "view: frame intervals (ms, from frame 2): {}",
+            each.join(" ")
+        );
         let mut v = app.intervals.clone();
         v.sort_by(f64::total_cmp);
         let (at, most) = app
