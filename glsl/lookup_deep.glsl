@@ -9,12 +9,14 @@
 // Parameters: shadow_u.x = entry capacity.
 #include "deep.glsl"
 
-layout(set = 0, binding = 16) readonly buffer Texels { DeepTexel texels[]; };
-layout(set = 0, binding = 17) readonly buffer Tiles { DeepTile tiles[]; };
-layout(set = 0, binding = 18) readonly buffer Depth { float e_depth[]; };
-layout(set = 0, binding = 19) readonly buffer Alpha { float e_alpha[]; };
-layout(set = 0, binding = 20) readonly buffer Ids { uint e_id[]; };
-layout(set = 0, binding = 21) readonly buffer Next { uint e_next[]; };
+// (read as texels: a gather, where a storage load at per-lane addresses is
+// a scalar loop on lavapipe; a DeepTexel or DeepTile is one RGBA32UI texel)
+layout(set = 0, binding = 16) uniform usamplerBuffer deepTexelTex;
+layout(set = 0, binding = 17) uniform usamplerBuffer deepTileTex;
+layout(set = 0, binding = 18) uniform samplerBuffer deepDepthTex;
+layout(set = 0, binding = 19) uniform samplerBuffer deepAlphaTex;
+layout(set = 0, binding = 20) uniform usamplerBuffer deepIdTex;
+layout(set = 0, binding = 21) uniform usamplerBuffer deepNextTex;
 
 float key_visibility(Surface s, uint pixel) {
     vec3 p = s.p;
@@ -28,17 +30,18 @@ float key_visibility(Surface s, uint pixel) {
     uint map_w = L.dims.x;
     // An overflowed tile: this frame is discarded and rendered again with a
     // larger pool.
-    if ((tiles[deep_tile_of(t, map_w)].flags & DEEP_TILE_OVERFLOWED) != 0u) return 1.0;
-    DeepTexel tx = texels[uint(t.y) * map_w + uint(t.x)];
-    uint cnt = min(tx.count, tx.fill);
+    if ((texelFetch(deepTileTex, int(deep_tile_of(t, map_w))).w & DEEP_TILE_OVERFLOWED) != 0u) return 1.0;
+    // (count, fill, head, nodes)
+    uvec4 tx = texelFetch(deepTexelTex, int(uint(t.y) * map_w + uint(t.x)));
+    uint cnt = min(tx.x, tx.y);
     float pd = dot(q, L.dir.xyz) + L.depth.x;
     float limit = pd + 1e-3 + 1e-5 * abs(pd);
     float v = 1.0;
-    uint addr = tx.head;
+    uint addr = tx.z;
     uint capacity = g.shadow_u.x;
     for (uint k = 0u; k < cnt && addr < capacity; ++k) {
-        if (e_depth[addr] > limit) break;
-        uint id = e_id[addr];
+        if (texelFetch(deepDepthTex, int(addr)).x > limit) break;
+        uint id = texelFetch(deepIdTex, int(addr)).x;
         if (id != s.id && id < g.counts.x) {
             vec4 sp = scene_sphere(id);
             vec3 oc = sp.xyz - p;
@@ -48,11 +51,11 @@ float key_visibility(Surface s, uint pixel) {
             float r2 = sp.w * sp.w;
             // Crossed with the far intersection ahead of P (toward the light).
             if (d2 < r2 && kk + sqrt(r2 - d2) > 0.0) {
-                v *= 1.0 - e_alpha[addr];
+                v *= 1.0 - texelFetch(deepAlphaTex, int(addr)).x;
                 if (v <= 0.0) break;
             }
         }
-        addr = e_next[addr];
+        addr = texelFetch(deepNextTex, int(addr)).x;
     }
     return v;
 }

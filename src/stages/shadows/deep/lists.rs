@@ -32,11 +32,12 @@ impl Lists {
             ("deep node depth odd", n),
             ("deep node visibility odd", n),
         ] {
+            // (the lookup reads the entry arrays as texels)
             made.push(guarded(
                 ctx,
                 name,
                 words,
-                vk::BufferUsageFlags::STORAGE_BUFFER,
+                vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER,
             )?);
         }
         let mut it = made.keep().into_iter();

@@ -36,8 +36,9 @@
 //!   each entry at head + atomic per-texel cursor;
 //! - `deep_sort`: per texel, sort its contiguous run by (depth, id), write
 //!   links, transmittance and the epsilon-compressed visibility nodes;
-//! - the lookup (glsl/lookup_deep.glsl, in `shade`): per visible pixel, walk its light texel's list with exact
-//!   ray tests.
+//! - the lookup (glsl/lookup_deep.glsl, in `shade`): per visible pixel, walk
+//!   its light texel's list with exact ray tests (the arrays read as texels:
+//!   on lavapipe a storage load at per-lane addresses is a scalar loop).
 //!
 //! Vulkan has no forward-progress guarantee between invocations, so nothing
 //! spins on another invocation (the paper's "pending chunk" busy-wait is
@@ -55,7 +56,7 @@ use crate::passes::bands::{BandArgs, BandCounters, BandJob, BandPipelines};
 use crate::passes::scene::{SCENE_ATTRIBUTES, SCENE_GEOMETRY};
 use crate::passes::{LOCAL_SIZE, spirv};
 use crate::settings::ShadowMode;
-use crate::vk::pipeline::{Binding, PipelineDesc, ro, rw, uniform, wo};
+use crate::vk::pipeline::{Binding, PipelineDesc, ro, rw, texel, uniform, wo};
 use crate::vk::{Buffer, ComputePipeline, Context, Grid, Recorder};
 use ash::vk;
 use bytemuck::{Pod, Zeroable};
@@ -149,12 +150,12 @@ pub const TILE_OVERFLOWED: u32 = consts::DEEP_TILE_OVERFLOWED;
 
 /// The lookup's bindings (glsl/lookup_deep.glsl).
 const LOOKUP: [Binding; 6] = [
-    ro("Texels"),
-    ro("Tiles"),
-    ro("Depth"),
-    ro("Alpha"),
-    ro("Ids"),
-    ro("Next"),
+    texel("deepTexelTex", vk::Format::R32G32B32A32_UINT),
+    texel("deepTileTex", vk::Format::R32G32B32A32_UINT),
+    texel("deepDepthTex", vk::Format::R32_SFLOAT),
+    texel("deepAlphaTex", vk::Format::R32_SFLOAT),
+    texel("deepIdTex", vk::Format::R32_UINT),
+    texel("deepNextTex", vk::Format::R32_UINT),
 ];
 
 const _: () = assert!(std::mem::size_of::<DeepTexel>() == 16);
@@ -247,6 +248,8 @@ impl DeepShadows {
             )));
         }
         let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
+        // (the lookup reads the texel and tile tables as texels)
+        let lookup = storage | vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER;
         let pipe = |name: &str, shader, bindings: &[_], push: usize, local: u32| {
             ComputePipeline::new(
                 ctx,
@@ -264,8 +267,8 @@ impl DeepShadows {
         // Build everything, releasing what was made if a later step fails.
         let mut bufs = ctx.guard(Vec::new());
         let args = ctx.guard(BandArgs::new(ctx, "deep band args")?);
-        bufs.push(guarded(ctx, "deep texels", texel_count * 4, storage)?);
-        bufs.push(guarded(ctx, "deep tiles", tile_count(&light) * 4, storage)?);
+        bufs.push(guarded(ctx, "deep texels", texel_count * 4, lookup)?);
+        bufs.push(guarded(ctx, "deep tiles", tile_count(&light) * 4, lookup)?);
         bufs.push(guarded(
             ctx,
             "deep counters",
@@ -375,13 +378,17 @@ impl DeepShadows {
 
     /// Clamps (estimates) or rejects (explicit sizes) a pool the device
     /// cannot address: each entry array and each node parity array (one
-    /// word per entry slot) must fit in maxStorageBufferRange and links
-    /// must stay below the terminator (which also keeps node slots, 2 x
-    /// entry, in u32).
+    /// word per entry slot) must fit in maxStorageBufferRange, the entry
+    /// arrays the lookup reads as R32 texels in maxTexelBufferElements, and
+    /// links must stay below the terminator (which also keeps node slots,
+    /// 2 x entry, in u32).
     fn check_capacity(ctx: &Context, chunks: u64, clamp: bool) -> Result<u32> {
-        let range = ctx.props.limits.max_storage_buffer_range as u64;
+        let limits = &ctx.props.limits;
+        let range = limits.max_storage_buffer_range as u64;
         let by_range = (range.saturating_sub(GUARD_WORDS * 4) / 4) / CHUNK as u64;
-        let max = by_range.min(max_chunks_hard() as u64).max(1);
+        let by_texels =
+            (limits.max_texel_buffer_elements as u64).saturating_sub(GUARD_WORDS) / CHUNK as u64;
+        let max = by_range.min(by_texels).min(max_chunks_hard() as u64).max(1);
         if chunks <= max {
             Ok(chunks as u32)
         } else if clamp {
@@ -389,7 +396,9 @@ impl DeepShadows {
         } else {
             Err(Error::DeviceLimit(format!(
                 "--deep-pool-chunks {chunks}: more than the {max} chunks of {CHUNK} entries the device \
-                 can address (maxStorageBufferRange {range} bytes per list array)"
+                 can address (maxStorageBufferRange {range} bytes, maxTexelBufferElements {} \
+                 per list array)",
+                limits.max_texel_buffer_elements
             )))
         }
     }
@@ -628,12 +637,12 @@ impl ShadowTechnique for DeepShadows {
             soft: false,
             bindings: &LOOKUP,
             buffers: vec![
-                ("Texels", &self.texels),
-                ("Tiles", &self.tiles),
-                ("Depth", &l.depth),
-                ("Alpha", &l.alpha),
-                ("Ids", &l.ids),
-                ("Next", &l.next),
+                ("deepTexelTex", &self.texels),
+                ("deepTileTex", &self.tiles),
+                ("deepDepthTex", &l.depth),
+                ("deepAlphaTex", &l.alpha),
+                ("deepIdTex", &l.ids),
+                ("deepNextTex", &l.next),
             ],
             params: ShadowParams {
                 u: [self.entry_capacity(), 0, 0, 0],
