@@ -28,7 +28,13 @@ layout(local_size_x_id = 0) in;
 
 layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
 layout(set = 0, binding = 2) buffer Texels { DeepTexel texels[]; };
-layout(set = 0, binding = 3) readonly buffer Tiles { DeepTile tiles[]; };
+// What the fill reads of the texel and tile tables, as texels (a gather,
+// where a storage load at per-lane addresses is a scalar loop on
+// lavapipe): the texels' count and head words one R32 word each (their
+// fill cursors change in this pass; those words are never read through the
+// view), the tiles whole (RGBA32UI: first_chunk, chunks, entries, flags).
+layout(set = 0, binding = 3) uniform usamplerBuffer deepTexelWordTex;
+layout(set = 0, binding = 10) uniform usamplerBuffer deepTileTex;
 layout(set = 0, binding = 4) writeonly buffer Depth { float e_depth[]; };
 layout(set = 0, binding = 5) writeonly buffer Alpha { float e_alpha[]; };
 layout(set = 0, binding = 6) writeonly buffer Ids { uint e_id[]; };
@@ -59,13 +65,14 @@ void visit(uint id, Footprint f, ivec2 t) {
         return;
     }
     // A tile that did not fit in the pool has no chunks: skip it.
-    if ((tiles[deep_tile_of(t, map_w)].flags & DEEP_TILE_OVERFLOWED) != 0u) return;
+    if ((texelFetch(deepTileTex, int(deep_tile_of(t, map_w))).w & DEEP_TILE_OVERFLOWED) != 0u) return;
     uint slot = atomicAdd(texels[ti].fill, 1u);
-    uint head = texels[ti].head;
+    uint head = texelFetch(deepTexelWordTex, int(4u * ti + 2u)).x;
     uint addr = head + slot;
     // Never write outside the texel's run (would only happen if count and
     // fill disagreed; counted so tests see it).
-    if (slot >= texels[ti].count || head == DEEP_NONE || addr >= pc.entry_capacity) {
+    if (slot >= texelFetch(deepTexelWordTex, int(4u * ti)).x || head == DEEP_NONE
+        || addr >= pc.entry_capacity) {
         atomicAdd(counters[C_FILL_ERRORS], 1u);
         return;
     }

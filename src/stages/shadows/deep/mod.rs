@@ -56,7 +56,7 @@ use crate::passes::bands::{BandArgs, BandCounters, BandJob, BandPipelines};
 use crate::passes::scene::{SCENE_ATTRIBUTES, SCENE_GEOMETRY};
 use crate::passes::{LOCAL_SIZE, spirv};
 use crate::settings::ShadowMode;
-use crate::vk::pipeline::{Binding, PipelineDesc, ro, rw, texel, uniform, wo};
+use crate::vk::pipeline::{Binding, PipelineDesc, rw, texel, uniform, wo};
 use crate::vk::{Buffer, ComputePipeline, Context, Grid, Recorder};
 use ash::vk;
 use bytemuck::{Pod, Zeroable};
@@ -297,13 +297,14 @@ impl DeepShadows {
                         &[
                             uniform("GlobalsBlock"),
                             rw("Texels"),
-                            ro("Tiles"),
+                            texel("deepTexelWordTex", vk::Format::R32_UINT),
                             wo("Depth"),
                             wo("Alpha"),
                             wo("Ids"),
                             rw("Counters"),
                             rw("Jobs"),
                             rw("Inline"),
+                            texel("deepTileTex", vk::Format::R32G32B32A32_UINT),
                         ][..],
                         &SCENE_GEOMETRY,
                         &SCENE_ATTRIBUTES,
@@ -438,7 +439,8 @@ impl DeepShadows {
         let mut splat_bufs = vec![
             ("GlobalsBlock", f.globals),
             ("Texels", &self.texels),
-            ("Tiles", &self.tiles),
+            ("deepTexelWordTex", &self.texels),
+            ("deepTileTex", &self.tiles),
             ("Depth", &l.depth),
             ("Alpha", &l.alpha),
             ("Ids", &l.ids),
