@@ -47,6 +47,14 @@ layout(constant_id = 2) const uint MODE = DEEP_COUNT;
 #include "push/deep_splat.glsl"
 #define SCENE_ATTRIBUTES
 #include "scene.glsl"
+// The light's sphere order (src/stages/raster/compute.rs `view_order`: runs
+// front to back along the light, the dispatch's two halves on either side
+// of it; instanced scenes: batches): each texel's entries arrive nearly in
+// depth order, which deep_sort's Shell sort moves little.
+layout(set = 0, binding = 11) uniform usamplerBuffer orderTex;
+#define SPHERE_AT(i) (scene_instanced() \
+    ? (texelFetch(orderTex, int((i) >> BATCH_SHIFT)).x << BATCH_SHIFT) | scene_lane(i) \
+    : texelFetch(orderTex, int(i)).x)
 
 Footprint band_footprint(uint id) {
     vec4 s = scene_sphere(id);

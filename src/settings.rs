@@ -39,6 +39,12 @@ impl ShadowMode {
             ShadowMode::Issm | ShadowMode::IssmSoft | ShadowMode::SmPcf
         )
     }
+
+    /// Whether the technique visits the spheres in the key light's sphere
+    /// order: the rasterized light views, and the deep lists' splat.
+    pub fn orders_light_view(self) -> bool {
+        self.draws_light_view() || self == ShadowMode::Deep
+    }
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, Serialize)]

@@ -137,8 +137,8 @@ fn pdb_1tii_matches_reference() {
 /// must still hold each texel's nearest sphere, as the exact caster finds it
 /// through the light view, before and after the light turns far enough for
 /// the order to be sorted again, and after every sphere moves (a trajectory
-/// frame: sorted again, by the next frame). Techniques that do not draw
-/// the light view never sort it.
+/// frame: sorted again, by the next frame). Techniques that neither draw
+/// the light view nor splat the deep lists never sort it.
 #[test]
 fn ordered_light_raster_matches_reference() {
     let ctx = validated_context();
@@ -146,13 +146,20 @@ fn ordered_light_raster_matches_reference() {
     let mut r = Renderer::new(
         &ctx,
         &s,
-        settings(camera(&s, 96, 96, None), ShadowMode::Deep),
+        settings(camera(&s, 96, 96, None), ShadowMode::Osm),
     )
     .expect("renderer");
     r.render_frame().expect("frame");
     assert!(
         !r.inspect().light_order_ready(),
-        "deep lists sorted the light order"
+        "opacity shadow maps sorted the light order"
+    );
+    r.update(|set| set.shadows = ShadowMode::Deep)
+        .expect("deep");
+    r.render_frame().expect("frame");
+    assert!(
+        r.inspect().light_order_ready(),
+        "the deep lists' splat visits the light order"
     );
     r.update(|set| set.shadows = ShadowMode::Issm)
         .expect("issm");

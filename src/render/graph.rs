@@ -57,7 +57,7 @@ pub const PASSES: &[(&str, &str)] = &[
     ),
     (
         "deep_count",
-        "deep shadow lists (after deep shadow maps on the GPU), 8x8-texel tiles, one 64-invocation workgroup each: count the entries per texel (every sphere whose light-space disk overlaps the texel square)",
+        "deep shadow lists (after deep shadow maps on the GPU), 8x8-texel tiles, one 64-invocation workgroup each: count the entries per texel (every sphere whose light-space disk overlaps the texel square), the spheres visited in the light's order (front to back), so each texel's entries arrive nearly sorted",
     ),
     (
         "deep_alloc",

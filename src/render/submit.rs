@@ -39,7 +39,7 @@ impl Renderer<'_> {
             (
                 ViewIndex::Light,
                 self.settings.light,
-                self.settings.shadows.draws_light_view(),
+                self.settings.shadows.orders_light_view(),
             ),
         ];
         for (view, dir, drawn) in views {

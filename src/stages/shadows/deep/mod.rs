@@ -56,6 +56,7 @@ use crate::passes::bands::{BandArgs, BandCounters, BandJob, BandPipelines};
 use crate::passes::scene::{SCENE_ATTRIBUTES, SCENE_GEOMETRY};
 use crate::passes::{LOCAL_SIZE, spirv};
 use crate::settings::ShadowMode;
+use crate::stages::raster::compute::ViewIndex;
 use crate::vk::pipeline::{Binding, PipelineDesc, rw, texel, uniform, wo};
 use crate::vk::{Buffer, ComputePipeline, Context, Grid, Recorder};
 use ash::vk;
@@ -305,6 +306,7 @@ impl DeepShadows {
                             rw("Jobs"),
                             rw("Inline"),
                             texel("deepTileTex", vk::Format::R32G32B32A32_UINT),
+                            texel("orderTex", vk::Format::R32_UINT),
                         ][..],
                         &SCENE_GEOMETRY,
                         &SCENE_ATTRIBUTES,
@@ -441,6 +443,7 @@ impl DeepShadows {
             ("Texels", &self.texels),
             ("deepTexelWordTex", &self.texels),
             ("deepTileTex", &self.tiles),
+            ("orderTex", f.raster.order(ViewIndex::Light)),
             ("Depth", &l.depth),
             ("Alpha", &l.alpha),
             ("Ids", &l.ids),
