@@ -272,7 +272,8 @@ vec4 composite(uvec2 px, uint i, vec4 base) {
     bool first = true;
     uint taken = 0u;
     while (taken < n && T >= 1.0 / 1024.0) {
-        uint64_t b0 = VIS_EMPTY, b1 = VIS_EMPTY, b2 = VIS_EMPTY, b3 = VIS_EMPTY, b4 = VIS_EMPTY, b5 = VIS_EMPTY, b6 = VIS_EMPTY, b7 = VIS_EMPTY;
+        uint64_t b0 = VIS_EMPTY, b1 = VIS_EMPTY, b2 = VIS_EMPTY, b3 = VIS_EMPTY;
+        uint64_t b4 = VIS_EMPTY, b5 = VIS_EMPTY, b6 = VIS_EMPTY, b7 = VIS_EMPTY;
         for (uint b = 0u; b < n; ++b) {
             uvec2 f = texelFetch(oitFragTex, int(head + b)).xy;
             uint64_t k = (uint64_t(f.x) << 32) | uint64_t(f.y);
