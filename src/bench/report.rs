@@ -8,7 +8,22 @@ use crate::output::{self, RunStats};
 use crate::settings::{RasterMode, ShadowMode, SsdoMode};
 use std::collections::BTreeMap;
 
-pub(super) fn key(r: &RunStats) -> (String, u64, bool, u32, u32, String, String, String, u64) {
+/// What makes two runs the same run (`--compare` matches on it): a half
+/// see-through run is not its opaque twin.
+type RunKey = (
+    String,
+    u64,
+    bool,
+    u32,
+    u32,
+    String,
+    String,
+    String,
+    u64,
+    bool,
+);
+
+pub(super) fn key(r: &RunStats) -> RunKey {
     (
         r.input.clone(),
         r.spheres,
@@ -19,6 +34,7 @@ pub(super) fn key(r: &RunStats) -> (String, u64, bool, u32, u32, String, String,
         r.ssdo.clone(),
         r.raster.clone(),
         (r.opacity * 1000.0).round() as u64,
+        half_see_through(r),
     )
 }
 
@@ -440,8 +456,18 @@ pub fn compare(new: &BenchReport, old: &BenchReport) -> Vec<(String, String, f64
             continue;
         };
         let tag = format!(
-            "{} {}x{} {}/{}/{}",
-            n.input, n.width, n.height, n.shadows, n.ssdo, n.raster
+            "{} {}x{} {}/{}/{}{}",
+            n.input,
+            n.width,
+            n.height,
+            n.shadows,
+            n.ssdo,
+            n.raster,
+            if half_see_through(n) {
+                " half see-through"
+            } else {
+                ""
+            }
         );
         for p in &n.passes {
             if let Some(op) = o.passes.iter().find(|q| q.name == p.name)
@@ -679,5 +705,25 @@ mod tests {
         assert_eq!(c.len(), 2, "only the matching run is compared: {c:?}");
         assert_eq!((c[0].1.as_str(), c[0].2), ("raster", 1.5));
         assert_eq!((c[1].1.as_str(), c[1].2), ("total", 0.5));
+        // A half see-through run matches its own kind, not the opaque run
+        // of the same technique listed before it.
+        let half = |raster, total| {
+            let mut r = run("issm", raster, total);
+            r.see_through = Some(Default::default());
+            r
+        };
+        let old = BenchReport {
+            runs: vec![run("issm", 2.0, 8.0), half(4.0, 40.0)],
+            ..old
+        };
+        let new = BenchReport {
+            runs: vec![half(2.0, 20.0), run("issm", 2.0, 8.0)],
+            ..new
+        };
+        let c = compare(&new, &old);
+        assert_eq!(c.len(), 4, "{c:?}");
+        assert!(c[0].0.ends_with("half see-through"), "{c:?}");
+        assert_eq!((c[1].1.as_str(), c[1].2), ("total", 0.5));
+        assert_eq!((c[3].1.as_str(), c[3].2), ("total", 1.0));
     }
 }
