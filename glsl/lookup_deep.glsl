@@ -16,7 +16,6 @@ layout(set = 0, binding = 17) uniform usamplerBuffer deepTileTex;
 layout(set = 0, binding = 18) uniform samplerBuffer deepDepthTex;
 layout(set = 0, binding = 19) uniform samplerBuffer deepAlphaTex;
 layout(set = 0, binding = 20) uniform usamplerBuffer deepIdTex;
-layout(set = 0, binding = 21) uniform usamplerBuffer deepNextTex;
 
 float key_visibility(Surface s, uint pixel) {
     vec3 p = s.p;
@@ -55,7 +54,9 @@ float key_visibility(Surface s, uint pixel) {
                 if (v <= 0.0) break;
             }
         }
-        addr = texelFetch(deepNextTex, int(addr)).x;
+        // (a texel's entries are contiguous, head + k: no dependent fetch of
+        // the link, which deep_sort still writes)
+        addr += 1u;
     }
     return v;
 }

@@ -150,13 +150,12 @@ pub struct DeepTile {
 pub const TILE_OVERFLOWED: u32 = consts::DEEP_TILE_OVERFLOWED;
 
 /// The lookup's bindings (glsl/lookup_deep.glsl).
-const LOOKUP: [Binding; 6] = [
+const LOOKUP: [Binding; 5] = [
     texel("deepTexelTex", vk::Format::R32G32B32A32_UINT),
     texel("deepTileTex", vk::Format::R32G32B32A32_UINT),
     texel("deepDepthTex", vk::Format::R32_SFLOAT),
     texel("deepAlphaTex", vk::Format::R32_SFLOAT),
     texel("deepIdTex", vk::Format::R32_UINT),
-    texel("deepNextTex", vk::Format::R32_UINT),
 ];
 
 const _: () = assert!(std::mem::size_of::<DeepTexel>() == 16);
@@ -647,7 +646,6 @@ impl ShadowTechnique for DeepShadows {
                 ("deepDepthTex", &l.depth),
                 ("deepAlphaTex", &l.alpha),
                 ("deepIdTex", &l.ids),
-                ("deepNextTex", &l.next),
             ],
             params: ShadowParams {
                 u: [self.entry_capacity(), 0, 0, 0],
