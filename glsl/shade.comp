@@ -269,7 +269,6 @@ vec4 composite(uvec2 px, uint i, vec4 base) {
     // Fragments as 64-bit keys (depth bits above id: the (depth, id) order);
     // b0..b7 the least after `last`, sorted (taken from the front).
     uint64_t last = 0ul;
-    bool first = true;
     uint taken = 0u;
     while (taken < n && T >= 1.0 / 1024.0) {
         uint64_t b0 = VIS_EMPTY, b1 = VIS_EMPTY, b2 = VIS_EMPTY, b3 = VIS_EMPTY;
@@ -277,7 +276,8 @@ vec4 composite(uvec2 px, uint i, vec4 base) {
         for (uint b = 0u; b < n; ++b) {
             uvec2 f = texelFetch(oitFragTex, int(head + b)).xy;
             uint64_t k = (uint64_t(f.x) << 32) | uint64_t(f.y);
-            k = (first || k > last) ? k : VIS_EMPTY;
+            // (the first scan, taken == 0, takes from every fragment)
+            k = (taken == 0u || k > last) ? k : VIS_EMPTY;
             uint64_t t0 = min(b0, k); k = max(b0, k); b0 = t0;
             uint64_t t1 = min(b1, k); k = max(b1, k); b1 = t1;
             uint64_t t2 = min(b2, k); k = max(b2, k); b2 = t2;
@@ -287,7 +287,6 @@ vec4 composite(uvec2 px, uint i, vec4 base) {
             uint64_t t6 = min(b6, k); k = max(b6, k); b6 = t6;
             b7 = min(b7, k);
         }
-        first = false;
         for (uint j = 0u; j < 8u && b0 != VIS_EMPTY && T >= 1.0 / 1024.0; ++j) {
             last = b0;
             b0 = b1;
