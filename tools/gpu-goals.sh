@@ -28,7 +28,7 @@ export XDG_RUNTIME_DIR=${XDG_RUNTIME_DIR:-/tmp/xdg}
 mkdir -p "$XDG_RUNTIME_DIR"
 (nvidia-smi -L; "$B" info) >> "$log" 2>&1
 head -30 "$log"
-if ! "$B" info 2>&1 | grep -qi nvidia && [ "${CPU_OK:-0}" != 1 ]; then
+if ! grep -i "^chosen device" "$log" | grep -qi nvidia && [ "${CPU_OK:-0}" != 1 ]; then
   echo "gpu-goals: the chosen Vulkan device is not NVIDIA; stopping (see $log)"
   exit 3
 fi
