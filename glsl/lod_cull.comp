@@ -276,7 +276,7 @@ void main() {
         // band LOD_BAND, so a level never flickers at its switch (no
         // popping while a viewer zooms). Never above a switch size: the
         // silhouette guarantee holds at every size a level is drawn at.
-        uint n = texelFetch(levelTex, int(base)).x;
+        uint n = texelFetch(levelTex, int(base)).x & LEVEL_COUNT_MASK;
         uint prev = levels[k];
         level = 0u;
         uint banded = 0u;

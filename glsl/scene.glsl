@@ -36,8 +36,9 @@ layout(set = 0, binding = 25) uniform usamplerBuffer batchTex;
 // index of its first atom (its low 32 bits).
 layout(set = 0, binding = 31) uniform usamplerBuffer instanceRowTex;
 // Instanced: per (molecule type, level < MAX_LOD_LEVELS), RGBA32UI: level
-// 0's holds the number of levels, its first stored atom, its switch size
-// (f32 bits: most pixels per world unit it is drawn at), its atoms.
+// 0's holds the number of levels (| LEVEL_MAPPED on a nested scene's
+// proxy, on every level), its first stored atom, its switch size (f32
+// bits: most pixels per world unit it is drawn at), its atoms.
 layout(set = 0, binding = 32) uniform usamplerBuffer levelTex;
 // Instanced: 2 texels (rigid: quaternion xyzw, translation) or 3 (affine:
 // the rows m_i0 m_i1 m_i2 v_i) per instance.
@@ -68,7 +69,7 @@ uvec4 scene_batch(uint id) {
     uint k = e.x & BATCH_INSTANCE_MASK, l = min(e.x >> BATCH_INSTANCE_BITS, MAX_LOD_LEVELS - 1u);
     uvec2 row = texelFetch(instanceRowTex, int(k)).xy;
     uvec4 lv = texelFetch(levelTex, int(row.x * MAX_LOD_LEVELS + l));
-    bool coarse = l != 0u;
+    bool coarse = l != 0u || (lv.x & LEVEL_MAPPED) != 0u;
     uint a = e.y << BATCH_SHIFT;
     uvec4 r = uvec4(k, lv.y + a, row.y + (coarse ? 0u : a),
                     min(lv.w - a, 1u << BATCH_SHIFT) | (row.x << 8) | (coarse ? BATCH_COARSE : 0u));

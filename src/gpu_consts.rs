@@ -127,6 +127,12 @@ gpu_constants! {
     /// Levels of detail a molecule type may have (src/scene/instanced/lod.rs
     /// `strides` reaches one sphere within them up to 2^30 atoms).
     MAX_LOD_LEVELS: u32 = 16;
+    /// A level row's first word (levelTex .x: level 0's holds the number
+    /// of levels) has LEVEL_MAPPED set on every level of a nested scene's
+    /// proxy molecule type: its lanes name their atoms through originTex at
+    /// level 0 too (src/scene/instanced/nested.rs).
+    LEVEL_MAPPED: u32 = 0x8000_0000;
+    LEVEL_COUNT_MASK: u32 = 0xFFFF;
     /// Counter words per list of the LOD cull (glsl/lod_cull.comp): batches
     /// listed, spheres drawn, then the three indirect dispatch words; lists
     /// camera (early), light (early), camera (late), light (late). An early

@@ -681,6 +681,11 @@ pub struct RunStats {
     pub molecules: Option<u64>,
     #[serde(default)]
     pub unique_atoms: Option<u64>,
+    /// A nested scene's placements (its `instances`, `molecules` and
+    /// `unique_atoms` are then those of the scene the camera drew: the
+    /// opened placements' instances and the proxies).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub placements: Option<u64>,
     /// An instanced model drawn expanded (`--expand`, bench `--instancing
     /// off`): one sphere record per atom.
     #[serde(default)]

@@ -279,8 +279,7 @@ pub fn load_scene_with_progress(
                 let most = scene::meso::MAX_ATOMS.min(scene::instanced::MAX_REPRESENTED);
                 if atoms == 0 || atoms as u64 > most {
                     return Err(Error::Input(format!(
-                        "--atoms {atoms}: the meso scene holds between 1 and {most} atoms \
-                         (an instance record per protein copy; more needs nested instancing)"
+                        "--atoms {atoms}: the meso scene holds between 1 and {most} atoms"
                     )));
                 }
                 let t = std::time::Instant::now();
@@ -1179,6 +1178,7 @@ pub fn run_stats(
         instances: counts.map(|c| c.instances),
         molecules: counts.map(|c| c.molecules),
         unique_atoms: counts.map(|c| c.unique_atoms),
+        placements: counts.and_then(|c| c.placements),
         expanded: r.inspect().expanded(),
         // (a failed read-back of the cull's counters leaves the bound)
         spheres_drawn: r.inspect().spheres_drawn().unwrap_or_else(|e| {

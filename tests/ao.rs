@@ -325,6 +325,13 @@ fn per_sphere_list_is_exactly_the_visible_spheres() {
         );
         let g = sphereshade::passes::LOCAL_SIZE as usize;
         assert_eq!(groups as usize, list.len().div_ceil(g));
+        // (what the renderer's memory budget for these buffers counts)
+        let bytes = r.inspect().memory_by_class();
+        let want = sphereshade::stages::ssdo::passes::SphereBuffers::bytes_for(
+            r.inspect().sphere_count(),
+            w as u64 * h as u64,
+        );
+        assert_eq!(bytes.get("ssdo_spheres").copied(), Some(want), "{w}x{h}");
     }
     assert_no_validation_messages(&ctx);
 }

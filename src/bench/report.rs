@@ -513,6 +513,7 @@ mod tests {
             instances: None,
             molecules: None,
             unique_atoms: None,
+            placements: None,
             expanded: false,
             spheres_drawn: 2_000_000,
             camera: Default::default(),

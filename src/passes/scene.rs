@@ -11,8 +11,8 @@
 use crate::error::{Error, Result};
 use crate::gpu::consts::{
     BATCH_COARSE, BATCH_EMPTY, BATCH_INSTANCE_BITS, BATCH_INSTANCE_MASK, BATCH_TYPE_MASK,
-    MAX_BATCH_SHIFT, MAX_LOD_LEVELS, MIN_BATCH_SHIFT, NO_LEVEL, SCENE_AFFINE, SCENE_PLAIN,
-    SCENE_RIGID,
+    LEVEL_MAPPED, MAX_BATCH_SHIFT, MAX_LOD_LEVELS, MIN_BATCH_SHIFT, NO_LEVEL, SCENE_AFFINE,
+    SCENE_PLAIN, SCENE_RIGID,
 };
 use crate::gpu::{GpuBatch, GpuSphere, SphereAttr};
 use crate::scene::Scene;
@@ -594,11 +594,23 @@ fn build_instanced(
             let own = mol.first as usize..(mol.first + mol.atoms) as usize;
             for (l, sw) in switch.iter().enumerate().take(ml.levels()) {
                 let first = if l == 0 { mol.first } else { geom.len() as u32 };
-                // (level 0's row holds the number of levels)
-                let x = if l == 0 { ml.levels() as u32 } else { 0 };
+                // (level 0's row holds the number of levels; a proxy's
+                // rows are marked: its level 0 names atoms through origins)
+                let x = if l == 0 { ml.levels() as u32 } else { 0 }
+                    | if mol.origin.is_some() {
+                        LEVEL_MAPPED
+                    } else {
+                        0
+                    };
                 tables.levels[m * MAX_LOD_LEVELS as usize + l] =
                     [x, first, sw.to_bits(), ml.counts[l]];
+                let origin = |a: u32| mol.origin.as_ref().map_or(a, |o| o[a as usize]);
                 if l == 0 {
+                    if mol.origin.is_some() {
+                        for a in 0..mol.atoms {
+                            origins[(mol.first + a) as usize] = origin(a);
+                        }
+                    }
                     continue;
                 }
                 let spheres = ml.level_spheres(&geom[own.clone()], l);
@@ -607,7 +619,7 @@ fn build_instanced(
                     let src = mol.first + a;
                     chains.push(chains[src as usize]);
                     colors.push(colors[src as usize]);
-                    origins.push(a);
+                    origins.push(origin(a));
                     coarse_source.push(src);
                 }
             }
@@ -635,6 +647,11 @@ fn build_instanced(
             )));
         }
         lod_tables = Some((bounds, batch_bounds));
+    }
+    if lod.is_none() && inst.molecules.iter().any(|m| m.origin.is_some()) {
+        return Err(Error::Internal(
+            "a nested scene's proxies drawn without levels of detail".into(),
+        ));
     }
     let entries = match lod {
         None => Some(static_entries(&batch_first, shift, &scene.source)?),
@@ -760,7 +777,7 @@ impl BatchTables {
         let lv = self
             .levels
             .get((row[0] * MAX_LOD_LEVELS + l.min(MAX_LOD_LEVELS - 1)) as usize)?;
-        let coarse = l != 0;
+        let coarse = l != 0 || lv[0] & LEVEL_MAPPED != 0;
         let a = e[1].checked_mul(1 << self.shift)?;
         Some([
             k,
@@ -1354,7 +1371,8 @@ mod tests {
         let per = 1usize << built.tables.shift;
         let mut checked = 0;
         for m in 0..inst.molecules.len() {
-            let levels = built.tables.levels[m * MAX_LOD_LEVELS as usize][0] as usize;
+            let levels = (built.tables.levels[m * MAX_LOD_LEVELS as usize][0]
+                & crate::gpu::consts::LEVEL_COUNT_MASK) as usize;
             for l in 0..levels {
                 let row = m * MAX_LOD_LEVELS as usize + l;
                 let [_, first, _, n] = built.tables.levels[row];

@@ -20,6 +20,8 @@ pub struct InstancingCounts {
     pub instances: u64,
     pub molecules: u64,
     pub unique_atoms: u64,
+    /// A nested scene's placements.
+    pub placements: Option<u64>,
 }
 
 /// A renderer seen from outside, borrowed.
@@ -84,6 +86,7 @@ impl<'r> Inspect<'r, '_> {
                 molecules: i.molecules.len() as u64,
                 // (the scene's own atoms, not the coarse levels' copies)
                 unique_atoms: i.molecules.iter().map(|m| m.1 as u64).sum(),
+                placements: self.r.res.placements,
             }),
         }
     }

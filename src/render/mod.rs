@@ -8,6 +8,7 @@
 pub mod frame;
 pub mod graph;
 pub mod inspect;
+pub mod nesting;
 mod submit;
 pub mod targets;
 pub mod tiles;
@@ -62,6 +63,8 @@ pub(crate) struct Resources {
     bounds: (DVec3, f64),
     /// Typical sphere radius (screen-space effect radii).
     typical_radius: f64,
+    /// A nested scene's placements.
+    placements: Option<u64>,
     /// The most bytes a storage buffer may hold: SSDO may use per-sphere
     /// receivers where their flags (a bit per id) fit one (not so past
     /// ~10^9 ids on lavapipe's 128 MiB).
@@ -76,6 +79,11 @@ pub(crate) struct Resources {
     /// Kept host-visible buffer for `set_positions`.
     staging: Option<Buffer>,
 }
+
+/// The most bytes the per-sphere SSDO receivers' buffers may take (else
+/// spheres of a few pixels take the per-pixel taps; SARS-CoV-2 at 1080p
+/// takes 46 MB): `Resources::ssdo_params`.
+const SSDO_SPHERE_BYTES: u64 = 96 << 20;
 
 /// Typical sphere radius (median of a sample of the represented spheres)
 /// to scale screen-space effects.
@@ -131,7 +139,19 @@ impl Resources {
     /// The SSDO stage's parameters for this camera (computed whether SSDO
     /// runs or not: shade's upsample and outlines read some).
     pub(crate) fn ssdo_params(&self, settings: &RenderSettings) -> SsdoParams {
-        self.stages.ssdo.params(&settings.camera, self.scale())
+        let mut scale = self.scale();
+        // Nor where their buffers, sized by the ids a frame may name, would
+        // pass SSDO_SPHERE_BYTES (the 10^12 nested overview's LOD lists,
+        // 12 spheres a pixel: 180 MB; per pixel costs less there too: meso
+        // 10^9 overview, 3.1 a pixel, 721 against 803 ms)
+        let bytes = crate::stages::ssdo::passes::SphereBuffers::bytes_for(
+            self.scene.frame_slots(),
+            self.targets.pixels,
+        );
+        if bytes > SSDO_SPHERE_BYTES {
+            scale.sphere_receivers = false;
+        }
+        self.stages.ssdo.params(&settings.camera, scale)
     }
 
     /// How shade reads key-light visibility this frame.
@@ -261,7 +281,12 @@ impl<'c> Renderer<'c> {
         let cam = settings.camera;
         // Each object is guarded until the renderer owns it: an error part
         // way (a buffer over the device limit) destroys what was made.
-        let (scene_buffers, geom) = SceneBuffers::new(ctx, scene, settings.lod.pixels())?;
+        // (a nested scene: the placements this camera opens, the others by
+        // their proxies; the rest of the renderer sees the nested scene)
+        let resolved = nesting::resolved(scene, &cam, settings.lod.pixels())?;
+        let drawn = resolved.as_ref().unwrap_or(scene);
+        let (scene_buffers, geom) = SceneBuffers::new(ctx, drawn, settings.lod.pixels())?;
+        drop(resolved);
         let mut scene_buffers = ctx.guard(scene_buffers);
         let win = checked_window(&cam, settings.window, settings.raster)?;
         let targets = ctx.guard(Targets::new(
@@ -303,6 +328,7 @@ impl<'c> Renderer<'c> {
             translucent: scene.has_translucent(),
             bounds: (bs_center.as_dvec3(), bs_radius as f64),
             typical_radius: typical_radius(scene) as f64,
+            placements: scene.nesting().map(|n| n.placements.len() as u64),
             storage_range: ctx.props.limits.max_storage_buffer_range,
             globals: Globals {
                 background: background_word(settings.look.background),

@@ -29,11 +29,17 @@ const PLASMA: [(&str, &[u8]); 2] = [
 /// clutter): 90 Å cells, about 99 % of them filled (3 * 10^6 atoms: 343
 /// proteins in 347 cells).
 pub const VOLUME_FRACTION: f64 = 0.2;
-/// The most atoms `--scene meso` builds: every protein copy is an instance
-/// record, so memory and build time grow with N (10^11: 13.4 M instances,
-/// built in 5.7 min, 5.2 GB RSS and 1.04 GB GPU on lavapipe; 10^12 would
-/// need ~50 GB: a scene of whole virions wants nested instancing).
-pub const MAX_ATOMS: u64 = 100_000_000_000;
+/// The most atoms `--scene meso` builds (2^40, the most an instanced
+/// scene represents).
+pub const MAX_ATOMS: u64 = super::instanced::MAX_REPRESENTED;
+/// Above this many atoms the scene is nested (src/scene/instanced/nested.rs):
+/// placements of one [`BLOCK_ATOMS`] block, a scene of whole virions each
+/// in its plasma. A flat scene keeps an instance record per protein copy,
+/// so memory and build time grow with N (10^11 flat: 13.4 M instances,
+/// built in 5.7 min, 5.2 GB RSS and 1.04 GB GPU on lavapipe).
+pub const NEST_ABOVE: u64 = 10_000_000_000;
+/// Atoms of the block a nested meso scene places.
+pub const BLOCK_ATOMS: u64 = 1_000_000_000;
 /// Covering spheres per plasma protein type (the collision test's shape).
 const COVER: usize = 16;
 /// Placements tried per lattice cell before it is left empty.
@@ -47,11 +53,43 @@ pub fn meso(atoms: u64, seed: u64) -> Result<Scene, SceneError> {
 }
 
 /// [`meso`], reporting (atoms placed, atoms wanted) as the plasma grows.
+/// Past [`NEST_ABOVE`] atoms: the [`BLOCK_ATOMS`] scene placed on a cubic
+/// lattice as many times as bring it nearest to `atoms` (touching
+/// bounding spheres, each placement in a random turn).
 pub fn meso_with_progress(
     atoms: u64,
     seed: u64,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<Scene, SceneError> {
+    if atoms <= NEST_ABOVE {
+        return flat(atoms, seed, progress);
+    }
+    let block = flat(BLOCK_ATOMS, seed, progress)?;
+    let per = block.represented().max(1);
+    let count = ((atoms as f64 / per as f64).round() as u64).max(1);
+    let side = (count as f64).cbrt().ceil() as u64;
+    let (c, r) = block.bounding_sphere();
+    let spacing = 2.0 * r as f64;
+    let mut rng = Rng::new(seed ^ 0x6E65_7374);
+    let mid = (side - 1) as f64 * 0.5;
+    let placements = (0..count)
+        .map(|i| {
+            let cell = DVec3::new(
+                (i % side) as f64 - mid,
+                (i / side % side) as f64 - mid,
+                (i / (side * side)) as f64 - mid,
+            );
+            let q = random_rotation(&mut rng);
+            // (the block's centre at the cell's: t = cell - q c)
+            let t = cell * spacing - q * c.as_dvec3();
+            super::instanced::rigid_from(q, t.into())
+        })
+        .collect();
+    super::instanced::nested::nest(block, placements)
+}
+
+/// A meso scene of `atoms` atoms with an instance record per protein copy.
+fn flat(atoms: u64, seed: u64, progress: &mut dyn FnMut(u64, u64)) -> Result<Scene, SceneError> {
     let opts = LoadOptions::default();
     let virion = parse_bytes(VIRION, Format::Json, "HIV-1 cellPACK model", &opts)?;
     let inst = virion

@@ -179,6 +179,11 @@ impl Scene {
 
     /// Component-wise min and max of the sphere centres (None if empty).
     pub fn center_bounds(&self) -> Option<(Vec3, Vec3)> {
+        if let Some(n) = self.nesting() {
+            // (the block's centre box placed: its corners' box)
+            let (lo, hi) = self.extremes()?.center_bounds()?;
+            return n.placed_box(lo, hi);
+        }
         if let Some(e) = self.extremes() {
             return e.center_bounds();
         }
@@ -194,6 +199,10 @@ impl Scene {
     /// box of the centres (the default view centre), radius reaching the
     /// farthest sphere surface. `(0, 0)` for an empty scene.
     pub fn bounding_sphere(&self) -> (Vec3, f32) {
+        if let Some(n) = self.nesting() {
+            let b = self.extremes().and_then(|e| e.bounding_sphere());
+            return b.map_or((Vec3::ZERO, 0.0), |(c, r)| n.placed_sphere(c, r));
+        }
         if let Some(e) = self.extremes() {
             return e.bounding_sphere().unwrap_or((Vec3::ZERO, 0.0));
         }
@@ -204,6 +213,11 @@ impl Scene {
         let mut r = 0.0f32;
         self.for_each_geometry(|p, radius| r = r.max(Vec3::from(p).distance(c) + radius));
         (c, r)
+    }
+
+    /// The placements of a nested scene.
+    pub fn nesting(&self) -> Option<&instanced::nested::Nesting> {
+        self.instancing.as_ref()?.nesting.as_ref()
     }
 
     /// Largest radius (0 for an empty scene).

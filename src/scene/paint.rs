@@ -591,6 +591,16 @@ pub fn apply(mut scene: Scene, paint: &Paint) -> Result<(Scene, Applied), SceneE
             "the scene was already subset (rules apply once)".into(),
         ));
     }
+    if let Some(n) = scene.nesting() {
+        // (a rule would have to tell one placement's copy from another's,
+        // which the block's instances cannot)
+        return Err(SceneError::Invalid(format!(
+            "{}: --hide/--paint/--alpha rules on a nested scene ({} placements of one block) \
+             are not supported; colour schemes are",
+            scene.source,
+            n.placements.len()
+        )));
+    }
     let c = compile(&scene, &paint.rules).map_err(SceneError::Invalid)?;
     if scene.instancing.is_some() {
         return apply_instanced(scene, &c, applied);

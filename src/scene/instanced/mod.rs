@@ -26,6 +26,10 @@ pub struct Molecule {
     pub node: u32,
     /// Distinct chains among its atoms (chain indices 0..chains).
     pub chains: u32,
+    /// A nested scene's proxy ([`nested`]): per atom, the expanded index
+    /// within its placement of the atom it stands for (what ids name at
+    /// every level of detail). None: atom a names atom a.
+    pub origin: Option<Vec<u32>>,
 }
 
 /// A node of the hierarchy tree (node 0 is the root).
@@ -198,8 +202,11 @@ pub struct Instancing {
     /// Chain regions are `instance * chain_stride + chain`.
     pub chain_stride: u32,
     /// Expanded index of each instance's first atom; one more entry, the
-    /// represented count.
+    /// represented count (nested: of one block).
     pub first: Vec<u64>,
+    /// Nested: the placements of this block ([`nested`]); instances,
+    /// `first` and the other tables are the block's.
+    pub nesting: Option<nested::Nesting>,
 }
 
 impl Instancing {
@@ -209,7 +216,10 @@ impl Instancing {
 
     /// Represented (expanded) sphere count.
     pub fn represented(&self) -> u64 {
-        self.first.last().copied().unwrap_or(0)
+        let block = self.first.last().copied().unwrap_or(0);
+        self.nesting
+            .as_ref()
+            .map_or(block, |n| block * n.placements.len() as u64)
     }
 
     /// The number of tree levels among `levels` (they come first).
@@ -228,19 +238,29 @@ impl Instancing {
             .map(|i| i as u32)
     }
 
-    /// Instance and atom (index within its molecule) of expanded index `i`.
+    /// Instance and atom (index within its molecule) of expanded index `i`
+    /// (nested: instance `p * K + k`, [`nested`]).
     pub fn locate(&self, i: u64) -> Option<(usize, u32)> {
         if i >= self.represented() {
             return None;
         }
+        let block = self.first.last().copied().unwrap_or(0);
+        let (p, i) = (i / block.max(1), i % block.max(1));
         // the last instance whose first atom is at or before i
         let k = self.first.partition_point(|&f| f <= i) - 1;
-        Some((k, (i - self.first[k]) as u32))
+        let a = (i - self.first[k]) as u32;
+        let m = &self.molecules[self.instance_molecule[k] as usize];
+        // (a proxy's range is its placement's: its atoms are not those)
+        if a >= m.atoms || m.origin.is_some() {
+            return None;
+        }
+        Some((p as usize * self.instances() + k, a))
     }
 
-    /// Region ids of atom `a` (index in `Scene::spheres`) of instance `k`.
+    /// Region ids of an atom of chain `chain` of instance `k` (nested:
+    /// `p * K + k`).
     pub fn regions(&self, k: usize, chain: u32) -> [u32; MAX_LEVELS] {
-        let m = self.instance_molecule[k] as usize;
+        let m = self.instance_molecule[k % self.instances().max(1)] as usize;
         let mut r = self.tree_regions[m];
         for (l, kind) in self.levels.iter().enumerate() {
             match kind {
@@ -273,21 +293,25 @@ impl Scene {
             self.spheres.iter().copied().for_each(f);
             return;
         };
-        for (k, &m) in inst.instance_molecule.iter().enumerate() {
-            let mol = &inst.molecules[m as usize];
+        for k in 0..inst.represented_instances() {
+            let Some((b, t)) = inst.instance_at(k) else {
+                return;
+            };
+            let mol = &inst.molecules[inst.instance_molecule[b] as usize];
             let atoms = &self.spheres[mol.first as usize..(mol.first + mol.atoms) as usize];
             for a in atoms {
                 f(Sphere {
-                    center: inst.transforms.apply(k, a.center),
+                    center: place(inst, b, t.as_ref(), a.center),
                     radius: a.radius,
                     color: a.color,
-                    region: inst.regions(k, a.region[0]),
+                    region: inst.regions(k as usize, a.region[0]),
                 });
             }
         }
     }
 
     /// The scene's instances as [`extremes::Extremes`] (None: plain).
+    /// (Nested scenes: the block's, unplaced.)
     pub fn extremes(&self) -> Option<extremes::Extremes<'_>> {
         let inst = self.instancing.as_ref()?;
         let atoms: Vec<[f32; 4]> = self
@@ -310,11 +334,14 @@ impl Scene {
             self.spheres.iter().for_each(|s| f(s.center, s.radius));
             return;
         };
-        for (k, &m) in inst.instance_molecule.iter().enumerate() {
-            let mol = &inst.molecules[m as usize];
+        for k in 0..inst.represented_instances() {
+            let Some((b, t)) = inst.instance_at(k) else {
+                return;
+            };
+            let mol = &inst.molecules[inst.instance_molecule[b] as usize];
             let atoms = &self.spheres[mol.first as usize..(mol.first + mol.atoms) as usize];
             for a in atoms {
-                f(inst.transforms.apply(k, a.center), a.radius);
+                f(place(inst, b, t.as_ref(), a.center), a.radius);
             }
         }
     }
@@ -325,10 +352,11 @@ impl Scene {
             return self.spheres.get(usize::try_from(i).ok()?).copied();
         };
         let (k, a) = inst.locate(i)?;
-        let mol = &inst.molecules[inst.instance_molecule[k] as usize];
+        let (b, t) = inst.instance_at(k as u64)?;
+        let mol = &inst.molecules[inst.instance_molecule[b] as usize];
         let s = self.spheres[(mol.first + a) as usize];
         Some(Sphere {
-            center: inst.transforms.apply(k, s.center),
+            center: place(inst, b, t.as_ref(), s.center),
             radius: s.radius,
             color: s.color,
             region: inst.regions(k, s.region[0]),
@@ -362,6 +390,16 @@ impl Scene {
             atoms: None,
             origin,
         })
+    }
+}
+
+/// An atom of block instance `b` placed: by the block's transform, or
+/// (nested) by the composed one `t`.
+#[inline]
+fn place(inst: &Instancing, b: usize, t: Option<&Transforms>, x: [f32; 3]) -> [f32; 3] {
+    match t {
+        Some(t) => t.apply(0, x),
+        None => inst.transforms.apply(b, x),
     }
 }
 
@@ -451,6 +489,7 @@ impl InstancedBuilder {
             atoms: atoms.len() as u32,
             node,
             chains,
+            origin: None,
         });
         self.spheres.extend(atoms);
         self.molecules.len() as u32 - 1
@@ -605,6 +644,7 @@ impl InstancedBuilder {
             tree_regions,
             chain_stride,
             first,
+            nesting: None,
         };
         let scene = Scene {
             spheres: self.spheres,
@@ -754,6 +794,7 @@ pub fn run_center(atoms: &[Sphere]) -> Vec3 {
 
 pub mod extremes;
 pub mod lod;
+pub mod nested;
 
 #[cfg(test)]
 mod tests;

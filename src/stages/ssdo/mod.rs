@@ -371,10 +371,17 @@ impl SsdoStage {
             .prepare(ctx, lookup, modes.semantic, p.taps, modes.lists)?;
         let capacity = (sphere_count.max(1) as u64).min(pixels.max(1)) as u32;
         let fits = |b: &SphereBuffers| b.spheres == sphere_count && b.capacity == capacity;
-        if p.taps.per_sphere() && !st.spheres.as_ref().is_some_and(fits) {
+        // (remade for other counts, or freed if this frame takes other
+        // receivers: the LOD lists grew past the renderer's budget for
+        // them. The renderer waits for frames in flight when the ids a
+        // frame may name change; a frame that only takes other receivers
+        // keeps them)
+        if !st.spheres.as_ref().is_some_and(fits) {
             if let Some(mut old) = st.spheres.take() {
                 old.destroy(ctx);
             }
+        }
+        if p.taps.per_sphere() && st.spheres.is_none() {
             st.spheres = Some(SphereBuffers::new(ctx, sphere_count, pixels)?);
         }
         st.blur.prepare(ctx, modes.semantic, modes.lists)

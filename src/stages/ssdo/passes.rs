@@ -142,6 +142,13 @@ pub struct SphereBuffers {
 }
 
 impl SphereBuffers {
+    /// The bytes [`SphereBuffers::new`] takes for these counts.
+    pub fn bytes_for(spheres: u32, pixels: u64) -> u64 {
+        let n = spheres.max(1) as u64;
+        let capacity = n.min(pixels.max(1));
+        2 * flag_words(n) * 4 + capacity * 20 + 32
+    }
+
     pub fn new(ctx: &Context, spheres: u32, pixels: u64) -> Result<Self> {
         let n = spheres.max(1) as u64;
         let capacity = n.min(pixels.max(1));
