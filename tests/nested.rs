@@ -242,9 +242,12 @@ fn a_view_opens_what_it_shows_nearest_first() {
     cam.view_height = 200.0;
     let o = opening(&s, Some(&proxies), &cam).unwrap();
     assert_eq!(o.wanted, 2, "the front placement and the one behind it");
-    assert!(o.open[4] && o.open[0], "both, the budget allowing");
-    // with room for one: the front one
-    let o = opening_within(&s, Some(&proxies), &cam, 1).unwrap();
+    assert!(o.open[4] && !o.open[0], "{:?}", o.open);
+    // full detail asked for (no coarse levels): both, the budget allowing
+    let full = Proxies::new(&s, 0.0).unwrap();
+    let o = opening(&s, Some(&full), &cam).unwrap();
+    assert!(o.open[4] && o.open[0], "{:?}", o.open);
+    let o = opening_within(&s, Some(&full), &cam, 1).unwrap();
     assert!(o.open[4] && !o.open[0], "{:?}", o.open);
     cam.view_height = 1e7;
     cam.center = DVec3::ZERO;
@@ -252,4 +255,37 @@ fn a_view_opens_what_it_shows_nearest_first() {
     assert_eq!(o.open, vec![false; 8]);
     let o = opening(&s, None, &cam).unwrap();
     assert_eq!(o.open, vec![true; 8]);
+}
+
+/// With a placement opened, the key light is fitted to the opened ones
+/// (its texels as fine as the block's own: fitted to the whole 10^12
+/// scene they were 34 A and a zoomed view lost its shadows); with none,
+/// to the whole scene.
+#[test]
+fn the_light_is_fitted_to_the_opened_placements() {
+    let ctx = validated_context();
+    let s = nested(2);
+    let (_, block_r) = block().bounding_sphere();
+    let (_, all_r) = s.bounding_sphere();
+    let p = &s.nesting().unwrap().placements;
+    let (bc, _) = block().bounding_sphere();
+    let front = glam::Vec3::from(sphereshade::scene::instanced::apply_rigid(&p[4], bc.into()));
+    let mut cam = camera(&s, 96, 72, None);
+    let whole = cam;
+    cam.center = front.as_dvec3();
+    cam.view_height = 200.0;
+    for (c, opened, reach) in [(cam, true, block_r), (whole, false, all_r)] {
+        let mut r = Renderer::new(&ctx, &s, settings(c, ShadowMode::IssmSoft)).unwrap();
+        r.render_frame().unwrap();
+        let light = r.inspect().light_view().expect("a light view");
+        let h = light.view_height;
+        eprintln!(
+            "opened {opened}: light view {h:.0} (block radius {block_r:.0}, scene {all_r:.0})"
+        );
+        assert!(
+            h <= 2.0 * reach as f64 * 1.01 && h >= 0.5 * reach as f64,
+            "opened {opened}: {h}"
+        );
+    }
+    assert_no_validation_messages(&ctx);
 }

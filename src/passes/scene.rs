@@ -402,6 +402,7 @@ impl SceneBuffers {
             transforms: inst.transforms.clone(),
             instance_molecule: inst.instance_molecule.clone(),
             molecules: inst.molecules.iter().map(|m| (m.first, m.atoms)).collect(),
+            proxies: inst.molecules.iter().map(|m| m.origin.is_some()).collect(),
             first: inst.first.clone(),
             tables,
             batch_first,
@@ -833,6 +834,8 @@ pub struct InstancedGeom {
     pub instance_molecule: Vec<u32>,
     /// Per molecule type: first atom, atom count.
     pub molecules: Vec<(u32, u32)>,
+    /// Per molecule type: a nested scene's proxy.
+    pub proxies: Vec<bool>,
     /// Expanded index of each instance's first atom (+ the total).
     pub first: Vec<u64>,
     pub tables: BatchTables,
@@ -1062,8 +1065,31 @@ impl SceneGeom {
 
     /// Along each of `axes`, the least `centre . axis - radius` and the
     /// largest `centre . axis + radius` over every represented sphere
-    /// (None: no spheres): what a light view is fitted to.
+    /// (None: no spheres): what a light view is fitted to. A nested scene
+    /// with placements opened: over theirs only, so the light's texels
+    /// stay as fine as the block's (fitted to a 10^12 scene they were 34 A
+    /// wide, and a zoomed view lost its shadows); closed placements then
+    /// cast no shadow on them.
     pub fn extent_along(&self, axes: [DVec3; 3]) -> Option<(DVec3, DVec3)> {
+        if let SceneGeom::Instanced(i) = self
+            && i.proxies.iter().any(|&p| p)
+            && i.instance_molecule.iter().any(|&m| !i.proxies[m as usize])
+        {
+            // (a proxy type as a molecule of no atoms: the scan skips it)
+            let molecules = i
+                .molecules
+                .iter()
+                .zip(&i.proxies)
+                .map(|(&m, &p)| if p { (m.0, 0) } else { m })
+                .collect();
+            let e = Extremes::new(
+                &i.transforms,
+                &i.instance_molecule,
+                molecules,
+                std::borrow::Cow::Borrowed(&i.atoms),
+            );
+            return e.extent_along(axes);
+        }
         if let Some(e) = self.extremes() {
             return e.extent_along(axes);
         }

@@ -91,6 +91,12 @@ impl<'r> Inspect<'r, '_> {
         }
     }
 
+    /// The key light's view the shadows last fitted (None: no technique
+    /// with a light view).
+    pub fn light_view(&self) -> Option<crate::camera::Camera> {
+        self.r.res.stages.shadows.light()
+    }
+
     /// Whether the key light's view has its sphere order for the current
     /// spheres (sorted by the first frame that draws that view).
     pub fn light_order_ready(&self) -> bool {

@@ -119,9 +119,10 @@ pub fn opening_within(
     }
     want.sort_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)));
     let mut open = vec![false; n];
-    // (one whose disc an opened nearer one's holds is behind it: opened
-    // only if the budget is left after the others, its proxies drawing
-    // what of it shows through until then)
+    // (one whose disc an opened nearer one's holds is behind it: its
+    // proxies draw what of it shows through; opened only if the budget is
+    // left after the others and the view asks for full detail,
+    // `--lod-pixels 0`, where proxies are a level of detail too coarse)
     let mut opened: Vec<[f64; 3]> = Vec::new();
     let mut held: Vec<usize> = Vec::new();
     for &(p, _, d) in &want {
@@ -138,8 +139,10 @@ pub fn opening_within(
             opened.push(d);
         }
     }
-    for p in held.into_iter().take(budget - opened.len()) {
-        open[p] = true;
+    if proxies.open_ppu <= 0.0 {
+        for p in held.into_iter().take(budget - opened.len()) {
+            open[p] = true;
+        }
     }
     Ok(Opening {
         open,
