@@ -376,10 +376,10 @@ impl SsdoStage {
         // them. The renderer waits for frames in flight when the ids a
         // frame may name change; a frame that only takes other receivers
         // keeps them)
-        if !st.spheres.as_ref().is_some_and(fits) {
-            if let Some(mut old) = st.spheres.take() {
-                old.destroy(ctx);
-            }
+        if !st.spheres.as_ref().is_some_and(fits)
+            && let Some(mut old) = st.spheres.take()
+        {
+            old.destroy(ctx);
         }
         if p.taps.per_sphere() && st.spheres.is_none() {
             st.spheres = Some(SphereBuffers::new(ctx, sphere_count, pixels)?);
