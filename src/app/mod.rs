@@ -316,6 +316,15 @@ impl<'c> App<'c> {
             // Orbiting and zooming move only the camera: keep the light
             // map / lists until the light, opacity or mode changes.
             r.set_light_cache(true);
+            if let Some(n) = scene.nesting() {
+                // (the renderer opens placements for the camera it starts
+                // with; reopening them as the view moves is not done yet)
+                eprintln!(
+                    "view: a nested scene of {} placements: those the first view opened keep their \
+                     detail, the others draw their proxies however near",
+                    n.placements.len()
+                );
+            }
             eprintln!(
                 "view: renderer ready in {:.0} ms ({} spheres)",
                 started.elapsed().as_secs_f64() * 1e3,
