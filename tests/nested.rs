@@ -289,3 +289,50 @@ fn the_light_is_fitted_to_the_opened_placements() {
     }
     assert_no_validation_messages(&ctx);
 }
+
+/// `--scene meso` past 10^10 atoms is nested; here the same builder with a
+/// 10^6-atom block: the count nearest N, the same scene twice, the
+/// placements' bounding spheres touching at most, each turn a rotation.
+#[test]
+fn the_nested_meso_scene_places_whole_blocks() {
+    let build =
+        || sphereshade::scene::meso::nested(1_000_000, 27_000_000, 1, &mut |_, _| {}).unwrap();
+    let s = build();
+    let per = sphereshade::scene::meso::meso(1_000_000, 1)
+        .unwrap()
+        .represented();
+    let n = s.nesting().unwrap().placements.len() as u64;
+    assert_eq!(n, (27_000_000f64 / per as f64).round() as u64);
+    assert_eq!(s.represented(), n * per);
+    assert!(s.represented().abs_diff(27_000_000) <= per / 2);
+    let again = build();
+    assert!(
+        s.spheres == again.spheres && s.instancing == again.instancing,
+        "deterministic"
+    );
+    let b = s.instancing.as_ref().unwrap();
+    let (bc, br) = {
+        let mut flat = s.clone();
+        flat.instancing.as_mut().unwrap().nesting = None;
+        flat.bounding_sphere()
+    };
+    let p = &s.nesting().unwrap().placements;
+    let centres: Vec<glam::Vec3> = p
+        .iter()
+        .map(|q| glam::Vec3::from(sphereshade::scene::instanced::apply_rigid(q, bc.into())))
+        .collect();
+    for (i, a) in centres.iter().enumerate() {
+        let q = glam::Vec4::from(p[i].q);
+        assert!(
+            (q.length() - 1.0).abs() < 1e-5,
+            "placement {i}: not a rotation"
+        );
+        for c in &centres[i + 1..] {
+            assert!(
+                a.distance(*c) >= 2.0 * br * (1.0 - 1e-5),
+                "placements overlap"
+            );
+        }
+    }
+    assert!(b.represented_instances() == n * b.instances() as u64);
+}

@@ -53,9 +53,8 @@ pub fn meso(atoms: u64, seed: u64) -> Result<Scene, SceneError> {
 }
 
 /// [`meso`], reporting (atoms placed, atoms wanted) as the plasma grows.
-/// Past [`NEST_ABOVE`] atoms: the [`BLOCK_ATOMS`] scene placed on a cubic
-/// lattice as many times as bring it nearest to `atoms` (touching
-/// bounding spheres, each placement in a random turn).
+/// Past [`NEST_ABOVE`] atoms: [`nested`] placements of the [`BLOCK_ATOMS`]
+/// scene.
 pub fn meso_with_progress(
     atoms: u64,
     seed: u64,
@@ -64,7 +63,20 @@ pub fn meso_with_progress(
     if atoms <= NEST_ABOVE {
         return flat(atoms, seed, progress);
     }
-    let block = flat(BLOCK_ATOMS, seed, progress)?;
+    nested(BLOCK_ATOMS, atoms, seed, progress)
+}
+
+/// A nested meso scene of about `atoms` atoms: the `block`-atom scene
+/// placed on a cubic lattice (x fastest, then y, then z) of touching
+/// bounding spheres, each placement in a random turn, as many times as
+/// bring it nearest to `atoms`.
+pub fn nested(
+    block: u64,
+    atoms: u64,
+    seed: u64,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<Scene, SceneError> {
+    let block = flat(block, seed, progress)?;
     let per = block.represented().max(1);
     let count = ((atoms as f64 / per as f64).round() as u64).max(1);
     let side = (count as f64).cbrt().ceil() as u64;
