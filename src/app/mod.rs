@@ -97,6 +97,14 @@ pub const HELP: &str = "controls: left drag orbit | right/middle drag pan | whee
 S shadows (none/issm/issm-soft/deep/sm-pcf/osm) | O ssdo (off/plain/semantic) | B blur | +/- opacity | T see-through presets | R reset camera | \
 P screenshot | H help | Esc quit | with --trajectory: space play/pause, left/right step, [ ] slower/faster, L loop";
 
+/// A nested scene the viewer keeps: its proxies and the placements the
+/// renderer's camera opened.
+struct Nested {
+    scene: Scene,
+    proxies: crate::scene::instanced::nested::Proxies,
+    open: Vec<bool>,
+}
+
 /// Camera parameters the controls change.
 #[derive(Clone, Copy, Debug)]
 struct Orbit {
@@ -133,6 +141,8 @@ struct App<'c> {
     /// When `view` started (start-up to first frame is reported).
     started: Instant,
     resized_once: bool,
+    /// A nested scene (its placements reopened as the camera moves).
+    nested: Option<Nested>,
     cursor: (f64, f64),
     buttons: [bool; 3],
     shift: bool,
@@ -224,6 +234,30 @@ impl<'c> App<'c> {
         };
         let (w, h) = self.size;
         let cam = crate::camera::Camera::new(o.center, o.dir, o.up, o.height, o.fov, w, h)?;
+        if let Some(n) = &mut self.nested {
+            let open = crate::render::nesting::opening(&n.scene, Some(&n.proxies), &cam)?.open;
+            if open != n.open {
+                // Other placements to open: a renderer for them (the
+                // resolved scene's tables are the renderer's own; ~1 s for
+                // the 10^12 meso scene, the frame in flight first)
+                let t = Instant::now();
+                let mut s = r.settings().clone();
+                s.camera = cam;
+                let bgra = r.inspect().is_bgra();
+                self.renderer = None;
+                let mut fresh = Renderer::with_proxies(self.ctx, &n.scene, s, Some(&n.proxies))?;
+                fresh.set_bgra(bgra);
+                fresh.set_light_cache(true);
+                n.open = open;
+                eprintln!(
+                    "view: placements reopened ({} open) in {:.0} ms",
+                    n.open.iter().filter(|&&x| x).count(),
+                    t.elapsed().as_secs_f64() * 1e3
+                );
+                self.renderer = Some(fresh);
+                return Ok(());
+            }
+        }
         r.update(|s| s.camera = cam)
     }
 
@@ -309,22 +343,15 @@ impl<'c> App<'c> {
             self.home = Some(o);
             self.orbit = Some(o);
             let started = Instant::now();
-            let mut r = Renderer::new(self.ctx, &scene, settings)?;
+            let proxies = crate::render::nesting::proxies_of(&scene, settings.lod.pixels())?;
+            let mut r = Renderer::with_proxies(self.ctx, &scene, settings, proxies.as_ref())?;
             if let Some(sc) = &self.swapchain {
                 r.set_bgra(sc.is_bgra());
             }
             // Orbiting and zooming move only the camera: keep the light
             // map / lists until the light, opacity or mode changes.
             r.set_light_cache(true);
-            if let Some(n) = scene.nesting() {
-                // (the renderer opens placements for the camera it starts
-                // with; reopening them as the view moves is not done yet)
-                eprintln!(
-                    "view: a nested scene of {} placements: those the first view opened keep their \
-                     detail, the others draw their proxies however near",
-                    n.placements.len()
-                );
-            }
+
             eprintln!(
                 "view: renderer ready in {:.0} ms ({} spheres)",
                 started.elapsed().as_secs_f64() * 1e3,
@@ -359,7 +386,29 @@ impl<'c> App<'c> {
             self.loading = Loading::Done;
             self.loaded_colors = scene.spheres.iter().map(|s| s.color).collect();
             self.groups = crate::scene::paint::hierarchy_groups(&scene);
-            drop(scene);
+            // A nested scene: kept, with its proxies, to reopen placements
+            // as the camera moves (`update_camera`).
+            self.nested = match proxies {
+                Some(proxies) => {
+                    let open = match &self.renderer {
+                        Some(r) => {
+                            crate::render::nesting::opening(
+                                &scene,
+                                Some(&proxies),
+                                &r.settings().camera,
+                            )?
+                            .open
+                        }
+                        None => Vec::new(),
+                    };
+                    Some(Nested {
+                        scene,
+                        proxies,
+                        open,
+                    })
+                }
+                None => None,
+            };
         }
         if let Some(a) = self.actions.pop_front() {
             self.act(a)?;
@@ -746,6 +795,7 @@ pub fn run(cmd: ViewCmd) -> Result<Exit> {
         second_frame_at: None,
         started,
         resized_once: false,
+        nested: None,
         cursor: (0.0, 0.0),
         buttons: [false; 3],
         shift: false,

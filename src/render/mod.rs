@@ -265,6 +265,19 @@ fn ssdo_modes(settings: &RenderSettings) -> SsdoModes {
 
 impl<'c> Renderer<'c> {
     pub fn new(ctx: &'c Context, scene: &Scene, settings: RenderSettings) -> Result<Self> {
+        let proxies = nesting::proxies_of(scene, settings.lod.pixels())?;
+        Self::with_proxies(ctx, scene, settings, proxies.as_ref())
+    }
+
+    /// [`Renderer::new`] for a nested scene whose proxies were made for
+    /// these settings' `--lod-pixels` already
+    /// ([`nesting::proxies_of`]).
+    pub fn with_proxies(
+        ctx: &'c Context,
+        scene: &Scene,
+        settings: RenderSettings,
+        proxies: Option<&crate::scene::instanced::nested::Proxies>,
+    ) -> Result<Self> {
         if scene.spheres.is_empty() || scene.represented() == 0 {
             return Err(Error::Input(format!(
                 "{}: no spheres to render",
@@ -283,7 +296,7 @@ impl<'c> Renderer<'c> {
         // way (a buffer over the device limit) destroys what was made.
         // (a nested scene: the placements this camera opens, the others by
         // their proxies; the rest of the renderer sees the nested scene)
-        let resolved = nesting::resolved(scene, &cam, settings.lod.pixels())?;
+        let resolved = nesting::resolved_with(scene, &cam, proxies)?;
         let drawn = resolved.as_ref().unwrap_or(scene);
         let (scene_buffers, geom) = SceneBuffers::new(ctx, drawn, settings.lod.pixels())?;
         drop(resolved);

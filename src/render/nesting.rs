@@ -154,14 +154,33 @@ pub fn opening_within(
 /// The scene `cam` draws of `scene`: None when it is not nested (draw it as
 /// it is), else its placements opened or drawn by proxies ([`opening`]).
 pub fn resolved(scene: &Scene, cam: &Camera, lod_pixels: Option<f32>) -> Result<Option<Scene>> {
+    if scene.nesting().is_none() {
+        return Ok(None);
+    }
+    let proxies = proxies_of(scene, lod_pixels)?;
+    resolved_with(scene, cam, proxies.as_ref())
+}
+
+/// A nested scene's proxies for `--lod-pixels` (None: `--lod off`, or
+/// not nested).
+pub fn proxies_of(scene: &Scene, lod_pixels: Option<f32>) -> Result<Option<Proxies>> {
+    match (scene.nesting(), lod_pixels) {
+        (Some(_), Some(p)) => Ok(Some(Proxies::new(scene, p)?)),
+        _ => Ok(None),
+    }
+}
+
+/// [`resolved`] with the proxies made already (a viewer that reopens
+/// placements as its camera moves keeps them).
+pub fn resolved_with(
+    scene: &Scene,
+    cam: &Camera,
+    proxies: Option<&Proxies>,
+) -> Result<Option<Scene>> {
     let Some(inst) = scene.instancing.as_ref().filter(|i| i.nesting.is_some()) else {
         return Ok(None);
     };
-    let proxies = match lod_pixels {
-        Some(p) => Some(Proxies::new(scene, p)?),
-        None => None,
-    };
-    let o = opening(scene, proxies.as_ref(), cam)?;
+    let o = opening(scene, proxies, cam)?;
     let opened = o.open.iter().filter(|&&x| x).count();
     log::info!(
         "nested: {opened} of {} placements opened ({} in view want it; closed below {:.4} px/unit)",
@@ -170,7 +189,7 @@ pub fn resolved(scene: &Scene, cam: &Camera, lod_pixels: Option<f32>) -> Result<
         o.open_ppu
     );
     let empty;
-    let proxies = match &proxies {
+    let proxies = match proxies {
         Some(p) => p,
         None => {
             empty = Proxies::none();
