@@ -259,7 +259,7 @@ fn a_view_opens_what_it_shows_nearest_first() {
 
 /// With a placement opened, the key light is fitted to the opened ones
 /// (its texels as fine as the block's own: fitted to the whole 10^12
-/// scene they were 34 A and a zoomed view lost its shadows); with none,
+/// scene, ~240 A, and a zoomed view lost its shadows); with none,
 /// to the whole scene.
 #[test]
 fn the_light_is_fitted_to_the_opened_placements() {

@@ -1067,7 +1067,7 @@ impl SceneGeom {
     /// largest `centre . axis + radius` over every represented sphere
     /// (None: no spheres): what a light view is fitted to. A nested scene
     /// with placements opened: over theirs only, so the light's texels
-    /// stay as fine as the block's (fitted to a 10^12 scene they were 34 A
+    /// stay as fine as the block's (fitted to a 10^12 scene, ~240 A
     /// wide, and a zoomed view lost its shadows); closed placements then
     /// cast no shadow on them.
     pub fn extent_along(&self, axes: [DVec3; 3]) -> Option<(DVec3, DVec3)> {
