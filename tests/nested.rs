@@ -97,6 +97,14 @@ fn nesting_refuses_what_it_cannot_hold() {
         .unwrap_err()
         .to_string();
     assert!(twice.contains("cannot be nested again"), "{twice}");
+    let far = Rigid {
+        q: [0.0, 0.0, 0.0, 1.0],
+        t: [1e30, 0.0, 0.0, 0.0],
+    };
+    let out = nest(block(), vec![Rigid::default(), far])
+        .unwrap_err()
+        .to_string();
+    assert!(out.contains("placements reach"), "{out}");
     let plain = load_data("1tii.pdb");
     let flat = nest(plain, vec![Rigid::default()]).unwrap_err().to_string();
     assert!(flat.contains("only an instanced scene"), "{flat}");

@@ -440,5 +440,15 @@ pub fn nest(mut scene: Scene, placements: Vec<Rigid>) -> Result<Scene, SceneErro
         )));
     }
     inst.nesting = Some(Nesting { placements });
+    // (every placed block within the coordinates sphereshade renders)
+    let (c, r) = scene.bounding_sphere();
+    let limit = crate::scene::MAX_COORDINATE;
+    if !(c.abs().max_element() + r <= limit) {
+        return Err(SceneError::Invalid(format!(
+            "{}: placements reach {:.3e} from the origin, past {limit:.0e}",
+            scene.source,
+            c.abs().max_element() + r
+        )));
+    }
     Ok(scene)
 }
