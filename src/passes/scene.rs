@@ -17,7 +17,7 @@ use crate::gpu::consts::{
 use crate::gpu::{GpuBatch, GpuSphere, SphereAttr};
 use crate::scene::Scene;
 use crate::scene::instanced::extremes::Extremes;
-use crate::scene::instanced::lod::{MoleculeLod, morton3};
+use crate::scene::instanced::lod::{MoleculeLod, morton_cells};
 use crate::scene::instanced::{LevelKind, Transforms};
 use crate::vk::pipeline::{Binding, texel};
 use crate::vk::{Buffer, Context};
@@ -130,26 +130,9 @@ pub struct LodBuffers {
 /// curve (glsl/lod_cull.comp), so the lists it fills run near to far.
 pub fn cull_order(instance_molecule: &[u32], place: impl Fn(usize) -> [f32; 3]) -> Vec<u32> {
     let places: Vec<[f32; 3]> = (0..instance_molecule.len()).map(place).collect();
-    let (mut lo, mut hi) = ([f32::MAX; 3], [f32::MIN; 3]);
-    for p in places.iter().filter(|p| p.iter().all(|c| c.is_finite())) {
-        for i in 0..3 {
-            lo[i] = lo[i].min(p[i]);
-            hi[i] = hi[i].max(p[i]);
-        }
-    }
-    let cell = |p: &[f32; 3]| -> u32 {
-        morton3(std::array::from_fn(|i| {
-            let e = hi[i] - lo[i];
-            // (NaN and a flat axis: cell 0)
-            if e > 0.0 {
-                ((p[i] - lo[i]) / e * 1023.0).clamp(0.0, 1023.0) as u32
-            } else {
-                0
-            }
-        }))
-    };
+    let cells = morton_cells(&places);
     let mut order: Vec<u32> = (0..instance_molecule.len() as u32).collect();
-    order.sort_by_key(|&k| (instance_molecule[k as usize], cell(&places[k as usize])));
+    order.sort_by_key(|&k| (instance_molecule[k as usize], cells[k as usize]));
     order
 }
 
@@ -1248,6 +1231,7 @@ mod tests {
     use super::*;
     use crate::scene::Sphere;
     use crate::scene::instanced::InstancedBuilder;
+    use crate::scene::instanced::lod::morton3;
 
     /// The cull's order visits every instance once, by molecule type, and
     /// within a type along the Morton curve of their places (x bits below

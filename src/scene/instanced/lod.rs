@@ -60,6 +60,32 @@ pub fn morton3(q: [u32; 3]) -> u32 {
     code
 }
 
+/// Each point's Morton code on a 1024^3 grid over the box of the finite
+/// points (NaN and a flat axis: cell 0 along it): what orders instances for
+/// the cull and a nested scene's proxies.
+pub fn morton_cells(points: &[[f32; 3]]) -> Vec<u32> {
+    let (mut lo, mut hi) = ([f32::MAX; 3], [f32::MIN; 3]);
+    for p in points.iter().filter(|p| p.iter().all(|c| c.is_finite())) {
+        for i in 0..3 {
+            lo[i] = lo[i].min(p[i]);
+            hi[i] = hi[i].max(p[i]);
+        }
+    }
+    points
+        .iter()
+        .map(|p| {
+            morton3(std::array::from_fn(|i| {
+                let e = hi[i] - lo[i];
+                if e > 0.0 {
+                    ((p[i] - lo[i]) / e * 1023.0).clamp(0.0, 1023.0) as u32
+                } else {
+                    0
+                }
+            }))
+        })
+        .collect()
+}
+
 /// The levels of one molecule type.
 #[derive(Clone, Debug, PartialEq)]
 pub struct MoleculeLod {

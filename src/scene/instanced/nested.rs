@@ -271,26 +271,9 @@ impl Proxies {
 
 /// Indices of `spheres` in Morton order of their centres (ties in order).
 fn morton_order(spheres: &[Sphere]) -> Vec<usize> {
-    let (mut lo, mut hi) = ([f32::MAX; 3], [f32::MIN; 3]);
-    for s in spheres {
-        for i in 0..3 {
-            lo[i] = lo[i].min(s.center[i]);
-            hi[i] = hi[i].max(s.center[i]);
-        }
-    }
-    let code = |s: &Sphere| {
-        super::lod::morton3(std::array::from_fn(|i| {
-            let e = hi[i] - lo[i];
-            let f = if e > 0.0 {
-                (s.center[i] - lo[i]) / e
-            } else {
-                0.0
-            };
-            (f * 1023.0).clamp(0.0, 1023.0) as u32
-        }))
-    };
+    let cells = super::lod::morton_cells(&spheres.iter().map(|s| s.center).collect::<Vec<_>>());
     let mut order: Vec<usize> = (0..spheres.len()).collect();
-    order.sort_by_key(|&i| (code(&spheres[i]), i));
+    order.sort_by_key(|&i| cells[i]);
     order
 }
 
