@@ -296,7 +296,7 @@ impl<'c> Renderer<'c> {
         // way (a buffer over the device limit) destroys what was made.
         // (a nested scene: the placements this camera opens, the others by
         // their proxies; the rest of the renderer sees the nested scene)
-        let resolved = nesting::resolved_with(scene, &cam, proxies)?;
+        let resolved = nesting::resolved(scene, &cam, proxies)?;
         let drawn = resolved.as_ref().unwrap_or(scene);
         let (scene_buffers, geom) = SceneBuffers::new(ctx, drawn, settings.lod.pixels())?;
         drop(resolved);

@@ -69,8 +69,7 @@ pub fn opening_within(
     let ppu0 = cam.pixels_per_unit();
     let d0 = cam.eye_distance();
     // those in the view that want opening: (placement, priority, disc in
-    // the view plane: centre and radius, per unit of distance from the eye
-    // for perspective)
+    // the view plane at the view centre: centre and radius)
     let mut want: Vec<(usize, f64, [f64; 3])> = Vec::new();
     for (p, place) in nest.placements.iter().enumerate() {
         let c = glam::Vec3::from(crate::scene::instanced::apply_rigid(
@@ -110,11 +109,7 @@ pub fn opening_within(
             let ox = (dx + dr).min(half_w) - (dx - dr).max(-half_w);
             let oy = (dy + dr).min(half_h) - (dy - dr).max(-half_h);
             let fill = (ox.max(0.0) * oy.max(0.0)) / (4.0 * half_w * half_h);
-            let (cx, cy, cr) = match cam.fov_deg {
-                None => (x, y, br),
-                Some(_) => (x / z.max(1e-9), y / z.max(1e-9), br / z.max(1e-9)),
-            };
-            want.push((p, z - br - 2.0 * br * fill, [cx, cy, cr]));
+            want.push((p, z - br - 2.0 * br * fill, [dx, dy, dr]));
         }
     }
     want.sort_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)));
@@ -151,16 +146,6 @@ pub fn opening_within(
     })
 }
 
-/// The scene `cam` draws of `scene`: None when it is not nested (draw it as
-/// it is), else its placements opened or drawn by proxies ([`opening`]).
-pub fn resolved(scene: &Scene, cam: &Camera, lod_pixels: Option<f32>) -> Result<Option<Scene>> {
-    if scene.nesting().is_none() {
-        return Ok(None);
-    }
-    let proxies = proxies_of(scene, lod_pixels)?;
-    resolved_with(scene, cam, proxies.as_ref())
-}
-
 /// A nested scene's proxies for `--lod-pixels` (None: `--lod off`, or
 /// not nested).
 pub fn proxies_of(scene: &Scene, lod_pixels: Option<f32>) -> Result<Option<Proxies>> {
@@ -170,13 +155,11 @@ pub fn proxies_of(scene: &Scene, lod_pixels: Option<f32>) -> Result<Option<Proxi
     }
 }
 
-/// [`resolved`] with the proxies made already (a viewer that reopens
-/// placements as its camera moves keeps them).
-pub fn resolved_with(
-    scene: &Scene,
-    cam: &Camera,
-    proxies: Option<&Proxies>,
-) -> Result<Option<Scene>> {
+/// The scene `cam` draws of `scene`: None when it is not nested (draw it as
+/// it is), else its placements opened or drawn by `proxies` ([`opening`];
+/// made once by [`proxies_of`]: a viewer that reopens placements as its
+/// camera moves keeps them).
+pub fn resolved(scene: &Scene, cam: &Camera, proxies: Option<&Proxies>) -> Result<Option<Scene>> {
     let Some(inst) = scene.instancing.as_ref().filter(|i| i.nesting.is_some()) else {
         return Ok(None);
     };

@@ -113,17 +113,15 @@ pub fn compose_affine(p: &Rigid, a: &Affine) -> Affine {
     })
 }
 
-/// A placement as an affine transform (the proxies of an affine block).
+/// A placement as an affine transform (the proxies of an affine block):
+/// composed with the identity (exact: r * I = r, r * 0 + t = t).
 fn affine_of(p: &Rigid) -> Affine {
-    let r = DMat3::from_quat(quat(p).normalize());
-    [0, 1, 2].map(|i| {
-        [
-            r.col(0)[i] as f32,
-            r.col(1)[i] as f32,
-            r.col(2)[i] as f32,
-            p.t[i],
-        ]
-    })
+    const IDENTITY: Affine = [
+        [1.0, 0.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0, 0.0],
+        [0.0, 0.0, 1.0, 0.0],
+    ];
+    compose_affine(p, &IDENTITY)
 }
 
 /// Instance `k` of the block placed by `p`, as a transform of the block's kind.
