@@ -82,7 +82,7 @@ pub(crate) struct Resources {
 
 /// The most bytes the per-sphere SSDO receivers' buffers may take (else
 /// spheres of a few pixels take the per-pixel taps; SARS-CoV-2 at 1080p
-/// takes 46 MB): `Resources::ssdo_params`.
+/// takes 46 MB): `Resources::scale`.
 const SSDO_SPHERE_BYTES: u64 = 96 << 20;
 
 /// Typical sphere radius (median of a sample of the represented spheres)
@@ -128,30 +128,23 @@ impl Resources {
             // every level of every instance: past ~10^9 atoms the visible
             // spheres outnumber the pixels and per-pixel receivers cost
             // less; meso 10^9 overview 721 against 803 ms, SARS-CoV-2 353
-            // against 397 the other way)
+            // against 397 the other way; and their buffers within
+            // SSDO_SPHERE_BYTES: the 10^12 nested overview's LOD lists, 12
+            // spheres a pixel, made them 180 MB)
             sphere_receivers: crate::stages::ssdo::sphere_flags_fit(
                 self.scene.frame_slots().max(self.scene.all_level_slots),
                 self.storage_range,
-            ),
+            ) && crate::stages::ssdo::passes::SphereBuffers::bytes_for(
+                self.scene.frame_slots(),
+                self.targets.pixels,
+            ) <= SSDO_SPHERE_BYTES,
         }
     }
 
     /// The SSDO stage's parameters for this camera (computed whether SSDO
     /// runs or not: shade's upsample and outlines read some).
     pub(crate) fn ssdo_params(&self, settings: &RenderSettings) -> SsdoParams {
-        let mut scale = self.scale();
-        // Nor where their buffers, sized by the ids a frame may name, would
-        // pass SSDO_SPHERE_BYTES (the 10^12 nested overview's LOD lists,
-        // 12 spheres a pixel: 180 MB; per pixel costs less there too: meso
-        // 10^9 overview, 3.1 a pixel, 721 against 803 ms)
-        let bytes = crate::stages::ssdo::passes::SphereBuffers::bytes_for(
-            self.scene.frame_slots(),
-            self.targets.pixels,
-        );
-        if bytes > SSDO_SPHERE_BYTES {
-            scale.sphere_receivers = false;
-        }
-        self.stages.ssdo.params(&settings.camera, scale)
+        self.stages.ssdo.params(&settings.camera, self.scale())
     }
 
     /// How shade reads key-light visibility this frame.
