@@ -105,6 +105,22 @@ struct Nested {
     open: Vec<bool>,
 }
 
+/// The viewer's renderer: BGRA where the swapchain is; orbiting and
+/// zooming move only the camera, so the light map and lists are kept until
+/// the light, opacity or mode changes.
+fn viewer_renderer<'c>(
+    ctx: &'c Context,
+    swapchain: Option<&Swapchain>,
+    scene: &Scene,
+    settings: crate::settings::RenderSettings,
+    proxies: Option<&crate::scene::instanced::nested::Proxies>,
+) -> Result<Renderer<'c>> {
+    let mut r = Renderer::with_proxies(ctx, scene, settings, proxies)?;
+    r.set_bgra(swapchain.is_some_and(|sc| sc.is_bgra()));
+    r.set_light_cache(true);
+    Ok(r)
+}
+
 /// Camera parameters the controls change.
 #[derive(Clone, Copy, Debug)]
 struct Orbit {
@@ -243,11 +259,14 @@ impl<'c> App<'c> {
                 let t = Instant::now();
                 let mut s = r.settings().clone();
                 s.camera = cam;
-                let bgra = r.inspect().is_bgra();
                 self.renderer = None;
-                let mut fresh = Renderer::with_proxies(self.ctx, &n.scene, s, Some(&n.proxies))?;
-                fresh.set_bgra(bgra);
-                fresh.set_light_cache(true);
+                let fresh = viewer_renderer(
+                    self.ctx,
+                    self.swapchain.as_ref(),
+                    &n.scene,
+                    s,
+                    Some(&n.proxies),
+                )?;
                 n.open = open;
                 eprintln!(
                     "view: placements reopened ({} open) in {:.0} ms",
@@ -344,14 +363,13 @@ impl<'c> App<'c> {
             self.orbit = Some(o);
             let started = Instant::now();
             let proxies = crate::render::nesting::proxies_of(&scene, settings.lod.pixels())?;
-            let mut r = Renderer::with_proxies(self.ctx, &scene, settings, proxies.as_ref())?;
-            if let Some(sc) = &self.swapchain {
-                r.set_bgra(sc.is_bgra());
-            }
-            // Orbiting and zooming move only the camera: keep the light
-            // map / lists until the light, opacity or mode changes.
-            r.set_light_cache(true);
-
+            let r = viewer_renderer(
+                self.ctx,
+                self.swapchain.as_ref(),
+                &scene,
+                settings,
+                proxies.as_ref(),
+            )?;
             eprintln!(
                 "view: renderer ready in {:.0} ms ({} spheres)",
                 started.elapsed().as_secs_f64() * 1e3,
