@@ -1035,12 +1035,23 @@ impl SceneGeom {
 
     /// An instanced scene's instances as [`Extremes`] (None: plain).
     fn extremes(&self) -> Option<Extremes<'_>> {
+        self.extremes_of(false)
+    }
+
+    /// [`Self::extremes`], with `opened_only` over the instances that are
+    /// no nested scene's proxies (a proxy type as a molecule of no atoms:
+    /// the scans skip it).
+    fn extremes_of(&self, opened_only: bool) -> Option<Extremes<'_>> {
         match self {
             SceneGeom::Plain(_) => None,
             SceneGeom::Instanced(i) => Some(Extremes::new(
                 &i.transforms,
                 &i.instance_molecule,
-                i.molecules.clone(),
+                i.molecules
+                    .iter()
+                    .zip(&i.proxies)
+                    .map(|(&m, &p)| if p && opened_only { (m.0, 0) } else { m })
+                    .collect(),
                 std::borrow::Cow::Borrowed(&i.atoms),
             )),
         }
@@ -1054,26 +1065,10 @@ impl SceneGeom {
     /// wide, and a zoomed view lost its shadows); closed placements then
     /// cast no shadow on them.
     pub fn extent_along(&self, axes: [DVec3; 3]) -> Option<(DVec3, DVec3)> {
-        if let SceneGeom::Instanced(i) = self
-            && i.proxies.iter().any(|&p| p)
-            && i.instance_molecule.iter().any(|&m| !i.proxies[m as usize])
-        {
-            // (a proxy type as a molecule of no atoms: the scan skips it)
-            let molecules = i
-                .molecules
-                .iter()
-                .zip(&i.proxies)
-                .map(|(&m, &p)| if p { (m.0, 0) } else { m })
-                .collect();
-            let e = Extremes::new(
-                &i.transforms,
-                &i.instance_molecule,
-                molecules,
-                std::borrow::Cow::Borrowed(&i.atoms),
-            );
-            return e.extent_along(axes);
-        }
-        if let Some(e) = self.extremes() {
+        let opened_only = matches!(self, SceneGeom::Instanced(i)
+            if i.instance_molecule.iter().any(|&m| !i.proxies[m as usize])
+                && i.instance_molecule.iter().any(|&m| i.proxies[m as usize]));
+        if let Some(e) = self.extremes_of(opened_only) {
             return e.extent_along(axes);
         }
         crate::camera::extent_along(self.spheres(), axes)
