@@ -2,11 +2,16 @@
 // Levels of detail and culling of an instanced scene, per view in two
 // phases (the list filled: VIEW early, 2 + VIEW late; 0 camera, 1 key
 // light):
-//   early (MODE CULL_EARLY, one invocation per instance): the camera's
+//   early (MODE CULL_EARLY, one invocation per instance, and one per
+//     further chunk of CULL_CHUNK_BATCHES batches of a large one: lavapipe
+//     ends a shader invocation's loops after 65,535 back-edges; every
+//     invocation tests its chunk, and its instance, alike): the camera's
 //     chooses the instance's level from its size on screen (the coarsest
 //     whose switch size it is within, src/scene/instanced/lod.rs) and
 //     keeps it for the other phases, so every view draws the same
-//     (instance, atom) slots and the ISSM's self-shadow test stays exact;
+//     (instance, atom) slots of what the image shows and the ISSM's
+//     self-shadow test stays exact (the light draws what the image does
+//     not show at its own level where coarser);
 //     that level's bounds (sphere and box), placed with the instance's
 //     transform, are tested against the view's window (the camera's pixel
 //     window: the frustum, and a tile's window when tiling; the key
@@ -25,8 +30,8 @@
 //     tiles built, lod_hiz.comp): what the early phase deferred is tested
 //     against the early image: a deferred batch on its own
 //     (CULL_DEFERRED_BATCHES, one invocation each), a deferred instance
-//     (CULL_DEFERRED_INSTANCES) whole and then each of its batches not
-//     listed early; what is not hidden is listed. An instance or batch
+//     (CULL_DEFERRED_INSTANCES: a chunk, or its rest) whole and then each
+//     of its batches not listed early; what is not hidden is listed. An instance or batch
 //     whose nearest point is farther than the farthest depth of every
 //     pixel tile its rectangle touches is hidden (two-phase occlusion
 //     culling, as niagara and Mol* do it: exact, what it drops could not
@@ -57,8 +62,9 @@ layout(set = 0, binding = 2) uniform samplerBuffer lodBoundTex;
 layout(set = 0, binding = 4) buffer Levels { uint levels[]; };
 layout(set = 0, binding = 5) buffer List { uvec2 list[]; };
 layout(set = 0, binding = 6) buffer Counters { uint counters[]; };
-// Per instance and view (2k + view): it passed the occlusion test last
-// frame.
+// Per instance and view (2k + view), two arrays (pc.parity picks): it
+// passed the occlusion test last frame (read), and this frame (written:
+// an instance's chunks run side by side and all read last frame's).
 layout(set = 0, binding = 7) buffer Visible { uint visible[]; };
 // The view's farthest depth word per fine tile, then per coarse one
 // (lod_hiz.comp; fine tiles of 2^pc.hiz_shift pixels).
@@ -72,11 +78,14 @@ layout(set = 0, binding = 11) uniform samplerBuffer batchBoundTex;
 // The light texels of the camera's visible points (lod_bounds.comp).
 layout(set = 0, binding = 9) readonly buffer Region { int region[]; };
 // The instances in the order invocations take them (by molecule type:
-// alike batch loops side by side).
+// alike batch loops side by side), then pc.chunks pairs (instance, first
+// batch) for the further chunks of instances of more than
+// CULL_CHUNK_BATCHES level-0 batches (src/passes/scene.rs `cull_chunks`).
 layout(set = 0, binding = 12) uniform usamplerBuffer cullOrderTex;
-// What a view's early phase leaves to its late one: per instance (first
-// pc.instances entries) the instance and the batch its late test starts
-// from, then (pc.deferred entries) batches as the lists hold them.
+// What a view's early phase leaves to its late one: per early invocation
+// (first pc.instances + pc.chunks entries) the instance and the batch its
+// late test starts from (to the end of that batch's chunk), then
+// (pc.deferred entries) batches as the lists hold them.
 layout(set = 0, binding = 13) buffer Deferred { uvec2 deferred[]; };
 #include "scene.glsl"
 #include "push/lod_cull.glsl"
@@ -111,6 +120,9 @@ bool hidden(bool prev, View v, vec3 cv, float r, float ez, ivec4 rc, bool persp)
     uvec2 tf = (v.dims.xy + (1u << S) - 1u) >> S;
     bool fine = (b.z >> S) - (b.x >> S) < 8 && (b.w >> S) - (b.y >> S) < 8;
     int sh = fine ? S : S + 3;
+    // (past 8x8 coarse tiles: not tested, not hidden; it bounds this
+    // function's loops at 8 x 8 + 8 back-edges, CULL_CHUNK_BATCHES)
+    if ((b.z >> sh) - (b.x >> sh) >= 8 || (b.w >> sh) - (b.y >> sh) >= 8) return false;
     uint base = fine ? 0u : tf.x * tf.y;
     uint tw = fine ? tf.x : (v.dims.x + (8u << S) - 1u) >> (S + 3);
     // The key light (orthographic, a texel wider than an atom): per
@@ -216,12 +228,13 @@ void main() {
     // (the early list's counter words hold what it deferred)
     uint dw = view * LOD_WORDS;
     uint late_list = 2u + view;
+    uint batch_room = pc.instances + pc.chunks;
     if (MODE == CULL_DEFERRED_BATCHES) {
         // One batch the early phase found hidden behind last frame's
         // image (and in the window): listed late if this frame's early
         // image does not hide it.
         if (FLAT_ID >= min(counters[dw + LOD_DEFER_BATCHES], pc.deferred)) return;
-        uvec2 e = deferred[pc.instances + FLAT_ID];
+        uvec2 e = deferred[batch_room + FLAT_ID];
         uint k = e.x & BATCH_INSTANCE_MASK, level = e.x >> BATCH_INSTANCE_BITS;
         uint m = texelFetch(instanceRowTex, int(k)).x;
         uint base = m * MAX_LOD_LEVELS;
@@ -241,7 +254,7 @@ void main() {
     }
     uint k, from = 0u;
     if (MODE == CULL_EARLY) {
-        if (FLAT_ID >= pc.instances) return;
+        if (FLAT_ID >= pc.instances + pc.chunks) return;
         // The cull order runs along a Morton curve within each molecule
         // type (x, y, z bits weighing 1, 2, 4): walked backwards where the
         // view looks down it, the lists run near to far, and the
@@ -250,6 +263,12 @@ void main() {
         // wrong way, 584 this way).
         bool backwards = dot(v.dir.xyz, vec3(1.0, 2.0, 4.0)) < 0.0;
         k = texelFetch(cullOrderTex, int(backwards ? pc.instances - 1u - FLAT_ID : FLAT_ID)).x;
+        if (FLAT_ID >= pc.instances) {
+            // an instance's further chunk
+            int at = int(pc.instances + 2u * (FLAT_ID - pc.instances));
+            k = texelFetch(cullOrderTex, at).x;
+            from = texelFetch(cullOrderTex, at + 1).x;
+        }
     } else {
         if (FLAT_ID >= counters[dw + LOD_DEFER_INSTANCES]) return;
         uvec2 e = deferred[FLAT_ID];
@@ -278,6 +297,7 @@ void main() {
         // silhouette guarantee holds at every size a level is drawn at.
         uint n = texelFetch(levelTex, int(base)).x & LEVEL_COUNT_MASK;
         uint prev = levels[k];
+        prev = prev == NO_LEVEL_YET ? prev : prev & ~LEVEL_SHOWN;
         level = 0u;
         uint banded = 0u;
         for (uint l = 1u; l < n; ++l) {
@@ -288,8 +308,33 @@ void main() {
         if (prev != NO_LEVEL_YET && prev <= level) level = max(prev, banded);
         levels[k] = level;
     } else {
-        level = levels[k];
+        // The camera's level where its final image shows the instance
+        // (lod_bounds.comp marks it), so that ISSM's self-shadow test
+        // stays exact per (instance, atom). One it does not show has no
+        // point to shadow itself: it only casts, and takes the coarser
+        // of the camera's level and the one the light's texels ask for
+        // (the same switch sizes, in texels per unit: its outline as
+        // close to level 0's as the map can tell). Meso 10^9 at 2,025 A:
+        // the light's spheres 8.35 -> 4.61 M, light_cull 62 -> 45 ms,
+        // GPU 236 -> 204 MB; at 506 A the frame 669 -> 622 ms. (Most of
+        // the light's spheres are of the ~6,000 instances the image
+        // shows: issm_raster did not move.)
+        uint w = levels[k];
+        level = w & ~LEVEL_SHOWN;
+        if ((w & LEVEL_SHOWN) == 0u && pc.light_levels != 0u) {
+            uint n = texelFetch(levelTex, int(base)).x & LEVEL_COUNT_MASK;
+            for (uint l = level + 1u; l < n; ++l) {
+                float sw = uintBitsToFloat(texelFetch(levelTex, int(base + l)).z);
+                if (v.center.w <= sw) level = l;
+            }
+        }
     }
+    // This invocation's batches: from `from` to the end of its chunk
+    // (none: a further chunk of a coarse level's fewer batches).
+    uint atoms = texelFetch(levelTex, int(base + level)).w;
+    uint batches = (atoms + BATCH_MASK) >> BATCH_SHIFT;
+    uint end = min(batches, (from / CULL_CHUNK_BATCHES + 1u) * CULL_CHUNK_BATCHES);
+    if (from >= end) return;
     // The level's bounds (same centre).
     float r = texelFetch(lodBoundTex, int(2u * (base + level))).w;
     vec3 be = texelFetch(lodBoundTex, int(2u * (base + level) + 1u)).xyz;
@@ -308,25 +353,27 @@ void main() {
     // (a light view: only what can shadow a point the camera sees)
     bool inside = over_region(cam, rc);
     uint h = 2u * k + view;
+    uint last_at = pc.parity * 2u * pc.instances + h;
+    uint now_at = (1u - pc.parity) * 2u * pc.instances + h;
     // (the early phase's candidates: the instances seen last frame that
     // the last final image does not hide whole; the late phase recomputes
     // the same test on the same tiles)
-    bool listed_early = inside && visible[h] != 0u && !hidden(true, v, cv, r, ext.z, rc, persp);
+    bool listed_early = inside && visible[last_at] != 0u && !hidden(true, v, cv, r, ext.z, rc, persp);
     if (late) {
         bool seen = inside && !hidden(false, v, cv, r, ext.z, rc, persp);
-        visible[h] = seen ? 1u : 0u;
+        visible[now_at] = seen ? 1u : 0u;
         if (!seen) return;
     } else if (!listed_early) {
         // (outside: not seen; inside: the late phase tests it whole)
         if (!inside) {
-            visible[h] = 0u;
+            visible[now_at] = 0u;
         } else {
-            deferred[atomicAdd(counters[dw + LOD_DEFER_INSTANCES], 1u)] = uvec2(k, 0u);
+            deferred[atomicAdd(counters[dw + LOD_DEFER_INSTANCES], 1u)] = uvec2(k, from);
         }
         return;
+    } else {
+        visible[now_at] = 1u;
     }
-    uint atoms = texelFetch(levelTex, int(base + level)).w;
-    uint batches = (atoms + BATCH_MASK) >> BATCH_SHIFT;
     uint first = uint(texelFetch(lodBoundTex, int(2u * (base + level) + 1u)).w);
     float stretch = instance_stretch(k, bs.xyz, p);
     float grow = batch_grow(p);
@@ -335,8 +382,8 @@ void main() {
     uint spheres = 0u;
     // (early: the first batch the deferral buffer had no room for; the
     // late phase tests it and the rest as a deferred instance)
-    uint full = batches;
-    for (uint j = from; j < batches; ++j) {
+    uint full = end;
+    for (uint j = from; j < end; ++j) {
         vec3 bv;
         float br;
         ivec4 brc;
@@ -352,17 +399,17 @@ void main() {
         // Early: a batch in the window that last frame's image hides is
         // deferred; the late phase tests it alone against this frame's
         // early image (no instance loop recomputed).
-        if (!late && in_window && !early && full == batches) {
+        if (!late && in_window && !early && full == end) {
             uint at = atomicAdd(counters[dw + LOD_DEFER_BATCHES], 1u);
             if (at < pc.deferred) {
-                deferred[pc.instances + at] = uvec2(word, j);
+                deferred[batch_room + at] = uvec2(word, j);
             } else {
                 full = j;
             }
         }
     }
     if (spheres > 0u) atomicAdd(counters[li * LOD_WORDS + LOD_SPHERES], spheres);
-    if (full < batches) {
+    if (full < end) {
         deferred[atomicAdd(counters[dw + LOD_DEFER_INSTANCES], 1u)] = uvec2(k, full);
     }
 }

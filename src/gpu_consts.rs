@@ -158,8 +158,23 @@ gpu_constants! {
     /// (after x0, y0, x1, y1), a bit per fine depth tile.
     LOD_MASK_AT: i32 = 4;
     HIZ_FINE_TILES: u32 = 1048576;
+    /// Level-0 batches one invocation of the LOD cull tests (an instance
+    /// of more is taken in chunks, each by its own invocation): lavapipe
+    /// (Mesa 22.3's gallivm) ends every loop of a shader invocation once
+    /// its loops together took 65,535 back-edges (LP_MAX_TGSI_LOOP_ITERATIONS,
+    /// counted over the 8 lanes run together), silently; a batch costs at
+    /// most 1 + 2 x (8 x 8 + 8) of them (glsl/lod_cull.comp `hidden`),
+    /// 256 batches 37 k. (A 1,391-batch capsid protein of the 10^12 scene
+    /// stopped after 821-1,391 batches, by its lanes' neighbours: the
+    /// light's list and shadows changed run to run.)
+    CULL_CHUNK_BATCHES: u32 = 256;
     /// The cull's per-instance level before any frame chose one.
     NO_LEVEL_YET: u32 = 0xFFFF_FFFF;
+    /// Set on an instance's level word (glsl/lod_cull.comp's `levels`)
+    /// after the camera's raster where a pixel of its final image names
+    /// the instance (glsl/lod_bounds.comp); the camera's next early phase
+    /// rewrites the word without it.
+    LEVEL_SHOWN: u32 = 0x4000_0000;
     LOD_BATCHES: u32 = 0;
     LOD_SPHERES: u32 = 1;
     LOD_ARGS: u32 = 2;

@@ -11,8 +11,8 @@
 use crate::error::{Error, Result};
 use crate::gpu::consts::{
     BATCH_COARSE, BATCH_EMPTY, BATCH_INSTANCE_BITS, BATCH_INSTANCE_MASK, BATCH_TYPE_MASK,
-    LEVEL_MAPPED, MAX_BATCH_SHIFT, MAX_LOD_LEVELS, MIN_BATCH_SHIFT, NO_LEVEL, SCENE_AFFINE,
-    SCENE_PLAIN, SCENE_RIGID,
+    CULL_CHUNK_BATCHES, LEVEL_MAPPED, MAX_BATCH_SHIFT, MAX_LOD_LEVELS, MIN_BATCH_SHIFT, NO_LEVEL,
+    SCENE_AFFINE, SCENE_PLAIN, SCENE_RIGID,
 };
 use crate::gpu::{GpuBatch, GpuSphere, SphereAttr};
 use crate::scene::Scene;
@@ -106,9 +106,11 @@ pub struct LodBuffers {
     pub batch_bounds: Buffer,
     /// The instances in the order the cull visits them: by molecule type
     /// (stable), so the lanes of a SIMD group loop over alike batch counts
-    /// ([`cull_order`]).
+    /// ([`cull_order`]), then the further chunks of the large ones
+    /// ([`cull_chunks`]: `chunk_count` pairs of words).
     pub cull_order: Buffer,
     pub instance_count: u32,
+    pub chunk_count: u32,
     /// Level-0 batches (saturated at u32::MAX): the most a view lists (an
     /// instance draws one level).
     pub base_batches: u32,
@@ -128,6 +130,20 @@ pub struct LodBuffers {
 /// kept or culled together (meso 10^9 at 2,025 A: the four cull passes 321
 /// -> 172 ms). The cull walks it backwards for views looking down the
 /// curve (glsl/lod_cull.comp), so the lists it fills run near to far.
+/// The further chunks the LOD cull takes instances of more than
+/// CULL_CHUNK_BATCHES level-0 batches in (`batches(k)`), in `order`: per
+/// chunk the instance and its first batch (each invocation then stays
+/// within lavapipe's loop limit, gpu_consts CULL_CHUNK_BATCHES).
+pub fn cull_chunks(order: &[u32], batches: impl Fn(usize) -> u64) -> Vec<[u32; 2]> {
+    let chunk = CULL_CHUNK_BATCHES as u64;
+    let mut out = Vec::new();
+    for &k in order {
+        let n = batches(k as usize);
+        out.extend((1..n.div_ceil(chunk)).map(|c| [k, (c * chunk) as u32]));
+    }
+    out
+}
+
 pub fn cull_order(instance_molecule: &[u32], place: impl Fn(usize) -> [f32; 3]) -> Vec<u32> {
     let places: Vec<[f32; 3]> = (0..instance_molecule.len()).map(place).collect();
     let cells = morton_cells(&places);
@@ -354,20 +370,21 @@ impl SceneBuffers {
             };
             let b = ctx.guard(table("LOD bounds", &bounds)?);
             let bb = ctx.guard(table("LOD batch bounds", &batch_bounds)?);
+            let mut words = cull_order(&inst.instance_molecule, |k| {
+                let c = bounds[2 * inst.instance_molecule[k] as usize * MAX_LOD_LEVELS as usize];
+                inst.transforms.apply(k, [c[0], c[1], c[2]])
+            });
+            let chunks = cull_chunks(&words, |k| {
+                let atoms = inst.molecules[inst.instance_molecule[k] as usize].atoms;
+                (atoms as u64).div_ceil(1 << shift)
+            });
+            words.extend(chunks.iter().flatten());
             let order = ctx.guard(Buffer::table(
                 ctx,
                 "LOD cull order",
-                (inst.instances() as u64 * 4).max(16),
+                (words.len() as u64 * 4).max(16),
             )?);
-            order.upload(
-                ctx,
-                0,
-                bytemuck::cast_slice(&cull_order(&inst.instance_molecule, |k| {
-                    let c =
-                        bounds[2 * inst.instance_molecule[k] as usize * MAX_LOD_LEVELS as usize];
-                    inst.transforms.apply(k, [c[0], c[1], c[2]])
-                })),
-            )?;
+            order.upload(ctx, 0, bytemuck::cast_slice(&words))?;
             // (src/stages/raster/lod.rs sizes them)
             let lists = Buffer::storage(ctx, "LOD lists", 16)?;
             buffers.lod = Some(LodBuffers {
@@ -375,6 +392,7 @@ impl SceneBuffers {
                 batch_bounds: bb.keep(),
                 cull_order: order.keep(),
                 instance_count: inst.instances() as u32,
+                chunk_count: chunks.len() as u32,
                 base_batches: base_batches.min(u32::MAX as u64) as u32,
                 lists,
                 list_entries: 0,

@@ -22,7 +22,7 @@ use crate::error::Result;
 use crate::gpu::blocks::{LodArgsPush, LodBoundsPush, LodCullPush, LodHizPush};
 use crate::gpu::consts::{
     BATCH_EMPTY, CULL_DEFERRED_BATCHES, CULL_DEFERRED_INSTANCES, CULL_EARLY, HIZ_FINE_TILES,
-    HIZ_MIN_SHIFT, LOD_ARGS, LOD_BATCHES, LOD_DEFER_BATCH_ARGS, LOD_DEFER_BATCHES,
+    HIZ_MIN_SHIFT, LEVEL_SHOWN, LOD_ARGS, LOD_BATCHES, LOD_DEFER_BATCH_ARGS, LOD_DEFER_BATCHES,
     LOD_DEFER_INSTANCE_ARGS, LOD_DEFER_INSTANCES, LOD_LIST_TAIL, LOD_MASK_AT, LOD_SPHERES,
     LOD_VIEWS, LOD_WORDS, NO_LEVEL_YET,
 };
@@ -50,10 +50,11 @@ const BINDINGS: [Binding; 12] = [
     rw("Deferred"),
 ];
 
-const BOUNDS_BINDINGS: [Binding; 3] = [
+const BOUNDS_BINDINGS: [Binding; 4] = [
     uniform("GlobalsBlock"),
     texel("visWordTex", Format::R32_UINT),
     rw("Region"),
+    rw("Levels"),
 ];
 
 const HIZ_BINDINGS: [Binding; 4] = [
@@ -172,6 +173,9 @@ pub struct LodCull {
     /// This frame's light lookup reach (texels, `Lookup::reach`): the
     /// light's cull phases and depth tiles read it.
     reach: std::cell::Cell<i32>,
+    /// The light's cull may draw instances the image does not show at
+    /// the light's own level (`light_steps`' `whole`).
+    light_levels: std::cell::Cell<bool>,
     /// Batches each list will hold from the next frame on (a frame asked
     /// more than three quarters of them).
     pending: Option<u32>,
@@ -201,6 +205,11 @@ pub struct LodCull {
     /// (and the most the ids allow).
     most: u32,
     instances: u32,
+    /// Further chunks of large instances the early phases take
+    /// (`LodBuffers::chunk_count`).
+    chunks: u32,
+    /// Which visibility array holds last frame's (flipped per frame).
+    parity: std::cell::Cell<u32>,
     per: u32,
 }
 
@@ -312,24 +321,27 @@ impl LodCull {
             (LOD_VIEWS * LOD_WORDS) as u64 * 4,
         )?);
         let instances = lod.instance_count.max(1) as u64 * 4;
-        let visible = ctx.guard(Buffer::storage(ctx, "LOD visible", 2 * instances)?);
+        // (two arrays of a word per instance and view: last frame's, this
+        // frame's; `parity`)
+        let visible = ctx.guard(Buffer::storage(ctx, "LOD visible", 4 * instances)?);
         let tiles_buffer = |name: &str| Buffer::storage(ctx, name, HIZ_WORDS * 4);
         let hiz_camera = ctx.guard(tiles_buffer("LOD camera depth tiles")?);
         let hiz_light = ctx.guard(tiles_buffer("LOD light depth tiles")?);
         let prev_camera = ctx.guard(tiles_buffer("LOD camera last depth tiles")?);
         let prev_light = ctx.guard(tiles_buffer("LOD light last depth tiles")?);
         let region = ctx.guard(Buffer::storage(ctx, "LOD light region", REGION_BYTES)?);
+        let bounds_bindings = [&BOUNDS_BINDINGS[..], &SCENE_GEOMETRY].concat();
         let bounds = |name: &str, persp: u32| {
             ComputePipeline::new(
                 ctx,
                 &PipelineDesc {
                     name,
                     shader: spirv::LOD_BOUNDS_COMP,
-                    bindings: &BOUNDS_BINDINGS,
+                    bindings: &bounds_bindings,
                     push_size: std::mem::size_of::<LodBoundsPush>() as u32,
                     local_size: 64,
                     constants: &[persp],
-                    scene: 0,
+                    scene,
                 },
             )
         };
@@ -337,7 +349,8 @@ impl LodCull {
         let bounds_p = ctx.guard(bounds("lod light region perspective", 1)?);
         let levels = ctx.guard(Buffer::storage(ctx, "LOD levels", instances)?);
         let deferred = deferred_batches.unwrap_or(deferral_room(capacity));
-        let deferral = ctx.guard(deferral_buffer(ctx, lod.instance_count, deferred)?);
+        let early = lod.instance_count + lod.chunk_count;
+        let deferral = ctx.guard(deferral_buffer(ctx, early, deferred)?);
         // (`deferred` is derived from here on: LodCull::deferred)
         Self::set_lists(ctx, lod, capacity)?;
         Ok(LodCull {
@@ -351,6 +364,7 @@ impl LodCull {
             hiz_prev: [prev_camera.keep(), prev_light.keep()],
             prev_shift: [std::cell::Cell::new(28), std::cell::Cell::new(28)],
             reach: std::cell::Cell::new(1 << 29),
+            light_levels: std::cell::Cell::new(false),
             pending: None,
             last_views: std::cell::RefCell::new([Vec::new(), Vec::new()]),
             moved: [std::cell::Cell::new(true), std::cell::Cell::new(true)],
@@ -362,6 +376,8 @@ impl LodCull {
             capacity,
             most,
             instances: lod.instance_count,
+            chunks: lod.chunk_count,
+            parity: std::cell::Cell::new(0),
             per: 1 << shift,
         })
     }
@@ -445,14 +461,16 @@ impl LodCull {
             hiz_shift,
             reach: self.reach.get(),
             deferred: self.deferred(),
-            pad: [0; 3],
+            light_levels: self.light_levels.get() as u32,
+            chunks: self.chunks,
+            parity: self.parity.get(),
         };
         let cull = &self.cull[pipes];
         if list < LATE {
             p.dispatch(
                 &cull[CULL_EARLY as usize],
                 &push,
-                Grid::Invocations(self.instances as u64),
+                Grid::Invocations(self.instances as u64 + self.chunks as u64),
                 &bindings,
             );
         } else {
@@ -490,7 +508,10 @@ impl LodCull {
     /// texels of the camera's visible points (from `vis`, a `size` window)
     /// and the light's early list over them grown by the lookup's `reach`
     /// texels (`Lookup::reach`; the light's depth tiles take it too) on a
-    /// `map` (width, height) light map.
+    /// `map` (width, height) light map. With `whole` (the window is the
+    /// image) the instances the image does not show take the light's own
+    /// level where coarser; a tile shows less of the image, so its light
+    /// keeps the camera's levels (no seams where tiles meet).
     #[allow(clippy::too_many_arguments)]
     pub fn light_steps<'b>(
         &'b self,
@@ -501,8 +522,10 @@ impl LodCull {
         perspective: bool,
         size: (u32, u32),
         (reach, map): (i32, (u32, u32)),
+        whole: bool,
     ) -> Result<()> {
         self.reach.set(reach);
+        self.light_levels.set(whole);
         // (the read mask's bits are the light's fine depth tiles)
         let mask_shift = hiz_shift(ViewIndex::Light, map.0, map.1);
         self.cull_steps(
@@ -548,10 +571,16 @@ impl LodCull {
                 },
                 Grid::Invocations(tiles(w, h, 16)),
                 &[
-                    ("GlobalsBlock", globals),
-                    ("visWordTex", vis),
-                    ("Region", &self.region),
-                ],
+                    [
+                        ("GlobalsBlock", globals),
+                        ("visWordTex", vis),
+                        ("Region", &self.region),
+                        ("Levels", &self.levels),
+                    ]
+                    .as_slice(),
+                    &scene.geometry(),
+                ]
+                .concat(),
             );
         }
         // (the early phase reads the last final image's tiles, emptied
@@ -644,6 +673,8 @@ impl LodCull {
     /// Before a frame's culls: the camera's and the light's GPU views, to
     /// know whether each moved since the last frame.
     pub fn note_views(&self, views: [&[u8]; 2]) {
+        // (this frame reads what the last one wrote)
+        self.parity.set(1 - self.parity.get());
         let mut last = self.last_views.borrow_mut();
         for (i, v) in views.into_iter().enumerate() {
             let moved = last[i] != v;
@@ -672,9 +703,18 @@ impl LodCull {
         }
     }
 
-    /// Each instance's level in the last frame (after the frame).
-    pub fn levels(&self, ctx: &Context) -> Result<Vec<u32>> {
-        self.levels.download_pod(ctx, 0, self.instances as u64)
+    /// Each instance's level in the last frame (after the frame), and
+    /// whether a pixel of its final image named the instance (marked
+    /// where the light's cull ran).
+    pub fn levels(&self, ctx: &Context) -> Result<Vec<(u32, bool)>> {
+        let words: Vec<u32> = self.levels.download_pod(ctx, 0, self.instances as u64)?;
+        Ok(words
+            .into_iter()
+            .map(|w| match w {
+                NO_LEVEL_YET => (w, false),
+                _ => (w & !LEVEL_SHOWN, w & LEVEL_SHOWN != 0),
+            })
+            .collect())
     }
 
     /// The last frame's counters (after the frame): `word(list, k)` reads
@@ -764,7 +804,7 @@ impl LodCull {
         };
         Self::set_lists(ctx, lod, capacity)?;
         if self.deferred_given.is_none() {
-            let d = deferral_buffer(ctx, self.instances, deferral_room(capacity))?;
+            let d = deferral_buffer(ctx, self.instances + self.chunks, deferral_room(capacity))?;
             let mut old = std::mem::replace(&mut self.deferral, d);
             old.destroy(ctx);
         }
