@@ -215,7 +215,11 @@ void main() {
     nodes = 0u;
     emit(za, 1.0); // (first depth, 1)
     float v = 1.0;
+    bool walked = false;
     for (uint i = 0u; i < n; ++i) {
+        // (set in the last step: the compiler cannot know the loop
+        // reaches it, as it would an `i < n` after the loop)
+        walked = i + 1u == n;
         uint a = base + i;
         float z = e_depth[a];
         feed(z, v);
@@ -224,6 +228,9 @@ void main() {
         e_trans[a] = v;
         e_next[a] = i + 1u < n ? a + 1u : DEEP_NONE;
     }
+    // (the walk is the last loop: where lavapipe's loop limit ran out in
+    // the sort or in it, it stopped short; the host refuses the frame)
+    if (!walked) atomicAdd(counters[C_SORT_CUT], 1u);
     if (open_segment) emit(zl, va + 0.5 * (lo + hi) * (zl - za));
     texels[ti].nodes = nodes;
     atomicAdd(counters[C_NODES], nodes);

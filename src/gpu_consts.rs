@@ -33,6 +33,10 @@ gpu_constants! {
     C_NONEMPTY: u32 = 7;
     /// Deep counters: entries of overflowed tiles (not stored).
     C_DROPPED: u32 = 8;
+    /// Deep counters: texels whose sort and walk a loop limit cut short
+    /// (lavapipe ends a shader invocation's loops after 65,535 back-edges,
+    /// CULL_CHUNK_BATCHES; a run of thousands of entries reaches it).
+    C_SORT_CUT: u32 = 9;
     /// Deep counters: band jobs requested.
     C_BANDS_REQ: u32 = 16;
     /// Deep counters: band jobs dispatched.

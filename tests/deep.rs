@@ -872,3 +872,51 @@ fn lattice_stress_along_the_light() {
     );
     assert_no_validation_messages(&ctx);
 }
+
+/// Light texels of 8,000 entries: more than lavapipe sorts in one
+/// shader invocation (it stops every loop after 65,535 back-edges, and the
+/// Shell sort and walk of such a run take more): the frame is refused with
+/// one line naming the list length, not drawn with an unsorted list. On a
+/// device without that limit the frame is drawn.
+#[test]
+fn a_list_longer_than_the_device_sorts_is_refused() {
+    let ctx = validated_context();
+    let scene = column_scene(8_000);
+    let s = deep_settings(&scene, 64, 64, 32, 0.5);
+    let mut r = Renderer::new(&ctx, &scene, s).expect("renderer");
+    let got = r.render_frame();
+    // (a CPU check of the lists: texels left unsorted or unlinked)
+    let raw = r.inspect().deep().unwrap().read_raw(&ctx).unwrap();
+    let c = r.inspect().deep().unwrap().read_counters(&ctx).unwrap();
+    let broken = raw
+        .texels
+        .iter()
+        .filter(|t| {
+            let (n, b) = (t.count.min(t.fill) as usize, t.head as usize);
+            n > 0
+                && ((1..n).any(|i| raw.depth[b + i - 1] > raw.depth[b + i])
+                    || raw.next[b + n - 1] != NONE)
+        })
+        .count();
+    assert_eq!(c.sort_cut as usize, broken, "texels cut short");
+    if ctx.props.device_type == ash::vk::PhysicalDeviceType::CPU {
+        let msg = got
+            .expect_err("an 8,000-entry list on lavapipe")
+            .to_string();
+        assert!(!msg.contains('\n'), "{msg}");
+        assert!(msg.starts_with("deep shadow lists of up to "), "{msg}");
+        let n: u32 = msg["deep shadow lists of up to ".len()..]
+            .split(' ')
+            .next()
+            .and_then(|w| w.parse().ok())
+            .expect("a length");
+        assert!(n >= 7_900, "{msg}");
+        assert!(broken > 0, "no list was cut short");
+    } else {
+        got.expect("frame");
+        let c = r.inspect().deep().unwrap().read_counters(&ctx).unwrap();
+        assert_eq!(c.sort_cut, 0);
+    }
+    drop(r);
+    assert_no_validation_messages(&ctx);
+}

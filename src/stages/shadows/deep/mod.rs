@@ -111,6 +111,7 @@ pub mod counter {
     pub const MAX_NODES: usize = c::C_MAX_NODES as usize;
     pub const NONEMPTY: usize = c::C_NONEMPTY as usize;
     pub const DROPPED: usize = c::C_DROPPED as usize;
+    pub const SORT_CUT: usize = c::C_SORT_CUT as usize;
     pub const BANDS_REQ: usize = c::C_BANDS_REQ as usize;
     pub const BANDS_RUN: usize = c::C_BANDS_RUN as usize;
     pub const ARGS: usize = c::C_ARGS as usize;
@@ -674,6 +675,15 @@ impl ShadowTechnique for DeepShadows {
     /// Reads the frame's counters; on overflow grows the pool so the frame
     /// can be rendered again (the renderer gives up after a few tries).
     fn after_frame(&mut self, ctx: &Context) -> Result<FrameCheck> {
+        let c = self.read_counters(ctx)?;
+        if c.sort_cut > 0 {
+            return Err(Error::DeviceLimit(format!(
+                "deep shadow lists of up to {} entries a light texel: {} texels are longer than \
+                 this device sorts in one shader invocation (lavapipe stops every loop after \
+                 65,535 steps); raise --issm-size or use --shadows issm-soft",
+                c.max_depth_complexity, c.sort_cut
+            )));
+        }
         let mut stats = self.read_stats(ctx)?;
         if !stats.overflowed {
             // Report that this frame needed a retry even though the final one fit.

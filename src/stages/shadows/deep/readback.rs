@@ -63,6 +63,8 @@ pub struct DeepCounters {
     pub dropped_entries: u32,
     /// Fill slots outside their texel's run (a bug if not 0).
     pub fill_errors: u32,
+    /// Texels whose sort the device's loop limit cut short (lavapipe).
+    pub sort_cut: u32,
     pub band_jobs: u32,
 }
 
@@ -80,6 +82,7 @@ impl DeepShadows {
             nonempty_texels: c[counter::NONEMPTY],
             dropped_entries: c[counter::DROPPED],
             fill_errors: c[counter::FILL_ERRORS],
+            sort_cut: c[counter::SORT_CUT],
             band_jobs: c[counter::BANDS_RUN],
         })
     }
