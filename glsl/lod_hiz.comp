@@ -43,8 +43,12 @@ void main() {
         if (pc.view_index == 1u) {
             int r = (pc.reach + int(T) - 1) >> pc.hiz_shift;
             ivec2 t = ivec2(i % tf.x, i / tf.x);
-            ivec2 a = max(t - r, ivec2(0)), b = min(t + r, ivec2(tf) - 1);
-            bool read = false;
+            // (a reach past 90 tiles is taken as read, nothing hidden: its
+            // (2r + 1)^2 loop would pass lavapipe's 65,535 back-edges,
+            // gpu_consts CULL_CHUNK_BATCHES; ISSM's t <= 64 stays within)
+            bool read = r > 90;
+            ivec2 a = max(t - r, ivec2(0));
+            ivec2 b = read ? a - 1 : min(t + r, ivec2(tf) - 1);
             for (int y = a.y; y <= b.y; ++y) {
                 for (int x = a.x; x <= b.x; ++x) {
                     int j = y * int(tf.x) + x;

@@ -771,23 +771,30 @@ fn the_light_draws_only_what_visible_points_read() {
     // half a radius too deep)
     let mut wide = camera(&s, 320, 240, None);
     wide.view_height /= 2.0;
-    // (zoomed: the cases that also bound the light's share of the scene)
-    for (cam, zoomed, shadows, t) in [
-        (wide, false, ShadowMode::Issm, Some(0)),
-        (cam, true, ShadowMode::IssmSoft, None),
-        (cam, true, ShadowMode::Issm, Some(3)),
-        (cam, true, ShadowMode::SmPcf, None),
+    // (zoomed: the cases that also bound the light's share of the scene;
+    // a PCF radius of 300 texels reaches 151 depth tiles of the 2048^2
+    // map: a (2 x 151 + 1)^2 loop, past lavapipe's 65,535 back-edges, once
+    // found no tile read and hid every caster)
+    for (cam, zoomed, shadows, t, pcf) in [
+        (wide, false, ShadowMode::Issm, Some(0), None),
+        (cam, true, ShadowMode::IssmSoft, None, None),
+        (cam, true, ShadowMode::Issm, Some(3), None),
+        (cam, true, ShadowMode::SmPcf, None, None),
+        (cam, false, ShadowMode::SmPcf, None, Some(300.0)),
     ] {
         let mut st = settings(cam, shadows);
         st.lod.lod_pixels = 0.0;
         st.issm.t = sphereshade::settings::IssmT(t);
+        if let Some(radius) = pcf {
+            st.shadow_maps.pcf_radius = radius;
+        }
         let mut rd = Renderer::new(&ctx, &s, st.clone()).expect("renderer");
         for _ in 0..3 {
             rd.render_frame().expect("frame");
         }
         let counts = rd.inspect().lod_counts().unwrap().expect("the cull ran");
         let b = frame(&ctx, &e, st);
-        let what = format!("{shadows:?} t {t:?}: {counts:?} of {all}");
+        let what = format!("{shadows:?} t {t:?} pcf {pcf:?}: {counts:?} of {all}");
         assert_frame_is(&rd.inspect(), &b, &what);
         assert!(counts.light_spheres > 0, "{what}");
         // (the texels' rectangle alone kept 26 k spheres here, the reach of
