@@ -66,8 +66,9 @@ layout(set = 0, binding = 6) buffer Counters { uint counters[]; };
 // passed the occlusion test last frame (read), and this frame (written:
 // an instance's chunks run side by side and all read last frame's).
 layout(set = 0, binding = 7) buffer Visible { uint visible[]; };
-// The view's farthest depth word per fine tile, then per coarse one
-// (lod_hiz.comp; fine tiles of 2^pc.hiz_shift pixels).
+// The view's farthest depth word per fine tile, then per coarse one,
+// then per super one (lod_hiz.comp; fine tiles of 2^pc.hiz_shift pixels,
+// 8x8 of each level the next's).
 layout(set = 0, binding = 8) uniform usamplerBuffer hizTex;
 // The same of the view's last final image (the history the early phases
 // test batches against).
@@ -105,7 +106,8 @@ layout(constant_id = 3) const uint VIEW = 0u;
 // could cover already holds a surface nearer than its nearest point: its
 // rectangle's tiles of this frame's early image (`prev`: of the last final
 // image), fine ones (2^pc.hiz_shift pixels) while they are few, else
-// coarse ones. (A bool, not the sampler as a parameter: one function.)
+// coarse or super ones. (A bool, not the sampler as a parameter: one
+// function.)
 bool hidden(bool prev, View v, vec3 cv, float r, float ez, ivec4 rc, bool persp) {
     // (less a margin for the f32 rounding of the atoms' keys: a grazing
     // ray's perspective key may lose ~|cv| * 3e-4 to cancellation; the
@@ -118,13 +120,20 @@ bool hidden(bool prev, View v, vec3 cv, float r, float ez, ivec4 rc, bool persp)
     ivec4 b = rc - ivec4(o, o); // window pixels
     int S = int(pc.hiz_shift);
     uvec2 tf = (v.dims.xy + (1u << S) - 1u) >> S;
-    bool fine = (b.z >> S) - (b.x >> S) < 8 && (b.w >> S) - (b.y >> S) < 8;
-    int sh = fine ? S : S + 3;
-    // (past 8x8 coarse tiles: not tested, not hidden; it bounds this
-    // function's loops at 8 x 8 + 8 back-edges, CULL_CHUNK_BATCHES)
-    if ((b.z >> sh) - (b.x >> sh) >= 8 || (b.w >> sh) - (b.y >> sh) >= 8) return false;
-    uint base = fine ? 0u : tf.x * tf.y;
-    uint tw = fine ? tf.x : (v.dims.x + (8u << S) - 1u) >> (S + 3);
+    // The finest level (fine, coarse: 8x8 fine, super: 8x8 coarse) whose
+    // tiles under the rectangle are fewer than 8x8: this function's loops
+    // stay within 8 x 8 + 8 back-edges (lavapipe's limit,
+    // CULL_CHUNK_BATCHES); past 8x8 super tiles, not hidden.
+    int lv = 0;
+    while (lv < 3 && ((b.z >> (S + 3 * lv)) - (b.x >> (S + 3 * lv)) >= 8
+                      || (b.w >> (S + 3 * lv)) - (b.y >> (S + 3 * lv)) >= 8)) {
+        ++lv;
+    }
+    if (lv == 3) return false;
+    int sh = S + 3 * lv;
+    uvec2 tc = (v.dims.xy + (8u << S) - 1u) >> (S + 3);
+    uint base = lv == 0 ? 0u : (lv == 1 ? tf.x * tf.y : tf.x * tf.y + tc.x * tc.y);
+    uint tw = (v.dims.x + (1u << sh) - 1u) >> sh;
     // The key light (orthographic, a texel wider than an atom): per
     // tile, the nearest depth of the bounds over the texel centres the
     // tile holds (the sphere's front at their least distance from its

@@ -4,7 +4,9 @@
 // (lod_cull.comp): MODE 0, one invocation per fine tile of the window (T x
 // T pixels, T = 2^pc.hiz_shift), the farthest depth word of its pixels (an
 // empty pixel's word is all ones: nothing behind it is hidden); MODE 1,
-// one per coarse tile (8T x 8T), the farthest of its 8x8 fine tiles.
+// one per coarse tile (8T x 8T), the farthest of its 8x8 fine tiles;
+// MODE 2, one per super tile (64T x 64T), of its 8x8 coarse tiles. They
+// lie in that order in `hiz`.
 #include "shared.glsl"
 
 layout(local_size_x = 64) in;
@@ -59,13 +61,16 @@ void main() {
         }
         hiz[i] = far;
     } else {
-        uvec2 tc = (uvec2(w, h) + 8u * T - 1u) / (8u * T);
+        // (the level below: fine for MODE 1, coarse for MODE 2)
+        uint below = MODE == 1u ? 0u : tf.x * tf.y;
+        uvec2 tb = MODE == 1u ? tf : (uvec2(w, h) + 8u * T - 1u) / (8u * T);
+        uvec2 tc = (tb + 7u) / 8u;
         if (i >= tc.x * tc.y) return;
         uvec2 o = uvec2(i % tc.x, i / tc.x) * 8u;
-        uint x1 = min(o.x + 8u, tf.x), y1 = min(o.y + 8u, tf.y);
+        uint x1 = min(o.x + 8u, tb.x), y1 = min(o.y + 8u, tb.y);
         for (uint y = o.y; y < y1; ++y) {
-            for (uint x = o.x; x < x1; ++x) far = max(far, hiz[y * tf.x + x]);
+            for (uint x = o.x; x < x1; ++x) far = max(far, hiz[below + y * tb.x + x]);
         }
-        hiz[tf.x * tf.y + i] = far;
+        hiz[below + tb.x * tb.y + i] = far;
     }
 }

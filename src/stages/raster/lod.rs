@@ -69,7 +69,7 @@ const HIZ_BINDINGS: [Binding; 4] = [
 const REGION_BYTES: u64 = LOD_MASK_AT as u64 * 4 + HIZ_FINE_TILES as u64 / 8;
 
 /// Depth tile words of a view: its fine tiles, then its coarse ones (8x8
-/// fine each).
+/// fine each), then its super ones (8x8 coarse).
 const HIZ_WORDS: u64 = HIZ_FINE_TILES as u64 * 65 / 64 + 4096;
 
 /// Tiles of `side` pixels a side over a `w` x `h` window.
@@ -89,7 +89,9 @@ pub fn hiz_shift(view: ViewIndex, w: u32, h: u32) -> u32 {
         ViewIndex::Light => 0,
     };
     (least..28)
-        .find(|&s| count(s) <= HIZ_FINE_TILES as u64 && count(s) + count(s + 3) <= HIZ_WORDS)
+        .find(|&s| {
+            count(s) <= HIZ_FINE_TILES as u64 && count(s) + count(s + 3) + count(s + 6) <= HIZ_WORDS
+        })
         .unwrap_or(28)
 }
 
@@ -154,7 +156,7 @@ pub struct LodCull {
     cull: [[ComputePipeline; 3]; 3],
     args: ComputePipeline,
     /// The depth tiles (fine, coarse: [`hiz_shift`]).
-    hiz: [ComputePipeline; 2],
+    hiz: [ComputePipeline; 3],
     /// Per instance and view: it passed the occlusion test last frame.
     visible: Buffer,
     /// What a view's early phase defers to its late one: an entry per
@@ -305,6 +307,7 @@ impl LodCull {
         };
         let hiz_fine = ctx.guard(hiz("lod depth tiles", 0)?);
         let hiz_coarse = ctx.guard(hiz("lod coarse depth tiles", 1)?);
+        let hiz_super = ctx.guard(hiz("lod super depth tiles", 2)?);
         // (a view lists each instance once, at one level: never more than
         // the full-detail batches)
         let shift = scene >> 8;
@@ -358,7 +361,7 @@ impl LodCull {
             deferral: deferral.keep(),
             deferred_given: deferred_batches,
             args: args.keep(),
-            hiz: [hiz_fine.keep(), hiz_coarse.keep()],
+            hiz: [hiz_fine.keep(), hiz_coarse.keep(), hiz_super.keep()],
             visible: visible.keep(),
             hiz_tiles: [hiz_camera.keep(), hiz_light.keep()],
             hiz_prev: [prev_camera.keep(), prev_light.keep()],
@@ -595,7 +598,7 @@ impl LodCull {
     }
 
     /// Dispatches that build the depth tiles of `view`'s image `vis` (`w`
-    /// x `h`) into `tiles`, fine ones of 2^shift pixels then coarse ones.
+    /// x `h`) into `tiles`: fine ones of 2^shift pixels, then coarse and super ones.
     #[allow(clippy::too_many_arguments)]
     fn tiles_steps<'b>(
         &'b self,
@@ -625,12 +628,14 @@ impl LodCull {
             Grid::Invocations(tiles(w, h, 1 << shift)),
             &hb,
         );
-        p.dispatch(
-            &self.hiz[1],
-            &push,
-            Grid::Invocations(tiles(w, h, 8 << shift)),
-            &hb,
-        );
+        for (level, side) in [(1, 8), (2, 64)] {
+            p.dispatch(
+                &self.hiz[level],
+                &push,
+                Grid::Invocations(tiles(w, h, side << shift)),
+                &hb,
+            );
+        }
     }
 
     /// The steps of `lod_occlusion` (`light_occlusion`): the depth tiles
