@@ -8,8 +8,6 @@
 // (lod_cull.comp) keeps only instances over the rectangle, and its depth
 // tiles (lod_hiz.comp) hide everything over tiles no mark is within the
 // lookup's reach of: nothing else can shadow what the camera sees.
-// It also marks each instance a pixel names (LEVEL_SHOWN on its level
-// word): the light's cull draws the others at the light's own level.
 #include "shared.glsl"
 
 layout(local_size_x = 64) in;
@@ -20,9 +18,6 @@ layout(set = 0, binding = 1) uniform usamplerBuffer visWordTex;
 // the read mask (lod_mask.glsl; zeroed by the host).
 layout(set = 0, binding = 2) buffer Region { int region[]; };
 #include "lod_mask.glsl"
-// Per instance: the level the camera chose (lod_cull.comp).
-layout(set = 0, binding = 3) buffer Levels { uint levels[]; };
-#include "scene.glsl"
 #include "push/lod_bounds.glsl"
 
 layout(constant_id = 1) const bool PERSP = false;
@@ -41,18 +36,10 @@ void main() {
     int S = int(pc.hiz_shift);
     int tw = (size + (1 << S) - 1) >> S;
     int last = -1;
-    uint shown = BATCH_EMPTY;
     for (uint y = o.y; y < y1; ++y) {
         for (uint x = o.x; x < x1; ++x) {
             uint key = texelFetch(visWordTex, int(2u * (y * w + x) + 1u)).x;
             if (key == 0xFFFFFFFFu) continue;
-            // (the pixel's batch entry in this frame's lists: its instance
-            // and the camera's level; one store per run of an instance)
-            uint e = texelFetch(batchTex, int(texelFetch(visWordTex, int(2u * (y * w + x))).x >> BATCH_SHIFT)).x;
-            if (e != shown) {
-                levels[e & BATCH_INSTANCE_MASK] = (e >> BATCH_INSTANCE_BITS) | LEVEL_SHOWN;
-                shown = e;
-            }
             vec3 org, dir;
             view_ray(g.cam, vec2(uvec2(x, y) + g.cam.dims.zw), PERSP, org, dir);
             float t = PERSP ? uintBitsToFloat(key) : uintBitsToFloat(key) - g.cam.depth.x;

@@ -9,9 +9,7 @@
 //     chooses the instance's level from its size on screen (the coarsest
 //     whose switch size it is within, src/scene/instanced/lod.rs) and
 //     keeps it for the other phases, so every view draws the same
-//     (instance, atom) slots of what the image shows and the ISSM's
-//     self-shadow test stays exact (the light draws what the image does
-//     not show at its own level where coarser);
+//     (instance, atom) slots and the ISSM's self-shadow test stays exact;
 //     that level's bounds (sphere and box), placed with the instance's
 //     transform, are tested against the view's window (the camera's pixel
 //     window: the frustum, and a tile's window when tiling; the key
@@ -306,7 +304,6 @@ void main() {
         // silhouette guarantee holds at every size a level is drawn at.
         uint n = texelFetch(levelTex, int(base)).x & LEVEL_COUNT_MASK;
         uint prev = levels[k];
-        prev = prev == NO_LEVEL_YET ? prev : prev & ~LEVEL_SHOWN;
         level = 0u;
         uint banded = 0u;
         for (uint l = 1u; l < n; ++l) {
@@ -317,26 +314,12 @@ void main() {
         if (prev != NO_LEVEL_YET && prev <= level) level = max(prev, banded);
         levels[k] = level;
     } else {
-        // The camera's level where its final image shows the instance
-        // (lod_bounds.comp marks it), so that ISSM's self-shadow test
-        // stays exact per (instance, atom). One it does not show has no
-        // point to shadow itself: it only casts, and takes the coarser
-        // of the camera's level and the one the light's texels ask for
-        // (the same switch sizes, in texels per unit: its outline as
-        // close to level 0's as the map can tell). Meso 10^9 at 2,025 A:
-        // the light's spheres 8.35 -> 4.61 M, light_cull 62 -> 45 ms,
-        // GPU 236 -> 204 MB; at 506 A the frame 669 -> 622 ms. (Most of
-        // the light's spheres are of the ~6,000 instances the image
-        // shows: issm_raster did not move.)
-        uint w = levels[k];
-        level = w & ~LEVEL_SHOWN;
-        if ((w & LEVEL_SHOWN) == 0u && pc.light_levels != 0u) {
-            uint n = texelFetch(levelTex, int(base)).x & LEVEL_COUNT_MASK;
-            for (uint l = level + 1u; l < n; ++l) {
-                float sw = uintBitsToFloat(texelFetch(levelTex, int(base + l)).z);
-                if (v.center.w <= sw) level = l;
-            }
-        }
+        // (A light level of its own for what the image does not show,
+        // which only casts, was tried: 2,025 A -13 ms, 506 A -47 ms, but
+        // coarse casters above the view's edge shadowed darker than the
+        // same proteins' fine atoms in the view: shadows changed as a
+        // caster entered the screen.)
+        level = levels[k];
     }
     // This invocation's batches: from `from` to the end of its chunk
     // (none: a further chunk of a coarse level's fewer batches).

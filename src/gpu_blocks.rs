@@ -125,16 +125,13 @@ gpu_push! {
         /// Batch entries the early phase may defer to the late one (after
         /// one entry per instance in the deferral buffer).
         deferred: u32,
-        /// The light's cull: 1 where an instance the camera's final
-        /// image does not show may take the light's own coarser level
-        /// (a frame drawn whole, not in tiles: a tile's image shows less).
-        light_levels: u32,
         /// Further chunks of large instances the early phase takes after
         /// the instances (src/passes/scene.rs `cull_chunks`).
         chunks: u32,
         /// Which of the two per-instance visibility arrays holds last
         /// frame's (the other is this frame's).
         parity: u32,
+        pad: u32,
     }
 
     /// `lod_bounds` (glsl/lod_bounds.comp).

@@ -174,11 +174,6 @@ gpu_constants! {
     CULL_CHUNK_BATCHES: u32 = 256;
     /// The cull's per-instance level before any frame chose one.
     NO_LEVEL_YET: u32 = 0xFFFF_FFFF;
-    /// Set on an instance's level word (glsl/lod_cull.comp's `levels`)
-    /// after the camera's raster where a pixel of its final image names
-    /// the instance (glsl/lod_bounds.comp); the camera's next early phase
-    /// rewrites the word without it.
-    LEVEL_SHOWN: u32 = 0x4000_0000;
     LOD_BATCHES: u32 = 0;
     LOD_SPHERES: u32 = 1;
     LOD_ARGS: u32 = 2;

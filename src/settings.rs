@@ -595,11 +595,6 @@ pub struct LodParams {
     /// a quarter of a list's; tests force the overflow path with less).
     #[arg(skip)]
     pub lod_deferred_batches: Option<u32>,
-    /// The key light draws every instance at the camera's level, also
-    /// those the image does not show (tests compare; by default those
-    /// take the light's own level where coarser).
-    #[arg(skip)]
-    pub camera_levels_for_light: bool,
 }
 
 default_from_args!(LodParams);

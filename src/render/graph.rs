@@ -247,7 +247,6 @@ impl Resources {
                     &raster_in,
                     &t.raster,
                     (lookup.reach(), map),
-                    !settings.lod.camera_levels_for_light,
                 )?;
             }
         }

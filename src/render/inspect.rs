@@ -64,17 +64,7 @@ impl<'r> Inspect<'r, '_> {
     /// did not run).
     pub fn lod_levels(&self) -> Result<Option<Vec<u32>>> {
         let cull = self.r.res.stages.raster.last_cull();
-        let levels = cull.map(|l| l.levels(self.r.ctx)).transpose()?;
-        Ok(levels.map(|v| v.into_iter().map(|(l, _)| l).collect()))
-    }
-
-    /// Per instance, whether the last frame's final image named it (the
-    /// light's cull draws the others at the light's own level; all false
-    /// where no light view was culled). None: the cull did not run.
-    pub fn lod_shown(&self) -> Result<Option<Vec<bool>>> {
-        let cull = self.r.res.stages.raster.last_cull();
-        let levels = cull.map(|l| l.levels(self.r.ctx)).transpose()?;
-        Ok(levels.map(|v| v.into_iter().map(|(_, s)| s).collect()))
+        cull.map(|l| l.levels(self.r.ctx)).transpose()
     }
 
     /// Scene ids to input indices (None: the same; rules hid nothing).

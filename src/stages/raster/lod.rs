@@ -22,7 +22,7 @@ use crate::error::Result;
 use crate::gpu::blocks::{LodArgsPush, LodBoundsPush, LodCullPush, LodHizPush};
 use crate::gpu::consts::{
     BATCH_EMPTY, CULL_DEFERRED_BATCHES, CULL_DEFERRED_INSTANCES, CULL_EARLY, HIZ_FINE_TILES,
-    HIZ_MIN_SHIFT, LEVEL_SHOWN, LOD_ARGS, LOD_BATCHES, LOD_DEFER_BATCH_ARGS, LOD_DEFER_BATCHES,
+    HIZ_MIN_SHIFT, LOD_ARGS, LOD_BATCHES, LOD_DEFER_BATCH_ARGS, LOD_DEFER_BATCHES,
     LOD_DEFER_INSTANCE_ARGS, LOD_DEFER_INSTANCES, LOD_LIST_TAIL, LOD_MASK_AT, LOD_SPHERES,
     LOD_VIEWS, LOD_WORDS, NO_LEVEL_YET,
 };
@@ -50,11 +50,10 @@ const BINDINGS: [Binding; 12] = [
     rw("Deferred"),
 ];
 
-const BOUNDS_BINDINGS: [Binding; 4] = [
+const BOUNDS_BINDINGS: [Binding; 3] = [
     uniform("GlobalsBlock"),
     texel("visWordTex", Format::R32_UINT),
     rw("Region"),
-    rw("Levels"),
 ];
 
 const HIZ_BINDINGS: [Binding; 4] = [
@@ -175,9 +174,6 @@ pub struct LodCull {
     /// This frame's light lookup reach (texels, `Lookup::reach`): the
     /// light's cull phases and depth tiles read it.
     reach: std::cell::Cell<i32>,
-    /// The light's cull may draw instances the image does not show at
-    /// the light's own level (`light_steps`' `whole`).
-    light_levels: std::cell::Cell<bool>,
     /// Batches each list will hold from the next frame on (a frame asked
     /// more than three quarters of them).
     pending: Option<u32>,
@@ -333,18 +329,17 @@ impl LodCull {
         let prev_camera = ctx.guard(tiles_buffer("LOD camera last depth tiles")?);
         let prev_light = ctx.guard(tiles_buffer("LOD light last depth tiles")?);
         let region = ctx.guard(Buffer::storage(ctx, "LOD light region", REGION_BYTES)?);
-        let bounds_bindings = [&BOUNDS_BINDINGS[..], &SCENE_GEOMETRY].concat();
         let bounds = |name: &str, persp: u32| {
             ComputePipeline::new(
                 ctx,
                 &PipelineDesc {
                     name,
                     shader: spirv::LOD_BOUNDS_COMP,
-                    bindings: &bounds_bindings,
+                    bindings: &BOUNDS_BINDINGS,
                     push_size: std::mem::size_of::<LodBoundsPush>() as u32,
                     local_size: 64,
                     constants: &[persp],
-                    scene,
+                    scene: 0,
                 },
             )
         };
@@ -367,7 +362,6 @@ impl LodCull {
             hiz_prev: [prev_camera.keep(), prev_light.keep()],
             prev_shift: [std::cell::Cell::new(28), std::cell::Cell::new(28)],
             reach: std::cell::Cell::new(1 << 29),
-            light_levels: std::cell::Cell::new(false),
             pending: None,
             last_views: std::cell::RefCell::new([Vec::new(), Vec::new()]),
             moved: [std::cell::Cell::new(true), std::cell::Cell::new(true)],
@@ -464,9 +458,9 @@ impl LodCull {
             hiz_shift,
             reach: self.reach.get(),
             deferred: self.deferred(),
-            light_levels: self.light_levels.get() as u32,
             chunks: self.chunks,
             parity: self.parity.get(),
+            pad: 0,
         };
         let cull = &self.cull[pipes];
         if list < LATE {
@@ -511,10 +505,7 @@ impl LodCull {
     /// texels of the camera's visible points (from `vis`, a `size` window)
     /// and the light's early list over them grown by the lookup's `reach`
     /// texels (`Lookup::reach`; the light's depth tiles take it too) on a
-    /// `map` (width, height) light map. With `whole` (the window is the
-    /// image) the instances the image does not show take the light's own
-    /// level where coarser; a tile shows less of the image, so its light
-    /// keeps the camera's levels (no seams where tiles meet).
+    /// `map` (width, height) light map.
     #[allow(clippy::too_many_arguments)]
     pub fn light_steps<'b>(
         &'b self,
@@ -525,10 +516,8 @@ impl LodCull {
         perspective: bool,
         size: (u32, u32),
         (reach, map): (i32, (u32, u32)),
-        whole: bool,
     ) -> Result<()> {
         self.reach.set(reach);
-        self.light_levels.set(whole);
         // (the read mask's bits are the light's fine depth tiles)
         let mask_shift = hiz_shift(ViewIndex::Light, map.0, map.1);
         self.cull_steps(
@@ -574,16 +563,10 @@ impl LodCull {
                 },
                 Grid::Invocations(tiles(w, h, 16)),
                 &[
-                    [
-                        ("GlobalsBlock", globals),
-                        ("visWordTex", vis),
-                        ("Region", &self.region),
-                        ("Levels", &self.levels),
-                    ]
-                    .as_slice(),
-                    &scene.geometry(),
-                ]
-                .concat(),
+                    ("GlobalsBlock", globals),
+                    ("visWordTex", vis),
+                    ("Region", &self.region),
+                ],
             );
         }
         // (the early phase reads the last final image's tiles, emptied
@@ -708,18 +691,9 @@ impl LodCull {
         }
     }
 
-    /// Each instance's level in the last frame (after the frame), and
-    /// whether a pixel of its final image named the instance (marked
-    /// where the light's cull ran).
-    pub fn levels(&self, ctx: &Context) -> Result<Vec<(u32, bool)>> {
-        let words: Vec<u32> = self.levels.download_pod(ctx, 0, self.instances as u64)?;
-        Ok(words
-            .into_iter()
-            .map(|w| match w {
-                NO_LEVEL_YET => (w, false),
-                _ => (w & !LEVEL_SHOWN, w & LEVEL_SHOWN != 0),
-            })
-            .collect())
+    /// Each instance's level in the last frame (after the frame).
+    pub fn levels(&self, ctx: &Context) -> Result<Vec<u32>> {
+        self.levels.download_pod(ctx, 0, self.instances as u64)
     }
 
     /// The last frame's counters (after the frame): `word(list, k)` reads

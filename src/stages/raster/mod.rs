@@ -215,16 +215,13 @@ impl RasterStage {
 
     /// `light_cull` (after `record_late`): the light's list of what may
     /// shadow a point the camera sees (whose lookup reads `reach` texels
-    /// about it on a `map` (width, height) light map); with `light_levels`
-    /// and a window that is the whole image, the instances it does not
-    /// show at the light's own level where coarser (`LodCull::light_steps`).
+    /// about it on a `map` (width, height) light map).
     pub fn record_light_cull(
         &self,
         rec: &mut Recorder,
         io: &RasterInputs,
         t: &RasterTargets,
         reach_map: (i32, (u32, u32)),
-        light_levels: bool,
     ) -> Result<()> {
         let Some(l) = &self.lod else {
             return Ok(());
@@ -238,7 +235,6 @@ impl RasterStage {
                 io.perspective,
                 io.size,
                 reach_map,
-                light_levels && io.image == io.size,
             )
         })
     }
