@@ -29,11 +29,12 @@
 //     against the early image: a deferred batch on its own
 //     (CULL_DEFERRED_BATCHES, one invocation each), a deferred instance
 //     (CULL_DEFERRED_INSTANCES: a chunk, or its rest) whole and then each
-//     of its batches not listed early; what is not hidden is listed. An instance or batch
-//     whose nearest point is farther than the farthest depth of every
-//     pixel tile its rectangle touches is hidden (two-phase occlusion
-//     culling, as niagara and Mol* do it: exact, what it drops could not
-//     win a pixel); the instances' results are the next frame's history.
+//     of its batches not listed early; what is not hidden is listed. An
+//     instance or batch whose nearest point is farther than the farthest
+//     depth of every pixel tile its rectangle touches is hidden (two-phase
+//     occlusion culling, as niagara and Mol* do it: exact, what it drops
+//     could not win a pixel); the instances' results are the next frame's
+//     history.
 // What is visible in the final image is drawn in one phase or the other:
 // exact, whatever the last frame was (a camera that moved only moves work
 // to the late phase). Where the deferral buffer is full, the instance is

@@ -130,6 +130,14 @@ pub struct LodBuffers {
 /// kept or culled together (meso 10^9 at 2,025 A: the four cull passes 321
 /// -> 172 ms). The cull walks it backwards for views looking down the
 /// curve (glsl/lod_cull.comp), so the lists it fills run near to far.
+pub fn cull_order(instance_molecule: &[u32], place: impl Fn(usize) -> [f32; 3]) -> Vec<u32> {
+    let places: Vec<[f32; 3]> = (0..instance_molecule.len()).map(place).collect();
+    let cells = morton_cells(&places);
+    let mut order: Vec<u32> = (0..instance_molecule.len() as u32).collect();
+    order.sort_by_key(|&k| (instance_molecule[k as usize], cells[k as usize]));
+    order
+}
+
 /// The further chunks the LOD cull takes instances of more than
 /// CULL_CHUNK_BATCHES level-0 batches in (`batches(k)`), in `order`: per
 /// chunk the instance and its first batch (each invocation then stays
@@ -142,14 +150,6 @@ pub fn cull_chunks(order: &[u32], batches: impl Fn(usize) -> u64) -> Vec<[u32; 2
         out.extend((1..n.div_ceil(chunk)).map(|c| [k, (c * chunk) as u32]));
     }
     out
-}
-
-pub fn cull_order(instance_molecule: &[u32], place: impl Fn(usize) -> [f32; 3]) -> Vec<u32> {
-    let places: Vec<[f32; 3]> = (0..instance_molecule.len()).map(place).collect();
-    let cells = morton_cells(&places);
-    let mut order: Vec<u32> = (0..instance_molecule.len() as u32).collect();
-    order.sort_by_key(|&k| (instance_molecule[k as usize], cells[k as usize]));
-    order
 }
 
 impl SceneBuffers {
@@ -1266,6 +1266,11 @@ mod tests {
         assert_eq!(cull_order(&types, |k| places[k]), [7, 1, 3, 2, 6, 4, 0, 5]);
         assert_eq!(cull_order(&types, |_| [1.0; 3]), [1, 3, 7, 2, 6, 0, 4, 5]);
         assert!(cull_order(&[], |_| [0.0; 3]).is_empty());
+        // (the further chunks of the instances past one chunk, in order)
+        let n = CULL_CHUNK_BATCHES as u64;
+        let batches = [10, 2 * n + 88, n];
+        let chunks = cull_chunks(&[2, 1, 0], |k| batches[k]);
+        assert_eq!(chunks, [[1, n as u32], [1, 2 * n as u32]]);
         assert_eq!(morton3([1, 0, 0]), 1);
         assert_eq!(morton3([0, 1, 0]), 2);
         assert_eq!(morton3([0, 0, 1]), 4);

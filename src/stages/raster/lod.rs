@@ -154,9 +154,10 @@ pub struct LodCull {
     /// CULL_EARLY, CULL_DEFERRED_INSTANCES, CULL_DEFERRED_BATCHES).
     cull: [[ComputePipeline; 3]; 3],
     args: ComputePipeline,
-    /// The depth tiles (fine, coarse: [`hiz_shift`]).
+    /// The depth tiles (fine, coarse, super: [`hiz_shift`]).
     hiz: [ComputePipeline; 3],
-    /// Per instance and view: it passed the occlusion test last frame.
+    /// Per instance and view: it passed the occlusion test, in two arrays
+    /// (last frame's, this frame's: `parity`).
     visible: Buffer,
     /// What a view's early phase defers to its late one: an entry per
     /// instance, then [`LodCull::deferred`] batch entries (one view at a
