@@ -374,10 +374,7 @@ impl SceneBuffers {
                 let c = bounds[2 * inst.instance_molecule[k] as usize * MAX_LOD_LEVELS as usize];
                 inst.transforms.apply(k, [c[0], c[1], c[2]])
             });
-            let chunks = cull_chunks(&words, |k| {
-                let atoms = inst.molecules[inst.instance_molecule[k] as usize].atoms;
-                (atoms as u64).div_ceil(1 << shift)
-            });
+            let chunks = cull_chunks(&words, |k| batch_first[k + 1] - batch_first[k]);
             words.extend(chunks.iter().flatten());
             let order = ctx.guard(Buffer::table(
                 ctx,

@@ -684,7 +684,7 @@ impl ShadowTechnique for DeepShadows {
                 c.max_depth_complexity, c.sort_cut
             )));
         }
-        let mut stats = self.read_stats(ctx)?;
+        let mut stats = self.stats_of(&c);
         if !stats.overflowed {
             // Report that this frame needed a retry even though the final one fit.
             stats.overflowed = std::mem::take(&mut self.retried);

@@ -88,15 +88,19 @@ impl DeepShadows {
     }
 
     pub fn read_stats(&self, ctx: &Context) -> Result<DeepStats> {
-        let c = self.read_counters(ctx)?;
-        Ok(DeepStats {
+        Ok(self.stats_of(&self.read_counters(ctx)?))
+    }
+
+    /// The stats of counters read back.
+    pub fn stats_of(&self, c: &DeepCounters) -> DeepStats {
+        DeepStats {
             entries: c.entries as u64,
             chunks_used: c.chunks_requested as u64,
             chunk_capacity: self.capacity as u64,
             bytes: self.list_bytes(),
             fixed_layer_bytes: c.max_depth_complexity as u64 * self.texel_count() * BYTES_PER_ENTRY,
             overflowed: c.overflowed,
-        })
+        }
     }
 
     /// Reads every deep-list buffer back (entries up to the chunks in use).
