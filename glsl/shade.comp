@@ -46,6 +46,8 @@ layout(set = 0, binding = 11) uniform usamplerBuffer oitHeadTex;
 // (the pool as RG32UI texels: a gather per scan step, where a storage load
 // at per-lane addresses is a scalar loop on lavapipe)
 layout(set = 0, binding = 12) uniform usamplerBuffer oitFragTex;
+// (the fragment lists' counters: F_COMPOSITE_CUT)
+layout(set = 0, binding = 13) buffer OitCounters { uint oit_counters[]; };
 
 vec3 linear_to_srgb(vec3 c) { return pow(clamp(c, 0.0, 1.0), vec3(1.0 / 2.2)); }
 
@@ -270,6 +272,7 @@ vec4 composite(uvec2 px, uint i, vec4 base) {
     // b0..b7 the least after `last`, sorted (taken from the front).
     uint64_t last = 0ul;
     uint taken = 0u;
+    bool whole = false;
     while (taken < n && T >= 1.0 / 1024.0) {
         uint64_t b0 = VIS_EMPTY, b1 = VIS_EMPTY, b2 = VIS_EMPTY, b3 = VIS_EMPTY;
         uint64_t b4 = VIS_EMPTY, b5 = VIS_EMPTY, b6 = VIS_EMPTY, b7 = VIS_EMPTY;
@@ -312,7 +315,12 @@ vec4 composite(uvec2 px, uint i, vec4 base) {
             acc_a += w;
             T -= w;
         }
+        // The walk's own end, as a flag: lavapipe ends an invocation's
+        // loops after 65,535 back-edges (thousands of faint fragments in a
+        // pixel), and a test after the loop would be folded away.
+        whole = taken >= n || T < 1.0 / 1024.0;
     }
+    if (!whole) atomicAdd(oit_counters[F_COMPOSITE_CUT], 1u);
     float out_a = acc_a + T * base.a;
     vec3 rgb = acc + T * base.a * base.rgb;
     return vec4(out_a > 0.0 ? rgb / out_a : vec3(0.0), out_a);

@@ -57,6 +57,10 @@ gpu_constants! {
     F_FILL_ERRORS: u32 = 3;
     /// Fragment counters: pixels with a fragment.
     F_PIXELS: u32 = 4;
+    /// Fragment counters: pixels whose composite (shade.comp) a loop limit
+    /// cut short (lavapipe ends a shader invocation's loops after 65,535
+    /// back-edges: thousands of faint fragments in one pixel reach it).
+    F_COMPOSITE_CUT: u32 = 5;
     /// Fragment counters: band jobs requested, dispatched, and the first
     /// of the three indirect dispatch words.
     F_BANDS_REQ: u32 = 16;

@@ -487,3 +487,107 @@ fn alpha_zero_is_hide_and_alpha_one_is_no_rule() {
     assert!(mean < 2.0 && off1 * 10 < hide.len(), "{mean} {off1}");
     assert_no_validation_messages(&ctx);
 }
+
+/// A column of `n` faint see-through spheres along the view (alpha 10/255)
+/// in front of an opaque one, seen end-on: the pixels near its axis hold
+/// `n` fragments and need ~180 of them composited.
+fn faint_column(n: usize, alpha: u8) -> (Scene, Camera) {
+    let mut v: Vec<Sphere> = (0..n)
+        .map(|k| ball([0.0, 0.0, -0.25 * k as f32], 1.0, [200, 120, 60], alpha))
+        .collect();
+    v.push(ball(
+        [0.0, 0.0, -0.25 * n as f32 - 2.0],
+        1.5,
+        [90, 90, 220],
+        255,
+    ));
+    let scene = scene_of(v, "faint column");
+    let cam = sphereshade::camera::default_camera(
+        &scene,
+        32,
+        32,
+        &sphereshade::camera::CameraFit {
+            view_height: Some(4.0),
+            center: Some(glam::DVec3::new(0.0, 0.0, -0.125 * n as f64)),
+            ..Default::default()
+        },
+    )
+    .expect("camera");
+    (scene, cam)
+}
+
+/// lavapipe ends a shader invocation's loops after 65,535 back-edges:
+/// shade's composite of a pixel with thousands of faint fragments (a scan
+/// of them per 8 layers) passes it. Such a frame is refused with one line
+/// naming the fragments, not drawn with layers left out; the same column
+/// with opaque-enough layers (few scans) or short (few fragments) is drawn
+/// and counts no cut pixel, so the count is the walk's, not a constant. On
+/// a device without that limit every frame is drawn.
+#[test]
+fn a_composite_longer_than_the_device_walks_is_refused() {
+    let ctx = validated_context();
+    let cpu = ctx.props.device_type == ash::vk::PhysicalDeviceType::CPU;
+    let run = |n: usize, alpha: u8| {
+        let (scene, cam) = faint_column(n, alpha);
+        let mut r = Renderer::new(&ctx, &scene, flat(cam)).expect("renderer");
+        let got = r.render_frame().map(|_| ());
+        let c = r
+            .inspect()
+            .see_through()
+            .expect("see-through stage")
+            .read_counters(&ctx)
+            .expect("counters");
+        // F_COMPOSITE_CUT, F_MAX, F_PIXELS
+        (got, c[5], c[2], c[4])
+    };
+    // 6,000 fragments at alpha 0.04: 22 scans of 6,000
+    let (got, cut, most, pixels) = run(6_000, 10);
+    assert!(most >= 6_000, "fragments of the axis pixel: {most}");
+    if cpu {
+        let msg = got
+            .expect_err("a 6,000-fragment composite on lavapipe")
+            .to_string();
+        assert!(!msg.contains('\n'), "{msg}");
+        assert!(msg.starts_with("see-through pixels of up to 6"), "{msg}");
+        assert!(cut > 0 && cut <= pixels, "cut {cut} of {pixels} pixels");
+    } else {
+        got.expect("frame");
+        assert_eq!(cut, 0);
+    }
+    // the same fragments, layers opaque enough to end after one scan
+    let (got, cut, ..) = run(6_000, 128);
+    got.expect("an opaque-enough column");
+    assert_eq!(cut, 0);
+    // faint layers, few of them
+    let (got, cut, ..) = run(200, 10);
+    got.expect("a short faint column");
+    assert_eq!(cut, 0);
+    assert_no_validation_messages(&ctx);
+}
+
+/// A tiled image's fragment stats are its tiles' together (they were the
+/// last tile's): the same most fragments of a pixel, at least the untiled
+/// counts (a tile's margin is counted in each), and the same colours.
+#[test]
+fn a_tiled_image_reports_every_tiles_fragments() {
+    let ctx = validated_context();
+    let scene = scene_of(stack(), "stack");
+    let cam = camera(&scene, W, H, None);
+    let mut r = Renderer::new(&ctx, &scene, flat(cam)).expect("renderer");
+    let (whole, _) = r.render_image(None).expect("untiled");
+    let one = r.inspect().see_through_stats().expect("stats");
+    let (tiled, _) = r.render_image(Some(32)).expect("tiled");
+    assert!(tiled.tiles >= 4, "{} tiles", tiled.tiles);
+    let all = r.inspect().see_through_stats().expect("stats");
+    assert_eq!(all.max_per_pixel, one.max_per_pixel);
+    assert!(
+        all.fragments >= one.fragments && all.pixels >= one.pixels,
+        "{all:?} vs {one:?}"
+    );
+    assert_eq!(tiled.color, whole.color);
+    // back to one tile: that frame's own
+    r.render_image(None).expect("untiled again");
+    assert_eq!(r.inspect().see_through_stats().expect("stats"), one);
+    drop(r);
+    assert_no_validation_messages(&ctx);
+}

@@ -167,13 +167,13 @@ impl<'r> Inspect<'r, '_> {
         self.r.res.stages.see_through.as_ref()
     }
 
-    /// The last frame's see-through fragment lists (None: no see-through
-    /// spheres this frame).
+    /// The last image's see-through fragment lists: its tiles' summed when
+    /// tiled (None: no see-through spheres this frame).
     pub fn see_through_stats(&self) -> Option<crate::stages::see_through::SeeThroughStats> {
         let on = self.r.res.see_through(&self.r.settings);
         self.see_through()
             .filter(|_| on)
-            .and_then(|s| s.stats.clone())
+            .and_then(|s| s.image_stats())
     }
 
     /// Visibility buffer (depth|id per pixel), without the guard words;

@@ -170,8 +170,10 @@ impl Resources {
             settings.check_see_through(self.translucent)?;
             self.stages.raster.enable_see_through(ctx)?;
             if self.stages.see_through.is_none() {
-                self.stages.see_through =
-                    Some(SeeThrough::new(ctx, self.scene.spec, self.scene.slots)?);
+                let mut st = SeeThrough::new(ctx, self.scene.spec, self.scene.slots)?;
+                // (made by an image's first frame: a tile when tiled)
+                st.set_tiled(settings.window.is_some(), true);
+                self.stages.see_through = Some(st);
             }
             if let Some(s) = &mut self.stages.see_through {
                 s.prepare(
@@ -523,6 +525,10 @@ impl<'c> Renderer<'c> {
         kept: crate::camera::Window,
     ) -> Result<()> {
         self.resize_window(self.settings.camera, Some(window))?;
+        // (a plan's tiles start at the image's corner: its stats start there)
+        if let Some(st) = self.res.stages.see_through.as_mut() {
+            st.set_tiled(true, kept.x == 0 && kept.y == 0);
+        }
         let reach = self.res.ssdo_params(&self.settings).blur_reach_px()
             + crate::stages::shading::outline_px(&self.settings)
             + crate::render::tiles::ALIGN;
@@ -549,6 +555,11 @@ impl<'c> Renderer<'c> {
             let targets = Targets::new(self.ctx, win.width, win.height, aovs, wide)?;
             let mut old = std::mem::replace(&mut self.res.targets, targets);
             old.destroy(self.ctx);
+        }
+        if window.is_none()
+            && let Some(st) = self.res.stages.see_through.as_mut()
+        {
+            st.set_tiled(false, false);
         }
         self.settings.camera = cam;
         self.settings.window = window;

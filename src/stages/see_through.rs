@@ -25,7 +25,8 @@
 use crate::error::{Error, Result};
 use crate::gpu::blocks::{OitAllocPush, OitSplatPush};
 use crate::gpu::consts::{
-    F_ARGS, F_BANDS_REQ, F_BANDS_RUN, F_FILL_ERRORS, F_MAX, F_OVERFLOW, F_PIXELS, F_TOTAL,
+    F_ARGS, F_BANDS_REQ, F_BANDS_RUN, F_COMPOSITE_CUT, F_FILL_ERRORS, F_MAX, F_OVERFLOW, F_PIXELS,
+    F_TOTAL,
 };
 use crate::passes::bands::{BandArgs, BandCounters, BandJob, BandPipelines};
 use crate::passes::scene::{SCENE_ATTRIBUTES, SCENE_GEOMETRY, SceneBuffers};
@@ -64,7 +65,8 @@ pub struct FragmentLists {
     pub frags: Vec<[u32; 2]>,
 }
 
-/// The fragment lists of a frame (the JSON's `see_through`).
+/// The fragment lists of a frame, or of a tiled image's tiles together
+/// (the JSON's `see_through`).
 #[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
 pub struct SeeThroughStats {
     /// Fragments in front of the opaque surfaces.
@@ -79,6 +81,19 @@ pub struct SeeThroughStats {
     pub bytes: u64,
     /// A frame did not fit and was rendered again with a larger pool.
     pub overflowed: bool,
+}
+
+impl SeeThroughStats {
+    /// Adds a tile's frame: counts summed (a tile's margin, shared with its
+    /// neighbours, counted in each), the largest pool and pixel.
+    fn add(&mut self, tile: &SeeThroughStats) {
+        self.fragments += tile.fragments;
+        self.pixels += tile.pixels;
+        self.max_per_pixel = self.max_per_pixel.max(tile.max_per_pixel);
+        self.capacity = self.capacity.max(tile.capacity);
+        self.bytes = self.bytes.max(tile.bytes);
+        self.overflowed |= tile.overflowed;
+    }
 }
 
 /// The per-pixel words and the pool, sized for a window.
@@ -161,6 +176,8 @@ pub struct SeeThrough {
     lists: Option<Lists>,
     /// The last frame's lists.
     pub stats: Option<SeeThroughStats>,
+    /// The tiles of the image being rendered so far (None: not tiled).
+    tiles: Option<SeeThroughStats>,
     retried: bool,
 }
 
@@ -177,12 +194,14 @@ pub struct SeeThroughInputs<'a> {
     pub perspective: bool,
 }
 
-/// What `coverage` and `shade` read of them.
+/// What `coverage` and `shade` read of them (and the counters, where
+/// shade counts the composites a loop limit cut: F_COMPOSITE_CUT).
 #[derive(Clone, Copy)]
 pub struct SeeThroughOutputs<'a> {
     pub counts: &'a Buffer,
     pub heads: &'a Buffer,
     pub frags: &'a Buffer,
+    pub counters: &'a Buffer,
 }
 
 impl SeeThrough {
@@ -269,6 +288,7 @@ impl SeeThrough {
             sphere_count,
             lists: None,
             stats: None,
+            tiles: None,
             retried: false,
         })
     }
@@ -306,6 +326,7 @@ impl SeeThrough {
             counts: &l.counts,
             heads: &l.heads,
             frags: &l.frags,
+            counters: &self.counters,
         })
     }
 
@@ -398,6 +419,16 @@ impl SeeThrough {
                 c[F_FILL_ERRORS as usize]
             )));
         }
+        // (a frame drawn again with a larger pool is checked then)
+        let cut = c[F_COMPOSITE_CUT as usize];
+        if cut != 0 && c[F_OVERFLOW as usize] == 0 {
+            return Err(Error::DeviceLimit(format!(
+                "see-through pixels of up to {} fragments: {cut} pixels are more than this device \
+                 composites in one shader invocation; give the see-through spheres a higher alpha \
+                 or make fewer of them see-through",
+                c[F_MAX as usize]
+            )));
+        }
         let (capacity, bytes, pixels) = {
             let l = self.lists()?;
             (l.capacity, l.bytes(), l.pixels)
@@ -414,6 +445,9 @@ impl SeeThrough {
         });
         if !overflowed {
             self.retried = false;
+            if let (Some(t), Some(s)) = (self.tiles.as_mut(), self.stats.as_ref()) {
+                t.add(s);
+            }
             return Ok(false);
         }
         let max = max_capacity(ctx);
@@ -432,6 +466,22 @@ impl SeeThrough {
         }
         self.retried = true;
         Ok(true)
+    }
+
+    /// Frames from now on are tiles of one image (`first`: its first tile
+    /// starts the sums), or whole images (`tile` false).
+    pub fn set_tiled(&mut self, tile: bool, first: bool) {
+        if !tile {
+            self.tiles = None;
+        } else if first || self.tiles.is_none() {
+            self.tiles = Some(SeeThroughStats::default());
+        }
+    }
+
+    /// The lists of the image: its tiles' together when tiled, else the
+    /// last frame's.
+    pub fn image_stats(&self) -> Option<SeeThroughStats> {
+        self.tiles.clone().or_else(|| self.stats.clone())
     }
 
     /// Device bytes: the lists, counters and band-job scratch.

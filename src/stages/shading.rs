@@ -16,7 +16,7 @@ use crate::passes::screen::{ScreenInputs, surface_bindings};
 use crate::passes::tiles::{TILE_BINDING, Tiles};
 use crate::passes::variants::{TiledDispatch, Variants};
 use crate::settings::RenderSettings;
-use crate::vk::pipeline::{Binding, PipelineDesc, texel, wo};
+use crate::vk::pipeline::{Binding, PipelineDesc, rw, texel, wo};
 use crate::vk::{Buffer, Context, Recorder};
 use ash::vk::Format;
 
@@ -160,7 +160,7 @@ impl ShadeMode {
     }
 }
 
-const SHADE_OUTPUTS: [Binding; 9] = [
+const SHADE_OUTPUTS: [Binding; 10] = [
     texel("aoTex", Format::R32_UINT),
     texel("recordTex", Format::R32G32B32A32_UINT),
     wo("Color"),
@@ -170,6 +170,7 @@ const SHADE_OUTPUTS: [Binding; 9] = [
     texel("wordBaseTex", Format::R32_UINT),
     texel("oitHeadTex", Format::R32G32_UINT),
     texel("oitFragTex", Format::R32G32_UINT),
+    rw("OitCounters"),
 ];
 
 impl ShadePass {
@@ -243,6 +244,7 @@ impl ShadePass {
         bufs.extend([
             ("oitHeadTex", see.map_or(io.ssdo.records, |s| s.heads)),
             ("oitFragTex", see.map_or(io.ssdo.records, |s| s.frags)),
+            ("OitCounters", see.map_or(io.ssdo.records, |s| s.counters)),
         ]);
         bufs.extend(io.lookup.buffers.iter().copied());
         rec.pass(Self::NAME, |p| {
