@@ -415,6 +415,20 @@ pub fn shift_iou(atoms: &[[f32; 4]], dir: [f32; 3], ppu: f32) -> f64 {
 /// axes; instances turn it every way).
 pub const CHECK_DIRS: [[f32; 3]; 3] = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
 
+/// The radius factors a level's switch size is searched over, in eighths
+/// of the volume-keeping one, in the order tried (the first wins a tie).
+/// 0.5..1.25 fit a protein, whose silhouette is a solid blob. 1.5 and 2
+/// fit a sparse cloud, where the projected area is kept, not the volume
+/// ((n / n_L)^(1/2) = the volume's factor x (n / n_L)^(1/6): 2x at 64
+/// atoms a sphere): a nested scene's proxy of one sphere per protein over
+/// a ball of plasma. With 1.25 at most, the 10^12 overview's proxies
+/// switched to every 4th sphere only (their coarse spheres left holes that
+/// full detail covers) and drew 25.3 M spheres (12.2 a pixel, the back
+/// layers of the lattice seen through the front's holes), 666 ms; with 1.5
+/// and 2 tried, 7.8 M (3.8 a pixel), 285 ms. No molecule of the meso 10^9
+/// scene or SARS-CoV-2 changed (the same images).
+pub const RADIUS_EIGHTHS: [u32; 9] = [8, 7, 9, 6, 10, 12, 5, 16, 4];
+
 /// Steps per doubling of the sizes a level's silhouette is checked at.
 pub const SWITCH_STEPS: i32 = 4;
 
@@ -431,9 +445,9 @@ impl MoleculeLod {
     /// its silhouette first misses [`needed_iou`] of level 0's along
     /// [`CHECK_DIRS`] (so it keeps it at every checked size below), at
     /// most where its spheres project `pixels` in radius and at most the
-    /// finer level's. Of the radius factors 0.5..1.25 x the volume-keeping
-    /// one, the level takes the one with the largest switch size (the
-    /// volume-keeping one where several tie). Level 0: infinity.
+    /// finer level's. Of the radius factors [`RADIUS_EIGHTHS`] x the
+    /// volume-keeping one, the level takes the one with the largest switch
+    /// size (the first of that list where several tie). Level 0: infinity.
     /// Non-increasing with the level.
     pub fn switch_ppu(&mut self, atoms: &[[f32; 4]], pixels: f32) -> Vec<f32> {
         let mut out = vec![f32::INFINITY];
@@ -452,7 +466,7 @@ impl MoleculeLod {
         for l in 1..self.levels() {
             let vol = (self.counts[0] as f32 / self.counts[l].max(1) as f32).cbrt();
             let mut best = (i32::MIN, vol);
-            for k in [8, 7, 9, 6, 10, 5, 4] {
+            for k in RADIUS_EIGHTHS {
                 let f = vol * k as f32 / 8.0;
                 self.radius[l] = f;
                 let coarse = self.level_spheres(atoms, l);
@@ -713,11 +727,15 @@ mod coverage {
             }
             let vol = (lod.counts[0] as f32 / lod.counts[l] as f32).cbrt();
             let chosen = lod.radius_scale(l);
-            assert!((4..=10).any(|k| (vol * k as f32 / 8.0 - chosen).abs() < 1e-6));
+            assert!(
+                RADIUS_EIGHTHS
+                    .iter()
+                    .any(|&k| (vol * k as f32 / 8.0 - chosen).abs() < 1e-6)
+            );
             // (no radius reaches past the finer level's switch)
             if switch_grid(top + 1) <= sw[l - 1] {
                 let mut other = lod.clone();
-                for k in 4..=10 {
+                for k in RADIUS_EIGHTHS {
                     other.radius[l] = vol * k as f32 / 8.0;
                     let c = other.level_spheres(&atoms, l);
                     // (its spheres no larger than 2 px in radius there)
