@@ -398,3 +398,35 @@ fn a_lattice_overview_draws_at_most_five_spheres_a_pixel() {
     drop(r);
     assert_no_validation_messages(&ctx);
 }
+
+/// The proxies fit the levels of detail of every molecule type a resolved
+/// scene holds (the block's, then the proxies'), once: each is the fit
+/// the renderer would make of that type's atoms (it takes them instead of
+/// fitting again: a viewer reopening placements, 1.4 -> 0.4 s on the
+/// 10^12 scene).
+#[test]
+fn the_proxies_hold_the_fits_of_the_types_they_resolve_to() {
+    use sphereshade::scene::instanced::lod::LodFit;
+    let s = nested(2);
+    let proxies = Proxies::new(&s, 2.0).unwrap();
+    let mut open = vec![false; 8];
+    open[3] = true;
+    let r = s
+        .instancing
+        .as_ref()
+        .unwrap()
+        .resolve(&s, &proxies, &open)
+        .unwrap();
+    let molecules = &r.instancing.as_ref().unwrap().molecules;
+    assert_eq!(proxies.fits.len(), molecules.len());
+    assert!(molecules.len() > s.instancing.as_ref().unwrap().molecules.len());
+    for (m, fit) in molecules.iter().zip(&proxies.fits) {
+        let atoms: Vec<[f32; 4]> = r.spheres[m.first as usize..(m.first + m.atoms) as usize]
+            .iter()
+            .map(|a| [a.center[0], a.center[1], a.center[2], a.radius])
+            .collect();
+        assert!(fit.fits(m.atoms, 2.0), "{}", m.label);
+        assert!(!fit.fits(m.atoms, 3.0), "{}", m.label);
+        assert_eq!(*fit, LodFit::new(&atoms, 2.0), "{}", m.label);
+    }
+}

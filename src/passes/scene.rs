@@ -17,7 +17,7 @@ use crate::gpu::consts::{
 use crate::gpu::{GpuBatch, GpuSphere, SphereAttr};
 use crate::scene::Scene;
 use crate::scene::instanced::extremes::Extremes;
-use crate::scene::instanced::lod::{MoleculeLod, morton_cells};
+use crate::scene::instanced::lod::{LodFit, MoleculeLod, morton_cells, on_every_core};
 use crate::scene::instanced::{LevelKind, Transforms};
 use crate::vk::pipeline::{Binding, texel};
 use crate::vk::{Buffer, Context};
@@ -272,8 +272,14 @@ impl SceneBuffers {
 
     /// Uploads `scene`: its buffers and the CPU copy of its geometry;
     /// with `lod_pixels` (`--lod auto`) an instanced scene's levels of
-    /// detail too.
-    pub fn new(ctx: &Context, scene: &Scene, lod_pixels: Option<f32>) -> Result<(Self, SceneGeom)> {
+    /// detail too (each molecule type's taken from `fitted` where it holds
+    /// that type's fit at `lod_pixels`).
+    pub fn new(
+        ctx: &Context,
+        scene: &Scene,
+        lod_pixels: Option<f32>,
+        fitted: Option<&[LodFit]>,
+    ) -> Result<(Self, SceneGeom)> {
         let geom: Vec<GpuSphere> = scene
             .spheres
             .iter()
@@ -323,7 +329,7 @@ impl SceneBuffers {
             all_level_batches,
             entries,
             lod: lod_tables,
-        } = build_instanced(scene, geom, colors, lod_pixels)?;
+        } = build_instanced(scene, geom, colors, lod_pixels, fitted)?;
         let shift = tables.shift;
         let tree: Vec<u32> = inst.tree_regions.iter().flatten().copied().collect();
         let (kind, transform_bytes): (u32, &[u8]) = match &inst.transforms {
@@ -557,12 +563,14 @@ struct Built {
 type LodTables = (Vec<[f32; 4]>, Vec<[f32; 4]>);
 
 /// The tables of instanced `scene` (its atoms `geom` and colour words
-/// `colors`); with `lod_pixels` its levels of detail too.
+/// `colors`); with `lod_pixels` its levels of detail too (from `fitted`
+/// where it holds them: [`lod_of`]).
 fn build_instanced(
     scene: &Scene,
     mut geom: Vec<GpuSphere>,
     mut colors: Vec<u32>,
     lod_pixels: Option<f32>,
+    fitted: Option<&[LodFit]>,
 ) -> Result<Built> {
     let Some(inst) = &scene.instancing else {
         return Err(Error::Internal("instanced tables of a plain scene".into()));
@@ -577,7 +585,7 @@ fn build_instanced(
     );
     let mut chains: Vec<u32> = scene.spheres.iter().map(|s| s.region[0]).collect();
     let lod = match lod_pixels {
-        Some(p) => Some(lod_of(scene, &geom, p)?),
+        Some(p) => Some(lod_of(scene, &geom, p, fitted)?),
         None => None,
     };
     // The coarse levels' atoms after the scene's own.
@@ -1182,58 +1190,45 @@ fn lod_bounds(atoms: &[[f32; 4]], ml: &MoleculeLod) -> Vec<[[f32; 4]; 2]> {
 }
 
 /// Every molecule type's levels (`pixels`: `--lod-pixels`).
-fn lod_of(scene: &Scene, geom: &[GpuSphere], pixels: f32) -> Result<Vec<Lod>> {
+fn lod_of(
+    scene: &Scene,
+    geom: &[GpuSphere],
+    pixels: f32,
+    fitted: Option<&[LodFit]>,
+) -> Result<Vec<Lod>> {
     let Some(inst) = &scene.instancing else {
         return Ok(Vec::new());
     };
-    let one = |mol: &crate::scene::instanced::Molecule| -> Result<Lod> {
+    // (fits made before, a nested scene's proxies' for its resolved scenes:
+    // the block's types, then the proxies, as `resolve` lists them)
+    let fitted = fitted.filter(|f| f.len() == inst.molecules.len());
+    let one = |m: usize| -> Result<Lod> {
+        let mol = &inst.molecules[m];
         let atoms = &geom[mol.first as usize..(mol.first + mol.atoms) as usize];
-        let mut ml = MoleculeLod::new(atoms);
-        if ml.levels() > MAX_LOD_LEVELS as usize {
+        let fit = match fitted.map(|f| &f[m]) {
+            Some(f) if f.fits(mol.atoms, pixels) => f.clone(),
+            _ => LodFit::new(atoms, pixels),
+        };
+        if fit.levels.levels() > MAX_LOD_LEVELS as usize {
             return Err(Error::Internal(format!(
                 "{}: {} levels of detail",
                 mol.label,
-                ml.levels()
+                fit.levels.levels()
             )));
         }
-        let switch = ml.switch_ppu(atoms, pixels);
-        let bound = lod_bounds(atoms, &ml);
+        let bound = lod_bounds(atoms, &fit.levels);
         Ok(Lod {
-            levels: ml,
-            switch,
+            levels: fit.levels,
+            switch: fit.switch,
             bound,
         })
     };
     // The molecule types on every core (their silhouette fits are the
-    // renderer's start-up: SARS-CoV-2's 2.4 s on one): each thread takes
-    // the next type, the results land in type order.
-    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
-    let next = std::sync::atomic::AtomicUsize::new(0);
-    let mut done: Vec<(usize, Result<Lod>)> = std::thread::scope(|sc| {
-        let workers: Vec<_> = (0..threads.min(inst.molecules.len()))
-            .map(|_| {
-                sc.spawn(|| {
-                    let mut got = Vec::new();
-                    loop {
-                        let m = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                        let Some(mol) = inst.molecules.get(m) else {
-                            return got;
-                        };
-                        got.push((m, one(mol)));
-                    }
-                })
-            })
-            .collect();
-        workers
-            .into_iter()
-            .flat_map(|w| w.join().unwrap_or_default())
-            .collect()
-    });
-    if done.len() != inst.molecules.len() {
-        return Err(Error::Internal("a level-of-detail worker failed".into()));
-    }
-    done.sort_by_key(|d| d.0);
-    done.into_iter().map(|d| d.1).collect()
+    // renderer's start-up: SARS-CoV-2's 2.4 s on one).
+    on_every_core(inst.molecules.len(), one)
+        .ok_or_else(|| Error::Internal("a level-of-detail worker failed".into()))?
+        .into_iter()
+        .collect()
 }
 
 #[cfg(test)]
@@ -1332,7 +1327,8 @@ mod tests {
         let inst = scene.instancing.as_ref().unwrap();
         let geom = geom_of(&scene);
         for lod in [None, Some(4.0)] {
-            let built = build_instanced(&scene, geom.clone(), vec![0; geom.len()], lod).unwrap();
+            let built =
+                build_instanced(&scene, geom.clone(), vec![0; geom.len()], lod, None).unwrap();
             let t = &built.tables;
             let per = 1u32 << t.shift;
             let mut want: Vec<GpuBatch> = Vec::new();
@@ -1391,7 +1387,8 @@ mod tests {
         let scene = scene();
         let inst = scene.instancing.as_ref().unwrap();
         let geom = geom_of(&scene);
-        let built = build_instanced(&scene, geom.clone(), vec![0; geom.len()], Some(4.0)).unwrap();
+        let built =
+            build_instanced(&scene, geom.clone(), vec![0; geom.len()], Some(4.0), None).unwrap();
         let (bounds, batch) = built.lod.as_ref().unwrap();
         let per = 1usize << built.tables.shift;
         let mut checked = 0;
@@ -1425,7 +1422,7 @@ mod tests {
     fn a_broken_batch_entry_gives_no_record() {
         let scene = scene();
         let geom = geom_of(&scene);
-        let t = build_instanced(&scene, geom.clone(), vec![0; geom.len()], None)
+        let t = build_instanced(&scene, geom.clone(), vec![0; geom.len()], None, None)
             .unwrap()
             .tables;
         assert_eq!(t.record([1000, 0]), None);
@@ -1521,7 +1518,7 @@ mod tests {
         }
         let scene = b.finish("big").unwrap();
         let geom = geom_of(&scene);
-        let built = build_instanced(&scene, geom.clone(), vec![0; 4096], Some(2.0)).unwrap();
+        let built = build_instanced(&scene, geom.clone(), vec![0; 4096], Some(2.0), None).unwrap();
         assert!(built.entries.is_none());
         assert_eq!(*built.batch_first.last().unwrap(), 1_100_000 * 64);
         let Err(e) = static_entries(&built.batch_first, built.tables.shift, "big") else {
@@ -1533,7 +1530,7 @@ mod tests {
             msg.starts_with("big: drawing every atom needs 4505600064 sphere ids"),
             "{msg}"
         );
-        let Err(e) = build_instanced(&scene, geom, vec![0; 4096], None) else {
+        let Err(e) = build_instanced(&scene, geom, vec![0; 4096], None, None) else {
             panic!("built --lod off past 2^32 slots");
         };
         assert_eq!(e.to_string(), msg);

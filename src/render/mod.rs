@@ -293,7 +293,11 @@ impl<'c> Renderer<'c> {
         // their proxies; the rest of the renderer sees the nested scene)
         let resolved = nesting::resolved(scene, &cam, proxies)?;
         let drawn = resolved.as_ref().unwrap_or(scene);
-        let (scene_buffers, geom) = SceneBuffers::new(ctx, drawn, settings.lod.pixels())?;
+        // (the proxies' fits: the resolved scene's molecule types)
+        let fitted = proxies
+            .filter(|_| resolved.is_some())
+            .map(|p| p.fits.as_slice());
+        let (scene_buffers, geom) = SceneBuffers::new(ctx, drawn, settings.lod.pixels(), fitted)?;
         drop(resolved);
         let mut scene_buffers = ctx.guard(scene_buffers);
         let win = checked_window(&cam, settings.window, settings.raster)?;

@@ -16,7 +16,7 @@
 //! id names the atom that coarsest sphere stands for. The proxies have
 //! levels of detail of their own like any molecule type.
 
-use super::lod::MoleculeLod;
+use super::lod::{LodFit, on_every_core};
 use super::{Affine, Instancing, Molecule, Rigid, Transforms, rigid_from};
 use crate::scene::{Scene, SceneError, Sphere};
 use glam::{DMat3, DQuat, DVec3};
@@ -148,6 +148,11 @@ pub struct Proxies {
     /// coarsest level (the least coarsest switch size of the types with
     /// more than one level).
     pub open_ppu: f32,
+    /// The levels of detail of the block's molecule types, then of the
+    /// groups' proxies (a resolved scene's types, in its order), fitted
+    /// once for every renderer of the scene (a viewer reopening placements
+    /// made them again each time: ~1 s on the 10^12 scene).
+    pub fits: Vec<LodFit>,
 }
 
 impl Proxies {
@@ -158,25 +163,33 @@ impl Proxies {
             .instancing
             .as_ref()
             .ok_or_else(|| SceneError::Invalid("proxies of a plain scene".into()))?;
+        let atoms_of = |first: u32, n: u32, spheres: &[Sphere]| -> Vec<[f32; 4]> {
+            spheres[first as usize..(first + n) as usize]
+                .iter()
+                .map(|s| [s.center[0], s.center[1], s.center[2], s.radius])
+                .collect()
+        };
+        let worker = || SceneError::Invalid("a level-of-detail worker failed".into());
+        let mut fits = on_every_core(inst.molecules.len(), |m| {
+            let mol = &inst.molecules[m];
+            LodFit::new(&atoms_of(mol.first, mol.atoms, &scene.spheres), pixels)
+        })
+        .ok_or_else(worker)?;
         let mut open_ppu = f32::INFINITY;
         // per molecule type: its coarsest sphere and the atom it stands for
         let coarsest: Vec<([f32; 4], u32)> = inst
             .molecules
             .iter()
-            .map(|m| {
-                let atoms: Vec<[f32; 4]> = scene.spheres
-                    [m.first as usize..(m.first + m.atoms) as usize]
-                    .iter()
-                    .map(|s| [s.center[0], s.center[1], s.center[2], s.radius])
-                    .collect();
+            .zip(&fits)
+            .map(|(m, fit)| {
+                let atoms = atoms_of(m.first, m.atoms, &scene.spheres);
                 if atoms.is_empty() {
                     return ([0.0; 4], 0);
                 }
-                let mut ml = MoleculeLod::new(&atoms);
-                let switch = ml.switch_ppu(&atoms, pixels);
+                let ml = &fit.levels;
                 let last = ml.levels() - 1;
                 if last > 0 {
-                    open_ppu = open_ppu.min(switch[last]);
+                    open_ppu = open_ppu.min(fit.switch[last]);
                 }
                 let s = ml.level_spheres(&atoms, last)[0];
                 (s, if last == 0 { 0 } else { ml.order[0] })
@@ -245,10 +258,19 @@ impl Proxies {
             first += m.len() as u32;
             atoms.extend(m);
         }
+        let base = scene.spheres.len() as u32;
+        fits.extend(
+            on_every_core(groups.len(), |g| {
+                let m = &groups[g].0;
+                LodFit::new(&atoms_of(m.first - base, m.atoms, &atoms), pixels)
+            })
+            .ok_or_else(worker)?,
+        );
         Ok(Proxies {
             groups,
             atoms,
             open_ppu,
+            fits,
         })
     }
 
@@ -258,6 +280,7 @@ impl Proxies {
             groups: Vec::new(),
             atoms: Vec::new(),
             open_ppu: f32::INFINITY,
+            fits: Vec::new(),
         }
     }
 
