@@ -5,6 +5,7 @@
 // positions in the pass's counter buffer come as push constants, so raster,
 // deep lists and opacity maps share this shader.
 #include "constants.glsl"
+#include "grid.glsl"
 
 layout(local_size_x = 1) in;
 layout(set = 0, binding = 0) buffer Counters { uint counters[]; };
@@ -13,7 +14,8 @@ layout(set = 0, binding = 0) buffer Counters { uint counters[]; };
 void main() {
     uint n = min(counters[pc.requested], pc.job_capacity);
     counters[pc.run] = n;
-    counters[pc.args] = min(n, MAX_GROUPS_X);
-    counters[pc.args + 1u] = n == 0u ? 0u : (n + MAX_GROUPS_X - 1u) / MAX_GROUPS_X;
-    counters[pc.args + 2u] = 1u;
+    uvec3 a = grid_of(n);
+    counters[pc.args] = a.x;
+    counters[pc.args + 1u] = a.y;
+    counters[pc.args + 2u] = a.z;
 }

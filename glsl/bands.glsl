@@ -82,7 +82,7 @@ void band_sphere() {
 }
 
 void band_job() {
-    uint job = gl_WorkGroupID.x + gl_WorkGroupID.y * MAX_GROUPS_X;
+    uint job = gl_WorkGroupID.x + gl_WorkGroupID.y * gl_NumWorkGroups.x;
     if (job >= counters[BAND_RUN]) return;
     uvec2 jb = jobs[job];
     if (jb.x == NO_SPHERE) return;

@@ -9,6 +9,7 @@
 // turns the two counts into indirect dispatch arguments. Word layout:
 // TL_* in src/gpu_consts.rs.
 #include "shared.glsl"
+#include "grid.glsl"
 
 layout(local_size_x_id = 0) in;
 layout(constant_id = 1) const bool ARGS = false;
@@ -21,9 +22,10 @@ layout(set = 0, binding = 2) buffer TileLists { uint tile_lists[]; };
 layout(set = 0, binding = 3) uniform usamplerBuffer oitCountTex;
 
 void write_args(uint at, uint groups) {
-    tile_lists[at] = min(groups, MAX_GROUPS_X);
-    tile_lists[at + 1u] = groups == 0u ? 0u : (groups + MAX_GROUPS_X - 1u) / MAX_GROUPS_X;
-    tile_lists[at + 2u] = 1u;
+    uvec3 a = grid_of(groups);
+    tile_lists[at] = a.x;
+    tile_lists[at + 1u] = a.y;
+    tile_lists[at + 2u] = a.z;
 }
 
 void main() {

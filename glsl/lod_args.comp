@@ -6,16 +6,17 @@
 // per deferred batch (lod_cull.comp, 64 a workgroup). 2D as
 // band_args.comp makes them.
 #include "constants.glsl"
+#include "grid.glsl"
 
 layout(local_size_x = 1) in;
 layout(set = 0, binding = 0) buffer Counters { uint counters[]; };
 #include "push/lod_args.glsl"
 
 void dispatch_args(uint at, uint invocations, uint local_size) {
-    uint groups = (invocations + local_size - 1u) / local_size;
-    counters[at] = min(groups, MAX_GROUPS_X);
-    counters[at + 1u] = groups == 0u ? 0u : (groups + MAX_GROUPS_X - 1u) / MAX_GROUPS_X;
-    counters[at + 2u] = 1u;
+    uvec3 a = grid_of((invocations + local_size - 1u) / local_size);
+    counters[at] = a.x;
+    counters[at + 1u] = a.y;
+    counters[at + 2u] = a.z;
 }
 
 void main() {

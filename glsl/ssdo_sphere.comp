@@ -58,7 +58,7 @@ float occluder_weight(uvec2 own, uvec2 q, Record rec) {
 }
 
 void main() {
-    uint job = (gl_WorkGroupID.x + gl_WorkGroupID.y * MAX_GROUPS_X) * gl_WorkGroupSize.x + gl_LocalInvocationID.x;
+    uint job = (gl_WorkGroupID.x + gl_WorkGroupID.y * gl_NumWorkGroups.x) * gl_WorkGroupSize.x + gl_LocalInvocationID.x;
     if (job >= counters[S_LISTED]) return;
     uint id = list[job];
     vec4 sp = scene_sphere(id);

@@ -450,15 +450,12 @@ impl ComputePipeline {
                 if groups == 0 {
                     return Ok(());
                 }
-                let x = groups.min(MAX_GROUPS_X as u64);
-                let y = groups.div_ceil(x);
-                if y > MAX_GROUPS_X as u64 {
-                    return Err(Error::Internal(format!(
+                fold_groups(groups).ok_or_else(|| {
+                    Error::Internal(format!(
                         "{}: {n} invocations is too many for one dispatch",
                         self.name
-                    )));
-                }
-                [x as u32, y as u32, 1]
+                    ))
+                })?
             }
             Grid::Groups(g) => g,
             Grid::Indirect(args, offset) => {
@@ -519,5 +516,48 @@ fn descriptor_type(access: Access) -> vk::DescriptorType {
         Access::ImageRead | Access::ImageWrite | Access::ImageReadWrite => {
             vk::DescriptorType::STORAGE_TEXEL_BUFFER
         }
+    }
+}
+
+/// Group counts for `groups` workgroups along a flat index (glsl/grid.glsl
+/// `grid_of` folds the GPU's alike): one row up to MAX_GROUPS_X, past it
+/// `rows` rows of groups / rows rounded up, so fewer than `rows` groups run
+/// past the count (rows of MAX_GROUPS_X ran up to 65,534 empty workgroups,
+/// ~1.3 us each on lavapipe). None past MAX_GROUPS_X rows.
+pub fn fold_groups(groups: u64) -> Option<[u32; 3]> {
+    let rows = groups.div_ceil(MAX_GROUPS_X as u64);
+    if rows > MAX_GROUPS_X as u64 {
+        return None;
+    }
+    Some([groups.div_ceil(rows.max(1)) as u32, rows as u32, 1])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every group count folds into rows that cover it with fewer than a
+    /// row's count of groups past it, each row within the limit.
+    #[test]
+    fn group_counts_fold_into_rows_with_few_spare() {
+        let max = MAX_GROUPS_X as u64;
+        for groups in [
+            1,
+            max - 1,
+            max,
+            max + 1,
+            209_000,
+            262_140,
+            3 * max + 7,
+            max * max,
+        ] {
+            let [x, y, z] = fold_groups(groups).expect("fits");
+            let (x, y) = (x as u64, y as u64);
+            assert_eq!(z, 1);
+            assert!(x <= max && y <= max, "{groups}: {x} x {y}");
+            assert!(x * y >= groups && x * y - groups < y, "{groups}: {x} x {y}");
+        }
+        assert_eq!(fold_groups(0), Some([0, 0, 1]));
+        assert_eq!(fold_groups(max * max + 1), None);
     }
 }
