@@ -537,8 +537,9 @@ fn a_composite_longer_than_the_device_walks_is_refused() {
             .expect("see-through stage")
             .read_counters(&ctx)
             .expect("counters");
-        // F_COMPOSITE_CUT, F_MAX, F_PIXELS
-        (got, c[5], c[2], c[4])
+        use sphereshade::gpu::consts::{F_COMPOSITE_CUT, F_MAX, F_PIXELS};
+        let word = |w: u32| c[w as usize];
+        (got, word(F_COMPOSITE_CUT), word(F_MAX), word(F_PIXELS))
     };
     // 6,000 fragments at alpha 0.04: 22 scans of 6,000
     let (got, cut, most, pixels) = run(6_000, 10);

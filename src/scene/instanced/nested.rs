@@ -170,31 +170,33 @@ impl Proxies {
                 .collect()
         };
         let worker = || SceneError::Invalid("a level-of-detail worker failed".into());
-        let mut fits = on_every_core(inst.molecules.len(), |m| {
-            let mol = &inst.molecules[m];
-            LodFit::new(&atoms_of(mol.first, mol.atoms, &scene.spheres), pixels)
-        })
-        .ok_or_else(worker)?;
-        let mut open_ppu = f32::INFINITY;
-        // per molecule type: its coarsest sphere and the atom it stands for
-        let coarsest: Vec<([f32; 4], u32)> = inst
-            .molecules
-            .iter()
-            .zip(&fits)
-            .map(|(m, fit)| {
-                let atoms = atoms_of(m.first, m.atoms, &scene.spheres);
-                if atoms.is_empty() {
-                    return ([0.0; 4], 0);
-                }
-                let ml = &fit.levels;
-                let last = ml.levels() - 1;
-                if last > 0 {
-                    open_ppu = open_ppu.min(fit.switch[last]);
-                }
-                let s = ml.level_spheres(&atoms, last)[0];
-                (s, if last == 0 { 0 } else { ml.order[0] })
+        // Per molecule type, on every core: its levels, and its coarsest
+        // sphere with the atom it stands for.
+        let (mut fits, coarsest): (Vec<LodFit>, Vec<([f32; 4], u32)>) =
+            on_every_core(inst.molecules.len(), |m| {
+                let mol = &inst.molecules[m];
+                let atoms = atoms_of(mol.first, mol.atoms, &scene.spheres);
+                let fit = LodFit::new(&atoms, pixels);
+                let last = fit.levels.levels() - 1;
+                let coarsest = match (atoms.first(), last) {
+                    (None, _) => ([0.0; 4], 0),
+                    (Some(&a), 0) => (a, 0),
+                    _ => (
+                        fit.levels.level_spheres(&atoms, last)[0],
+                        fit.levels.order[0],
+                    ),
+                };
+                (fit, coarsest)
             })
-            .collect();
+            .ok_or_else(worker)?
+            .into_iter()
+            .unzip();
+        // (the least coarsest switch size of the types with several levels)
+        let open_ppu = fits
+            .iter()
+            .filter(|f| f.levels.levels() > 1)
+            .map(|f| f.switch[f.levels.levels() - 1])
+            .fold(f32::INFINITY, f32::min);
         let mut groups: Vec<(Molecule, [u32; crate::scene::MAX_LEVELS])> = Vec::new();
         let mut members: Vec<Vec<Sphere>> = Vec::new();
         let block_atoms = inst.first.last().copied().unwrap_or(0);
