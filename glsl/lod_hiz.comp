@@ -15,10 +15,10 @@ layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
 // The visibility buffer as 32-bit words (2k + 1: pixel k's depth).
 layout(set = 0, binding = 1) uniform usamplerBuffer visWordTex;
 layout(set = 0, binding = 2) buffer Hiz { uint hiz[]; };
-// The light's read mask (lod_bounds.comp: a bit per fine tile a visible
-// point's lookup is centred in).
+// The light's receiver depths (lod_bounds.comp: per fine tile, the
+// farthest of the visible points whose lookup is centred in it).
 layout(set = 0, binding = 3) readonly buffer Region { int region[]; };
-#include "lod_mask.glsl"
+#include "lod_receivers.glsl"
 
 layout(constant_id = 1) const uint MODE = 0u;
 #include "push/lod_hiz.glsl"
@@ -39,25 +39,30 @@ void main() {
                 far = max(far, texelFetch(visWordTex, int(2u * (y * w + x) + 1u)).x);
             }
         }
-        // A light tile no visible point's lookup reads (no marked tile
-        // within its reach) hides everything: what lies only over such
-        // tiles shadows nothing the camera sees.
+        // A light tile hides what lies farther from the light than every
+        // visible point whose lookup reads it (those centred in a tile
+        // within its reach), grown by the lookup's slack: a lookup counts
+        // only casters nearer the light than its point, so the rest
+        // shadows nothing the camera sees; a tile no such point reads
+        // hides everything (meso 10^9 at 2,025 A: the plasma below the
+        // deepest points the camera sees between the proteins).
         if (pc.view_index == 1u) {
             int r = (pc.reach + int(T) - 1) >> pc.hiz_shift;
             ivec2 t = ivec2(i % tf.x, i / tf.x);
-            // (a reach past 90 tiles is taken as read, nothing hidden: its
-            // (2r + 1)^2 loop would pass lavapipe's 65,535 back-edges,
-            // gpu_consts CULL_CHUNK_BATCHES; ISSM's t <= 64 stays within)
-            bool read = r > 90;
+            // (a reach past 90 tiles is taken as read to any depth,
+            // nothing hidden: its (2r + 1)^2 loop would pass lavapipe's
+            // 65,535 back-edges, gpu_consts CULL_CHUNK_BATCHES; ISSM's t <=
+            // 64 stays within)
+            bool all = r > 90;
+            uint deepest = all ? 0xFFFFFFFFu : 0u;
             ivec2 a = max(t - r, ivec2(0));
-            ivec2 b = read ? a - 1 : min(t + r, ivec2(tf) - 1);
+            ivec2 b = all ? a - 1 : min(t + r, ivec2(tf) - 1);
             for (int y = a.y; y <= b.y; ++y) {
                 for (int x = a.x; x <= b.x; ++x) {
-                    int j = y * int(tf.x) + x;
-                    read = read || (region[mask_word(j)] & mask_bit(j)) != 0;
+                    deepest = max(deepest, uint(region[receiver_word(y * int(tf.x) + x)]));
                 }
             }
-            if (!read) far = 0u;
+            far = min(far, deepest);
         }
         hiz[i] = far;
     } else {

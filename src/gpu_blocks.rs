@@ -137,9 +137,12 @@ gpu_push! {
     /// `lod_bounds` (glsl/lod_bounds.comp).
     LodBoundsPush "lod_bounds" {
         /// The light map's fine depth tiles are 2^hiz_shift texels a side
-        /// (the read mask's bits).
+        /// (the receiver words').
         hiz_shift: u32,
-        pad: [u32; 3],
+        /// World units a caster may lie behind a point and still darken
+        /// it (`Lookup::depth_slack`).
+        slack: f32,
+        pad: [u32; 2],
     }
 
     /// `lod_hiz` (glsl/lod_hiz.comp).

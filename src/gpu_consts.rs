@@ -162,9 +162,10 @@ gpu_constants! {
     /// view's within HIZ_FINE_TILES (4 px at 1080p and on a 4096^2 light
     /// map; 16 px on a 16384^2 window), then coarse ones of 8x8 fine.
     HIZ_MIN_SHIFT: u32 = 2;
-    /// The light's read mask in the LOD region buffer: from this word
-    /// (after x0, y0, x1, y1), a bit per fine depth tile.
-    LOD_MASK_AT: i32 = 4;
+    /// The light's receiver depths in the LOD region buffer: from this
+    /// word (after x0, y0, x1, y1), a depth word per fine light depth tile
+    /// (glsl/lod_receivers.glsl).
+    LOD_RECEIVERS_AT: i32 = 4;
     HIZ_FINE_TILES: u32 = 1048576;
     /// Level-0 batches one invocation of the LOD cull tests (an instance
     /// of more is taken in chunks, each by its own invocation): lavapipe

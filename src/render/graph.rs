@@ -9,6 +9,7 @@ use crate::error::Result;
 use crate::passes::screen::ScreenInputs;
 use crate::settings::{RasterMode, RenderSettings};
 use crate::stages::raster::compute::ViewIndex;
+use crate::stages::raster::lod::LightReads;
 use crate::stages::raster::{RasterInputs, RasterStage};
 use crate::stages::see_through::{SeeThrough, SeeThroughInputs};
 use crate::stages::shading::{ShadeInputs, ShadePass};
@@ -246,7 +247,11 @@ impl Resources {
                     rec,
                     &raster_in,
                     &t.raster,
-                    (lookup.reach(), map),
+                    LightReads {
+                        reach: lookup.reach(),
+                        slack: lookup.depth_slack(),
+                        map,
+                    },
                 )?;
             }
         }

@@ -23,7 +23,7 @@ use crate::gpu::blocks::{LodArgsPush, LodBoundsPush, LodCullPush, LodHizPush};
 use crate::gpu::consts::{
     BATCH_EMPTY, CULL_DEFERRED_BATCHES, CULL_DEFERRED_INSTANCES, CULL_EARLY, HIZ_FINE_TILES,
     HIZ_MIN_SHIFT, LOD_ARGS, LOD_BATCHES, LOD_DEFER_BATCH_ARGS, LOD_DEFER_BATCHES,
-    LOD_DEFER_INSTANCE_ARGS, LOD_DEFER_INSTANCES, LOD_LIST_TAIL, LOD_MASK_AT, LOD_SPHERES,
+    LOD_DEFER_INSTANCE_ARGS, LOD_DEFER_INSTANCES, LOD_LIST_TAIL, LOD_RECEIVERS_AT, LOD_SPHERES,
     LOD_VIEWS, LOD_WORDS, NO_LEVEL_YET,
 };
 use crate::passes::scene::{LodBuffers, MAX_SLOTS, SCENE_GEOMETRY, SceneBuffers};
@@ -63,9 +63,20 @@ const HIZ_BINDINGS: [Binding; 4] = [
     ro("Region"),
 ];
 
-/// Bytes of the light region buffer: its rectangle (4 words), then the read
-/// mask's bits, one per fine depth tile (glsl/lod_bounds.comp).
-const REGION_BYTES: u64 = LOD_MASK_AT as u64 * 4 + HIZ_FINE_TILES as u64 / 8;
+/// Bytes of the light region buffer: its rectangle (4 words), then a
+/// receiver depth word per fine depth tile (glsl/lod_bounds.comp).
+const REGION_BYTES: u64 = (LOD_RECEIVERS_AT as u64 + HIZ_FINE_TILES as u64) * 4;
+
+/// What the light's cull needs of the shadow lookup: the farthest it
+/// reads from a point's texel (`Lookup::reach`), how far behind a point a
+/// caster may still darken it (`Lookup::depth_slack`), and the light map
+/// (width, height).
+#[derive(Clone, Copy, Debug)]
+pub struct LightReads {
+    pub reach: i32,
+    pub slack: f32,
+    pub map: (u32, u32),
+}
 
 /// Depth tile words of a view: its fine tiles, then its coarse ones (8x8
 /// fine each), then its super ones (8x8 coarse).
@@ -504,9 +515,9 @@ impl LodCull {
 
     /// The steps of `light_cull` (after the camera's raster): the light
     /// texels of the camera's visible points (from `vis`, a `size` window)
-    /// and the light's early list over them grown by the lookup's `reach`
-    /// texels (`Lookup::reach`; the light's depth tiles take it too) on a
-    /// `map` (width, height) light map.
+    /// and their farthest depth from the light per fine depth tile, and
+    /// the light's early list of what may shadow them (read as `reads`
+    /// says; the light's depth tiles take it too).
     #[allow(clippy::too_many_arguments)]
     pub fn light_steps<'b>(
         &'b self,
@@ -516,18 +527,16 @@ impl LodCull {
         vis: &'b Buffer,
         perspective: bool,
         size: (u32, u32),
-        (reach, map): (i32, (u32, u32)),
+        reads: LightReads,
     ) -> Result<()> {
-        self.reach.set(reach);
-        // (the read mask's bits are the light's fine depth tiles)
-        let mask_shift = hiz_shift(ViewIndex::Light, map.0, map.1);
+        self.reach.set(reads.reach);
         self.cull_steps(
             p,
             globals,
             scene,
             ViewIndex::Light,
             perspective,
-            Some((vis, size, mask_shift)),
+            Some((vis, size, reads)),
         )
     }
 
@@ -538,7 +547,7 @@ impl LodCull {
         scene: &'b SceneBuffers,
         view: ViewIndex,
         perspective: bool,
-        vis: Option<(&'b Buffer, (u32, u32), u32)>,
+        vis: Option<(&'b Buffer, (u32, u32), LightReads)>,
     ) -> Result<()> {
         if view == ViewIndex::Camera {
             p.fill(&self.counters, self.counters.size, 0);
@@ -550,17 +559,22 @@ impl LodCull {
                 }
             }
         }
-        if let Some((vis, (w, h), mask_shift)) = vis {
-            // empty: x0, y0 the largest int, x1, y1 the least
+        if let Some((vis, (w, h), reads)) = vis {
+            // (the receiver words are the light's fine depth tiles)
+            let (mw, mh) = reads.map;
+            let shift = hiz_shift(ViewIndex::Light, mw, mh);
+            // empty: x0, y0 the largest int, x1, y1 the least; no receivers
             p.fill_at(&self.region, 0, 8, i32::MAX as u32);
             p.fill_at(&self.region, 8, 8, i32::MIN as u32);
-            let mask = LOD_MASK_AT as u64 * 4;
-            p.fill_at(&self.region, mask, self.region.size - mask, 0);
+            let at = LOD_RECEIVERS_AT as u64 * 4;
+            let used = (tiles(mw, mh, 1 << shift) * 4).min(self.region.size - at);
+            p.fill_at(&self.region, at, used, 0);
             p.dispatch(
                 &self.bounds[perspective as usize],
                 &LodBoundsPush {
-                    hiz_shift: mask_shift,
-                    pad: [0; 3],
+                    hiz_shift: shift,
+                    slack: reads.slack,
+                    pad: [0; 2],
                 },
                 Grid::Invocations(tiles(w, h, 16)),
                 &[

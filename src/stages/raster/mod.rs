@@ -17,7 +17,7 @@ use crate::vk::{Buffer, Context, Recorder};
 use compute::{RasterIo, RasterPass, ViewIndex};
 use coverage::CoveragePass;
 use graphics::GraphicsRasterPass;
-use lod::{LodCull, LodView};
+use lod::{LightReads, LodCull, LodView};
 
 /// The stage's screen targets: the visibility buffer (8 B/px + guard
 /// words) and the tile lists (4 B per 256 pixels).
@@ -214,14 +214,13 @@ impl RasterStage {
     }
 
     /// `light_cull` (after `record_late`): the light's list of what may
-    /// shadow a point the camera sees (whose lookup reads `reach` texels
-    /// about it on a `map` (width, height) light map).
+    /// shadow a point the camera sees (whose lookup reads as `reads` says).
     pub fn record_light_cull(
         &self,
         rec: &mut Recorder,
         io: &RasterInputs,
         t: &RasterTargets,
-        reach_map: (i32, (u32, u32)),
+        reads: LightReads,
     ) -> Result<()> {
         let Some(l) = &self.lod else {
             return Ok(());
@@ -234,7 +233,7 @@ impl RasterStage {
                 &t.vis,
                 io.perspective,
                 io.size,
-                reach_map,
+                reads,
             )
         })
     }

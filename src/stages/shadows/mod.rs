@@ -192,6 +192,25 @@ impl Lookup<'_> {
         }
     }
 
+    /// How far (world units) a caster may lie behind a point, from the
+    /// light, and still darken it: a lookup that counts only casters
+    /// nearer the light than the point (ISSM: the occluder's centre ahead
+    /// of it, or the point inside it) needs none; the depth map's test
+    /// point moves back by a negative bias. The light's cull hides what
+    /// lies farther than every point reading a texel by more than this
+    /// (glsl/lod_hiz.comp).
+    pub fn depth_slack(&self) -> f32 {
+        match self.kind {
+            LookupKind::ShadowMap => {
+                let [bias, slope, tan_max, _] = self.params.f0;
+                let back = -bias.min(bias + slope * tan_max);
+                // (NaN: none)
+                if back > 0.0 { back.min(1e30) } else { 0.0 }
+            }
+            _ => 0.0,
+        }
+    }
+
     /// ISSM with t <= 1: only the dense 3x3 core is read (a
     /// specialization constant of the lookup, `ISSM_CORE_ONLY`).
     pub fn core_only(&self) -> bool {
@@ -266,5 +285,30 @@ pub fn create(mode: ShadowMode, setup: &ShadowSetup) -> Result<Option<Box<dyn Sh
 impl crate::vk::guard::Destroy for Box<dyn ShadowTechnique> {
     fn destroy_with(&mut self, ctx: &Context) {
         self.destroy(ctx);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A depth map's test point moves back from the light by a negative
+    /// bias (at the steepest slope the lookup takes): the light's cull
+    /// must keep casters that far behind a point; ISSM needs no slack.
+    #[test]
+    fn the_depth_slack_is_the_farthest_a_bias_moves_a_point_back() {
+        let sm = |f0: [f32; 4]| {
+            let p = ShadowParams {
+                f0,
+                ..Default::default()
+            };
+            Lookup::plain(LookupKind::ShadowMap, p).depth_slack()
+        };
+        assert_eq!(sm([0.5, 0.25, 4.0, 2.0]), 0.0);
+        assert_eq!(sm([-2.0, 0.25, 4.0, 2.0]), 2.0);
+        assert_eq!(sm([0.5, -0.5, 4.0, 2.0]), 1.5);
+        assert_eq!(sm([f32::NAN, 0.0, 4.0, 2.0]), 0.0);
+        let issm = Lookup::plain(LookupKind::Issm, ShadowParams::default());
+        assert_eq!(issm.depth_slack(), 0.0);
     }
 }
