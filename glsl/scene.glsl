@@ -101,33 +101,40 @@ vec3 instance_apply(uint k, vec3 x) {
     return p;
 }
 
+// The batch record of sphere `id` for the `batch_*` readers below (plain:
+// none): a pass that reads several things of one sphere makes it once
+// (its three dependent fetches cost meso 10^9 at 2,025 A ~10 ms of SSDO
+// per extra reader).
+uvec4 scene_batch_of(uint id) { return scene_instanced() ? scene_batch(id) : uvec4(0u); }
+
 // Centre (world) and radius of sphere `id`; a radius below 0 means no
 // sphere (a slot past its batch's atoms).
-vec4 scene_sphere(uint id) {
+vec4 batch_sphere(uvec4 b, uint id) {
     if (!scene_instanced()) return texelFetch(sphereTex, int(id));
-    uvec4 b = scene_batch(id);
     uint lane = scene_lane(id), count = b.w & 0xFFu;
     // (a slot past the batch's atoms reads its last atom: no fetch past
     // the molecule table's end; the LOD lists' empty batch has none)
     vec4 a = texelFetch(sphereTex, int(b.y + min(lane, max(count, 1u) - 1u)));
     return vec4(instance_apply(b.x, a.xyz), lane < count ? a.w : -1.0);
 }
+vec4 scene_sphere(uint id) { return batch_sphere(scene_batch_of(id), id); }
 
 // The index of sphere `id` in input (expanded) order: what the id AOV
 // names, and what per-sphere noise is seeded with.
-uint scene_index(uint id) {
+uint batch_index(uvec4 b, uint id) {
     if (!scene_instanced()) return id;
-    uvec4 b = scene_batch(id);
     uint lane = scene_lane(id);
     return b.z + ((b.w & BATCH_COARSE) != 0u ? texelFetch(originTex, int(b.y + lane)).x : lane);
 }
+uint scene_index(uint id) { return batch_index(scene_batch_of(id), id); }
 
 #ifdef SCENE_ATTRIBUTES
 // The sphere's colour word (RGBA8).
-uint scene_color(uint id) {
+uint batch_color(uvec4 b, uint id) {
     if (!scene_instanced()) return texelFetch(colorTex, int(id)).x;
-    return texelFetch(colorTex, int(scene_batch(id).y + scene_lane(id))).x;
+    return texelFetch(colorTex, int(b.y + scene_lane(id))).x;
 }
+uint scene_color(uint id) { return batch_color(scene_batch_of(id), id); }
 
 // The sphere's alpha (1 opaque): its colour's A byte times the frame's
 // opacity (--opacity, Globals.alpha.x).
@@ -141,12 +148,12 @@ float scene_alpha(uint id) {
 // Instanced: the tree levels' from the molecule table, the instance at
 // the molecule level, instance * stride + chain at the chain level (as
 // src/scene/instanced.rs `Instancing::regions`).
-uint scene_region(uint id, uint level) {
+uint batch_region(uvec4 b, uint id, uint level) {
     if (!scene_instanced()) return texelFetch(attrTex, int(4u * id + level)).x;
-    uvec4 b = scene_batch(id);
     uint tree = texelFetch(moleculeTex, int(4u * ((b.w >> 8) & BATCH_TYPE_MASK) + min(level, 3u))).x;
     uint chain = texelFetch(attrTex, int(b.y + scene_lane(id))).x;
     return level < g.scene.x ? tree : (level == g.scene.z ? b.x : b.x * g.scene.y + chain);
 }
+uint scene_region(uint id, uint level) { return batch_region(scene_batch_of(id), id, level); }
 #endif
 #endif

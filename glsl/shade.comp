@@ -232,7 +232,8 @@ Surface surface_for(uvec2 q, uint id) {
     s.img = vec2(q + g.cam.dims.zw);
     s.id = id;
     s.key = 0.0;
-    vec4 sp = scene_sphere(id);
+    s.batch = scene_batch_of(id);
+    vec4 sp = batch_sphere(s.batch, id);
     s.sphere = sp;
     vec3 o, d;
     view_ray(g.cam, s.img, PERSP, o, d);
@@ -340,7 +341,7 @@ void main() {
         if (AOVS) aov[i] = 0xFFFFFFFFu;
         return;
     }
-    vec3 albedo = albedo_of(s.id);
+    vec3 albedo = surface_albedo(s);
     vec3 n = s.n;
     vec3 o, vdir;
     view_ray(g.cam, vec2(px + g.cam.dims.zw), PERSP, o, vdir);

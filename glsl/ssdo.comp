@@ -75,7 +75,7 @@ void main() {
     uint ra = own.region_a, rb = own.region_b;
     if (!HALF) {
         // the pixel's own sphere, which need not be its block's
-        uvec2 own_regions = regions_of(s.id);
+        uvec2 own_regions = regions_of(s.batch, s.id);
         ra = own_regions.x;
         rb = own_regions.y;
         keys[out_index] = blur_key(view_z(g.cam, s.p, PERSP), pc.blur_level_b != 0u ? rb : ra);

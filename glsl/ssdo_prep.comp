@@ -94,14 +94,14 @@ void main() {
     r.n = s.n;
     if (g.counts.w != 0u) {
         // No hierarchy: every sphere is its own region.
-        r.region_a = region_hash(scene_index(s.id));
+        r.region_a = region_hash(batch_index(s.batch, s.id));
         r.region_b = r.region_a;
     } else {
-        r.region_a = region_hash(scene_region(s.id, pc.level_a));
-        r.region_b = region_hash(scene_region(s.id, pc.level_b));
+        r.region_a = region_hash(batch_region(s.batch, s.id, pc.level_a));
+        r.region_b = region_hash(batch_region(s.batch, s.id, pc.level_b));
     }
     r.visibility = key_visibility(s, pixel);
     vec3 l_key = -normalize(g.light_dir.xyz);
-    r.radiance = albedo_of(s.id) * max(dot(s.n, l_key), 0.0) * r.visibility;
+    r.radiance = surface_albedo(s) * max(dot(s.n, l_key), 0.0) * r.visibility;
     records[out_index] = pack_record(r);
 }

@@ -61,16 +61,18 @@ void main() {
     uint job = (gl_WorkGroupID.x + gl_WorkGroupID.y * gl_NumWorkGroups.x) * gl_WorkGroupSize.x + gl_LocalInvocationID.x;
     if (job >= counters[S_LISTED]) return;
     uint id = list[job];
-    vec4 sp = scene_sphere(id);
+    uvec4 bt = scene_batch_of(id);
+    vec4 sp = batch_sphere(bt, id);
     vec3 c = to_space(sp.xyz);
     float r = sp.w;
     // a seen surface farther from the centre than this is not this sphere
     // (visible surfaces lie outside every sphere; 1 % for rounding)
     float self2 = (1.01 * r) * (1.01 * r);
-    uvec2 own = SEMANTIC ? regions_of(id) : uvec2(0u);
+    uvec2 own = SEMANTIC ? regions_of(bt, id) : uvec2(0u);
     mat3 basis = PERSP ? sphere_basis(normalize(sp.xyz - (g.cam.center.xyz - g.cam.dir.w * g.cam.dir.xyz)), g.cam.up.xyz)
                        : mat3(1.0);
-    float rot = sphere_rot(scene_index(id)), jit = sphere_jitter(scene_index(id));
+    uint index = batch_index(bt, id);
+    float rot = sphere_rot(index), jit = sphere_jitter(index);
     vec3 zb = basis[2];
     SH9 acc;
     acc.a = vec4(0.0);

@@ -10,11 +10,11 @@
 
 Record record_at(uvec2 b) { return unpack_record(texelFetch(recordTex, int(b.y * g.counts.y + b.x))); }
 
-// The region hashes of sphere id at the two active levels (needs
-// scene_region); without a hierarchy every sphere is its own region.
-uvec2 regions_of(uint id) {
-    if (g.counts.w != 0u) return uvec2(region_hash(scene_index(id)));
-    return uvec2(region_hash(scene_region(id, pc.level_a)), region_hash(scene_region(id, pc.level_b)));
+// The region hashes of sphere id (batch record b: scene_batch_of) at the
+// two active levels; without a hierarchy every sphere is its own region.
+uvec2 regions_of(uvec4 b, uint id) {
+    if (g.counts.w != 0u) return uvec2(region_hash(batch_index(b, id)));
+    return uvec2(region_hash(batch_region(b, id, pc.level_a)), region_hash(batch_region(b, id, pc.level_b)));
 }
 
 // Occluder weight of a surface with regions (qa, qb) for a receiver (ra, rb).

@@ -17,6 +17,7 @@ struct Surface {
     float key;  // depth key of the visibility buffer
     vec2 img;   // the pixel's image coordinates
     vec4 sphere; // its sphere: centre, radius
+    uvec4 batch; // its batch record (scene_batch_of: the batch_* readers)
 };
 
 bool covered(uint i) { return texelFetch(visTex, int(i)).x != NO_SPHERE; }
@@ -31,7 +32,8 @@ bool surface_of(uvec2 q, out Surface s) {
     if (v.x == NO_SPHERE) return false;
     s.id = v.x;
     s.key = uintBitsToFloat(v.y);
-    vec4 sp = scene_sphere(s.id);
+    s.batch = scene_batch_of(s.id);
+    vec4 sp = batch_sphere(s.batch, s.id);
     s.sphere = sp;
     vec3 o, d;
     view_ray(g.cam, s.img, PERSP, o, d);
@@ -51,5 +53,6 @@ bool surface_of(uvec2 q, out Surface s) {
 vec3 srgb_to_linear(vec3 c) { return pow(c, vec3(2.2)); }
 #ifdef SCENE_ATTRIBUTES
 vec3 albedo_of(uint id) { return srgb_to_linear(unpack_rgba8(scene_color(id)).rgb); }
+vec3 surface_albedo(Surface s) { return srgb_to_linear(unpack_rgba8(batch_color(s.batch, s.id)).rgb); }
 #endif
 #endif
