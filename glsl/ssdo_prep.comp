@@ -16,8 +16,8 @@ layout(set = 0, binding = 1) uniform usamplerBuffer visTex;
 #include "scene.glsl"
 layout(set = 0, binding = 4) writeonly buffer Records { uvec4 records[]; };
 layout(set = 0, binding = 5) buffer Flags { uint flags[]; };
-// Per-sphere SSDO (MARK): the depth words of the block's four pixels (~0
-// outside the image and for background), block by block, for the taps of
+// The depth words of the block's four pixels (~0 outside the image and
+// for background), block by block, for the taps of ssdo.comp and
 // ssdo_sphere.comp: a 64-byte line holds an 8x2-pixel patch, where the
 // visibility buffer's rows hold 8x1 pixels and their ids. Fewer cache lines
 // per tap neighbourhood (the taps' fetches were mostly cache misses).
@@ -82,8 +82,8 @@ void main() {
             }
             if (first_of_word) atomicOr(flags[words[k]], bits);
         }
-        tap_depth[out_index] = dw;
     }
+    tap_depth[out_index] = dw;
     Surface s;
     if (TILE_LIST == 2u || !found || !surface_of(rep, s)) {
         records[out_index] = uvec4(floatBitsToUint(RECORD_BACKGROUND), 0u, 0u, 0u);

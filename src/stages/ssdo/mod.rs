@@ -83,16 +83,16 @@ pub const SSDO_SMALL_RADIUS_PX: f64 = 16.0;
 
 /// The stage's screen-sized buffers. Full resolution: the SSDO result
 /// (4 B/px; per pixel when spheres are small on screen, else only its
-/// first quarter is used, per 2x2 block) and the per-pixel blur's edge
-/// keys (4 B/px; with per-sphere SSDO, which has no blur, the taps' depth
-/// words in 2x2-block order instead); the records at half resolution
-/// (16 B per 2x2 block = 4 B/px).
+/// first quarter is used, per 2x2 block), the per-pixel blur's edge keys
+/// (4 B/px) and the taps' depth words in 2x2-block order (4 B/px); the
+/// records at half resolution (16 B per 2x2 block = 4 B/px).
 pub struct SsdoTargets {
     /// Records (half resolution).
     pub records: Buffer,
     /// The result: near/far visibility, bounce, screen-space shadow.
     pub ao: Buffer,
     keys: Buffer,
+    taps: Buffer,
 }
 
 impl SsdoTargets {
@@ -102,12 +102,14 @@ impl SsdoTargets {
         let blocks = hw as u64 * hh as u64;
         let records = ctx.guard(Buffer::storage(ctx, "ssdo records", blocks * 16)?);
         let ao = ctx.guard(Buffer::storage(ctx, "ssdo ao", pixels * 4)?);
+        let keys = ctx.guard(Buffer::storage(ctx, "ssdo blur keys", pixels * 4)?);
         // (block-linear depth words cover whole blocks: odd sizes need more)
-        let keys = Buffer::storage(ctx, "ssdo blur keys", pixels.max(4 * blocks) * 4)?;
+        let taps = Buffer::storage(ctx, "ssdo tap depth", 4 * blocks * 4)?;
         Ok(SsdoTargets {
             records: records.keep(),
             ao: ao.keep(),
-            keys,
+            keys: keys.keep(),
+            taps,
         })
     }
 
@@ -117,19 +119,23 @@ impl SsdoTargets {
         &self.keys
     }
 
-    /// With per-sphere receivers (no blur, so no edge keys): the depth
-    /// words the taps read, four per 2x2 block (`ssdo_prep` writes them),
-    /// in the same memory as [`Self::edge_keys`].
+    /// The depth words the taps read, four per 2x2 block (`ssdo_prep`
+    /// writes them).
     pub fn tap_depth(&self) -> &Buffer {
-        &self.keys
+        &self.taps
     }
 
     pub fn bytes(&self) -> u64 {
-        self.records.size + self.ao.size + self.keys.size
+        self.records.size + self.ao.size + self.keys.size + self.taps.size
     }
 
     pub fn destroy(&mut self, ctx: &Context) {
-        for b in [&mut self.records, &mut self.ao, &mut self.keys] {
+        for b in [
+            &mut self.records,
+            &mut self.ao,
+            &mut self.keys,
+            &mut self.taps,
+        ] {
             b.destroy(ctx);
         }
     }
@@ -456,6 +462,7 @@ impl SsdoStage {
             io.screen,
             &SsdoIo {
                 records: &t.records,
+                tap_depth: t.tap_depth(),
                 ao: &t.ao,
                 keys: t.edge_keys(),
             },

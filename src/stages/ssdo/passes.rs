@@ -93,10 +93,12 @@ pub struct SphereIo<'a> {
     pub spheres: &'a SphereBuffers,
 }
 
-/// What per-pixel or per-block `ssdo` reads (the records) and writes: the
-/// result and, per pixel, the blur's edge keys.
+/// What per-pixel or per-block `ssdo` reads (the records and tap depth
+/// `ssdo_prep` wrote) and writes: the result and, per pixel, the blur's
+/// edge keys.
 pub struct SsdoIo<'a> {
     pub records: &'a Buffer,
+    pub tap_depth: &'a Buffer,
     pub ao: &'a Buffer,
     pub keys: &'a Buffer,
 }
@@ -219,7 +221,7 @@ const SSDO_BINDINGS: [Binding; 8] = [
     uniform("SampleTable"),
     wo("Ao"),
     texel("visTex", Format::R32G32_UINT),
-    texel("visWordTex", Format::R32_UINT),
+    texel("tapDepthTex", Format::R32_UINT),
     wo("Keys"),
     TILE_BINDING,
 ];
@@ -473,7 +475,7 @@ impl SsdoPass {
             ("SampleTable", &self.table),
             ("Ao", io.ao),
             ("visTex", screen.vis),
-            ("visWordTex", screen.vis),
+            ("tapDepthTex", io.tap_depth),
             ("Keys", io.keys),
         ];
         bufs.extend(screen.scene.geometry());
