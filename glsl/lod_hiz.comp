@@ -47,19 +47,25 @@ void main() {
         // hides everything (meso 10^9 at 2,025 A: the plasma below the
         // deepest points the camera sees between the proteins).
         if (pc.view_index == 1u) {
-            int r = (pc.reach + int(T) - 1) >> pc.hiz_shift;
-            ivec2 t = ivec2(i % tf.x, i / tf.x);
-            // (a reach past 90 tiles is taken as read to any depth,
-            // nothing hidden: its (2r + 1)^2 loop would pass lavapipe's
-            // 65,535 back-edges, gpu_consts CULL_CHUNK_BATCHES; ISSM's t <=
-            // 64 stays within)
-            bool all = r > 90;
+            // (the texels within the reach, then their receiver tiles)
+            ivec2 t = ivec2(i % tf.x, i / tf.x) << pc.hiz_shift;
+            int RS = int(pc.receiver_shift);
+            ivec2 a = max(t - pc.reach, ivec2(0)) >> RS;
+            ivec2 b = min(t + int(T) - 1 + pc.reach, ivec2(w, h) - 1) >> RS;
+            // (a window of more than RECEIVER_WINDOW tiles a side is taken
+            // as read to any depth, nothing hidden: one such loop per
+            // depth tile costs more than the cull saves (a PCF radius of
+            // 300 texels on a 2048^2 map, 152 tiles a side: minutes a
+            // frame), and past 255 it would pass lavapipe's 65,535
+            // back-edges; ISSM's t <= 15 on a 512^2 map stays within, PCF's
+            // default reads 3x3 tiles of 4 texels)
+            bool all = pc.reach >= 1 << 20 || max(b.x - a.x, b.y - a.y) >= RECEIVER_WINDOW;
             uint deepest = all ? 0xFFFFFFFFu : 0u;
-            ivec2 a = max(t - r, ivec2(0));
-            ivec2 b = all ? a - 1 : min(t + r, ivec2(tf) - 1);
+            b = all ? a - 1 : b;
+            int rw = (int(w) + (1 << RS) - 1) >> RS;
             for (int y = a.y; y <= b.y; ++y) {
                 for (int x = a.x; x <= b.x; ++x) {
-                    deepest = max(deepest, uint(region[receiver_word(y * int(tf.x) + x)]));
+                    deepest = max(deepest, uint(region[receiver_word(y * rw + x)]));
                 }
             }
             far = min(far, deepest);

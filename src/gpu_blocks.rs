@@ -136,8 +136,8 @@ gpu_push! {
 
     /// `lod_bounds` (glsl/lod_bounds.comp).
     LodBoundsPush "lod_bounds" {
-        /// The light map's fine depth tiles are 2^hiz_shift texels a side
-        /// (the receiver words').
+        /// The light map's receiver tiles are 2^hiz_shift texels a side
+        /// (src/stages/raster/lod.rs `receiver_shift`).
         hiz_shift: u32,
         /// World units a caster may lie behind a point and still darken
         /// it (`Lookup::depth_slack`).
@@ -153,7 +153,9 @@ gpu_push! {
         hiz_shift: u32,
         /// The light: the lookup's reach (texels, `Lookup::reach`).
         reach: i32,
-        pad: u32,
+        /// The light: its receiver tiles are 2^receiver_shift texels a
+        /// side (src/stages/raster/lod.rs `receiver_shift`).
+        receiver_shift: u32,
     }
 
     /// `lod_args` (glsl/lod_args.comp): the cull's counts into indirect

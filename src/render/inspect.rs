@@ -136,11 +136,12 @@ impl<'r> Inspect<'r, '_> {
                 *m.entry(class.to_string()).or_insert(0) += bytes;
             }
         };
-        let (order, bands) = self.r.res.stages.raster.memory();
+        let (order, bands, light_cull) = self.r.res.stages.raster.memory();
         for (class, bytes) in self.r.res.scene.memory() {
             add(class, bytes);
         }
         add("scene", order);
+        add("light_cull", light_cull);
         add(
             "uniforms",
             self.r.slots.iter().map(|f| f.globals.size).sum::<u64>(),

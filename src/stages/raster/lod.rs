@@ -63,9 +63,21 @@ const HIZ_BINDINGS: [Binding; 4] = [
     ro("Region"),
 ];
 
+/// Receiver tiles of the light map (glsl/lod_receivers.glsl) at most: a
+/// 512^2 map's texels (a larger map's tiles are 2x2 texels or more).
+const RECEIVER_TILES: u32 = HIZ_FINE_TILES / 4;
+
 /// Bytes of the light region buffer: its rectangle (4 words), then a
-/// receiver depth word per fine depth tile (glsl/lod_bounds.comp).
-const REGION_BYTES: u64 = (LOD_RECEIVERS_AT as u64 + HIZ_FINE_TILES as u64) * 4;
+/// receiver depth word per receiver tile (glsl/lod_bounds.comp).
+const REGION_BYTES: u64 = (LOD_RECEIVERS_AT as u64 + RECEIVER_TILES as u64) * 4;
+
+/// The receiver tiles' shift for a `w` x `h` light map: its fine depth
+/// tiles' ([`hiz_shift`]) or coarser, within [`RECEIVER_TILES`].
+pub fn receiver_shift(w: u32, h: u32) -> u32 {
+    (hiz_shift(ViewIndex::Light, w, h)..28)
+        .find(|&s| tiles(w, h, 1 << s) <= RECEIVER_TILES as u64)
+        .unwrap_or(28)
+}
 
 /// What the light's cull needs of the shadow lookup: the farthest it
 /// reads from a point's texel (`Lookup::reach`), how far behind a point a
@@ -560,9 +572,8 @@ impl LodCull {
             }
         }
         if let Some((vis, (w, h), reads)) = vis {
-            // (the receiver words are the light's fine depth tiles)
             let (mw, mh) = reads.map;
-            let shift = hiz_shift(ViewIndex::Light, mw, mh);
+            let shift = receiver_shift(mw, mh);
             // empty: x0, y0 the largest int, x1, y1 the least; no receivers
             p.fill_at(&self.region, 0, 8, i32::MAX as u32);
             p.fill_at(&self.region, 8, 8, i32::MIN as u32);
@@ -618,7 +629,7 @@ impl LodCull {
             view_index: view as u32,
             hiz_shift: shift,
             reach: self.reach.get(),
-            pad: 0,
+            receiver_shift: receiver_shift(w, h),
         };
         p.dispatch(
             &self.hiz[0],
@@ -810,19 +821,25 @@ impl LodCull {
         Ok(())
     }
 
+    /// Device memory of the light region: its rectangle and receiver words
+    /// (a fixed size: what the light map's tiles need at most).
+    pub fn region_bytes(&self) -> u64 {
+        self.region.size
+    }
+
     /// Whether the lists grow before the next frame.
     pub fn growth_pending(&self) -> bool {
         self.pending.is_some()
     }
 
     /// Device memory: counters, levels, history and depth tiles (the
-    /// lists are the scene's).
+    /// lists are the scene's; the light region's words are the light
+    /// map's, [`LodCull::region_bytes`]).
     pub fn memory_bytes(&self) -> u64 {
         self.counters.size
             + self.levels.size
             + self.visible.size
             + self.deferral.size
-            + self.region.size
             + self.hiz_tiles.iter().map(|b| b.size).sum::<u64>()
             + self.hiz_prev.iter().map(|b| b.size).sum::<u64>()
     }
@@ -854,6 +871,22 @@ crate::impl_destroy!(LodCull);
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The light's receiver tiles: its texels up to a 512^2 map, then
+    /// coarser than its depth tiles, within the region buffer.
+    #[test]
+    fn receiver_tiles_fit_the_region_buffer() {
+        assert_eq!(receiver_shift(512, 512), 0);
+        assert_eq!(receiver_shift(1024, 1024), 1);
+        assert_eq!(receiver_shift(2048, 2048), 2);
+        assert_eq!(receiver_shift(16, 16), 0);
+        for (w, h) in [(1, 16384), (8191, 8193), (16384, 16384), (600, 600)] {
+            let s = receiver_shift(w, h);
+            assert!(s >= hiz_shift(ViewIndex::Light, w, h), "{w}x{h}");
+            assert!(tiles(w, h, 1 << s) <= RECEIVER_TILES as u64, "{w}x{h}");
+            assert!(s == 0 || tiles(w, h, 1 << (s - 1)) > RECEIVER_TILES as u64);
+        }
+    }
 
     /// Fine tiles of 4 px where they fit (1080p, a 4096^2 light map;
     /// a 512^2 or 1024^2 light map's of one texel), coarser on the largest

@@ -306,13 +306,15 @@ impl RasterStage {
         Ok(Tiles::Lists(&t.tiles))
     }
 
-    /// Device memory of the sphere orders (scene) and the rasterizer's
-    /// band buffers (visibility).
-    pub fn memory(&self) -> (u64, u64) {
+    /// Device memory of the sphere orders and LOD cull (scene), the
+    /// rasterizer's band buffers (visibility) and the light cull's region
+    /// (light_cull: it grows with the light map, not the spheres).
+    pub fn memory(&self) -> (u64, u64, u64) {
         let lists = self.lod.as_ref().map_or(0, |l| l.memory_bytes());
         (
             self.compute.order_bytes() + lists,
             self.compute.memory_bytes(),
+            self.lod.as_ref().map_or(0, |l| l.region_bytes()),
         )
     }
 
