@@ -3,13 +3,13 @@
 // invocation per 16x16 pixels of the camera's visibility buffer (after
 // both raster phases) unprojects each covered pixel's hit and takes the
 // light-map rectangle of those points (one atomic per word per tile) and,
-// per fine light depth tile, the farthest of their depths from the light
-// (an atomicMax where the tile changes from the last pixel's). The light's
-// cull (lod_cull.comp) keeps only instances over the rectangle, and its
-// depth tiles (lod_hiz.comp) hide everything farther from the light than
-// every point whose lookup reaches the tile: nothing else can shadow what
-// the camera sees (a lookup counts only casters nearer the light than its
-// point, give or take the lookup's depth slack).
+// per light receiver tile (lod_receivers.glsl), the farthest of their
+// depths from the light (an atomicMax where the tile changes from the last
+// pixel's). The light's cull (lod_cull.comp) keeps only instances over the
+// rectangle, and its depth tiles (lod_hiz.comp) hide everything farther
+// from the light than every point whose lookup reaches the tile: nothing
+// else can shadow what the camera sees (a lookup counts only casters
+// nearer the light than its point, give or take the lookup's depth slack).
 #include "shared.glsl"
 
 layout(local_size_x = 64) in;

@@ -15,7 +15,7 @@ layout(set = 0, binding = 0) uniform GlobalsBlock { Globals g; };
 // The visibility buffer as 32-bit words (2k + 1: pixel k's depth).
 layout(set = 0, binding = 1) uniform usamplerBuffer visWordTex;
 layout(set = 0, binding = 2) buffer Hiz { uint hiz[]; };
-// The light's receiver depths (lod_bounds.comp: per fine tile, the
+// The light's receiver depths (lod_bounds.comp: per receiver tile, the
 // farthest of the visible points whose lookup is centred in it).
 layout(set = 0, binding = 3) readonly buffer Region { int region[]; };
 #include "lod_receivers.glsl"

@@ -527,7 +527,8 @@ impl LodCull {
 
     /// The steps of `light_cull` (after the camera's raster): the light
     /// texels of the camera's visible points (from `vis`, a `size` window)
-    /// and their farthest depth from the light per fine depth tile, and
+    /// and their farthest depth from the light per receiver tile
+    /// ([`receiver_shift`]), and
     /// the light's early list of what may shadow them (read as `reads`
     /// says; the light's depth tiles take it too).
     #[allow(clippy::too_many_arguments)]
