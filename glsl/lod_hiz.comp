@@ -52,14 +52,13 @@ void main() {
             int RS = int(pc.receiver_shift);
             ivec2 a = max(t - pc.reach, ivec2(0)) >> RS;
             ivec2 b = min(t + int(T) - 1 + pc.reach, ivec2(w, h) - 1) >> RS;
-            // (a window of more than RECEIVER_WINDOW tiles a side is taken
-            // as read to any depth, nothing hidden: one such loop per
-            // depth tile costs more than the cull saves (a PCF radius of
-            // 300 texels on a 2048^2 map, 152 tiles a side: minutes a
-            // frame), and past 255 it would pass lavapipe's 65,535
-            // back-edges; ISSM's t <= 15 on a 512^2 map stays within, PCF's
-            // default reads 3x3 tiles of 4 texels)
-            bool all = pc.reach >= 1 << 20 || max(b.x - a.x, b.y - a.y) >= RECEIVER_WINDOW;
+            // (a window of more than RECEIVER_WINDOW depth tiles a side is
+            // taken as read to any depth, nothing hidden: the loop over its
+            // receiver tiles (as many or fewer) would pass lavapipe's 65,535
+            // back-edges; a PCF radius of 300 texels on a 2048^2 map spans
+            // 302, ISSM's t <= 64 on a 512^2 map 129)
+            int side = ((t.x + int(T) - 1 + pc.reach) >> pc.hiz_shift) - ((t.x - pc.reach) >> pc.hiz_shift) + 1;
+            bool all = pc.reach >= 1 << 20 || side > RECEIVER_WINDOW;
             uint deepest = all ? 0xFFFFFFFFu : 0u;
             b = all ? a - 1 : b;
             int rw = (int(w) + (1 << RS) - 1) >> RS;

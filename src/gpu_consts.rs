@@ -166,9 +166,10 @@ gpu_constants! {
     /// word (after x0, y0, x1, y1), a depth word per fine light depth tile
     /// (glsl/lod_receivers.glsl).
     LOD_RECEIVERS_AT: i32 = 4;
-    /// The most receiver tiles a side a light depth tile's lookup window
-    /// may span for its receivers to be read (glsl/lod_hiz.comp).
-    RECEIVER_WINDOW: i32 = 32;
+    /// The most depth tiles a side a light depth tile's lookup window may
+    /// span for its receivers to be read (glsl/lod_hiz.comp): (2 x 90 +
+    /// 1)^2 loads stay within lavapipe's loop limit.
+    RECEIVER_WINDOW: i32 = 181;
     HIZ_FINE_TILES: u32 = 1048576;
     /// Level-0 batches one invocation of the LOD cull tests (an instance
     /// of more is taken in chunks, each by its own invocation): lavapipe
