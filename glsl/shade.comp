@@ -225,27 +225,6 @@ vec4 display(vec3 c, float z, uvec2 px) {
     return vec4(linear_to_srgb(c), alpha);
 }
 
-// The surface of sphere `id` seen through pixel q: its front hit (as
-// surface.glsl's surface_of for the visibility buffer's sphere).
-Surface surface_for(uvec2 q, uint id) {
-    Surface s;
-    s.img = vec2(q + g.cam.dims.zw);
-    s.id = id;
-    s.key = 0.0;
-    s.batch = scene_batch_of(id);
-    vec4 sp = batch_sphere(s.batch, id);
-    s.sphere = sp;
-    vec3 o, d;
-    view_ray(g.cam, s.img, PERSP, o, d);
-    vec3 oc = o - sp.xyz;
-    float b = dot(oc, d);
-    float disc = max(b * b - (dot(oc, oc) - sp.w * sp.w), 0.0);
-    float t = -b - sqrt(disc);
-    s.p = o + t * d;
-    s.n = normalize(s.p - sp.xyz);
-    return s;
-}
-
 // The pixel's see-through fragments composited front to back over `base`
 // (display-encoded, straight alpha): each lit like an opaque surface with
 // its key-light visibility and no ambient occlusion (SSDO sees the opaque

@@ -22,18 +22,16 @@ struct Surface {
 
 bool covered(uint i) { return texelFetch(visTex, int(i)).x != NO_SPHERE; }
 
-// Surface of full-resolution pixel q of the buffer window (false for
-// background). Callers pass the pixel, not its index: recovering it with
-// % and / is 8 scalar integer divisions per vector on lavapipe.
-bool surface_of(uvec2 q, out Surface s) {
-    uint i = q.y * g.cam.dims.x + q.x;
+// The surface of sphere `id` seen through full-resolution pixel q of the
+// buffer window: its front hit (key 0; surface_of for the visibility
+// buffer's sphere, shade.comp's see-through fragments for theirs).
+Surface surface_for(uvec2 q, uint id) {
+    Surface s;
     s.img = vec2(q + g.cam.dims.zw);
-    uvec2 v = texelFetch(visTex, int(i)).xy;
-    if (v.x == NO_SPHERE) return false;
-    s.id = v.x;
-    s.key = uintBitsToFloat(v.y);
-    s.batch = scene_batch_of(s.id);
-    vec4 sp = batch_sphere(s.batch, s.id);
+    s.id = id;
+    s.key = 0.0;
+    s.batch = scene_batch_of(id);
+    vec4 sp = batch_sphere(s.batch, id);
     s.sphere = sp;
     vec3 o, d;
     view_ray(g.cam, s.img, PERSP, o, d);
@@ -44,6 +42,18 @@ bool surface_of(uvec2 q, out Surface s) {
     float t = -b - sqrt(disc);
     s.p = o + t * d;
     s.n = normalize(s.p - sp.xyz);
+    return s;
+}
+
+// Surface of full-resolution pixel q of the buffer window (false for
+// background). Callers pass the pixel, not its index: recovering it with
+// % and / is 8 scalar integer divisions per vector on lavapipe.
+bool surface_of(uvec2 q, out Surface s) {
+    uint i = q.y * g.cam.dims.x + q.x;
+    uvec2 v = texelFetch(visTex, int(i)).xy;
+    if (v.x == NO_SPHERE) return false;
+    s = surface_for(q, v.x);
+    s.key = uintBitsToFloat(v.y);
     return true;
 }
 

@@ -163,7 +163,7 @@ gpu_constants! {
     /// map; 16 px on a 16384^2 window), then coarse ones of 8x8 fine.
     HIZ_MIN_SHIFT: u32 = 2;
     /// The light's receiver depths in the LOD region buffer: from this
-    /// word (after x0, y0, x1, y1), a depth word per fine light depth tile
+    /// word (after x0, y0, x1, y1), a depth word per receiver tile
     /// (glsl/lod_receivers.glsl).
     LOD_RECEIVERS_AT: i32 = 4;
     /// The most depth tiles a side a light depth tile's lookup window may
