@@ -52,15 +52,14 @@ void visit_rect(uint id, Footprint f, ivec4 rc) {
 // deep lists' fill pass replays, and when the job list is full: on lavapipe
 // a loop that no lane enters still runs its body once, so each extra copy
 // (there were three) cost every vector of spheres a full visit.
-void band_sphere() {
-    uint i = FLAT_ID;
-    if (i >= pc.sphere_count) return;
-    uint id = SPHERE_AT(i);
+// Sphere `id`: its footprint visited here up to `big_area` texels, else
+// queued in bands.
+void band_sphere_id(uint id, uint big_area) {
     Footprint f = band_footprint(id);
     ivec4 rc = f.rect;
     if (rc.x > rc.z || rc.y > rc.w) return;
     uint area = uint(rc.z - rc.x + 1) * uint(rc.w - rc.y + 1);
-    bool here = area <= pc.big_area;
+    bool here = area <= big_area;
     if (!here) {
         if (!band_queue()) {
             here = band_replay(id);
@@ -79,6 +78,12 @@ void band_sphere() {
         }
     }
     if (here) visit_rect(id, f, rc);
+}
+
+void band_sphere() {
+    uint i = FLAT_ID;
+    if (i >= pc.sphere_count) return;
+    band_sphere_id(SPHERE_AT(i), pc.big_area);
 }
 
 void band_job() {
@@ -102,11 +107,16 @@ void band_job() {
     }
 }
 
+// (an includer may run its own per-sphere pass: BAND_SPHERE_MAIN)
+#ifndef BAND_SPHERE_MAIN
+#define BAND_SPHERE_MAIN band_sphere
+#endif
+
 void main() {
     if (BAND_PASS != 0u) {
         band_job();
     } else {
-        band_sphere();
+        BAND_SPHERE_MAIN();
     }
 }
 #endif

@@ -1,7 +1,8 @@
 #version 460
 // The LOD cull's counts into indirect dispatch arguments: per list
 // (camera early, light early, camera late, light late) the rasterizer's,
-// enough workgroups for every slot of the listed batches; per view the
+// enough workgroups for every slot of the listed batches (and for one
+// invocation per LIGHT_PART_SLOTS of them: the light's batch raster); per view the
 // late phase's two cull passes', one invocation per deferred instance and
 // per deferred batch (lod_cull.comp, 64 a workgroup). 2D as
 // band_args.comp makes them.
@@ -22,7 +23,9 @@ void dispatch_args(uint at, uint invocations, uint local_size) {
 void main() {
     for (uint v = 0u; v < LOD_VIEWS; ++v) {
         uint w = v * LOD_WORDS;
-        dispatch_args(w + LOD_ARGS, min(counters[w + LOD_BATCHES], pc.capacity) * pc.per, pc.local_size);
+        uint listed = min(counters[w + LOD_BATCHES], pc.capacity);
+        dispatch_args(w + LOD_ARGS, listed * pc.per, pc.local_size);
+        dispatch_args(w + LOD_BATCH_ARGS, listed * max(pc.per / LIGHT_PART_SLOTS, 1u), pc.local_size);
         if (v < 2u) {
             dispatch_args(w + LOD_DEFER_INSTANCE_ARGS, counters[w + LOD_DEFER_INSTANCES], 64u);
             dispatch_args(w + LOD_DEFER_BATCH_ARGS, min(counters[w + LOD_DEFER_BATCHES], pc.deferred), 64u);

@@ -77,4 +77,71 @@ void band_inline(uint id) {}
 bool band_replay(uint id) { return false; }
 #define BAND_REQ R_BANDS_REQ
 #define BAND_RUN R_BANDS_RUN
+#define BAND_SPHERE_MAIN raster_spheres
+void raster_spheres();
 #include "bands.glsl"
+
+// The key light's LOD lists per batch (LIGHT_BATCHES): one invocation per
+// LIGHT_PART_SLOTS slots of a listed batch (pc.sphere_count: the list's
+// slots; dispatched by LOD_BATCH_ARGS). Most of the light's spheres are
+// smaller than its texels and cover no texel centre, yet the per-slot
+// raster pays each one's setup (batch record, placement, rectangle: ~8.6
+// ns a slot on lavapipe). Here the batch's record and transform are read
+// once, each atom is projected by the transform's linear map (its images
+// of the molecule's axes) with a margin over both frames' rounding, and
+// only the atoms whose disc may hold a texel centre take the per-slot
+// path (band_sphere_id: the same footprint, keys and bands, so the same
+// map). An invocation's loops stay within lavapipe's 65,535 back-edges:
+// 32 atoms, then at most 32 candidates of at most LIGHT_BATCH_AREA texels
+// each (larger footprints go to bands) with their band appends (at most
+// 1,025 each on an 8192-row map): 49 k.
+layout(constant_id = 4) const bool LIGHT_BATCHES = false;
+const uint LIGHT_BATCH_AREA = 512u;
+
+float coord_max(vec3 p) { return max(max(abs(p.x), abs(p.y)), abs(p.z)); }
+
+void light_batch() {
+    const uint PARTS = max((1u << BATCH_SHIFT) / LIGHT_PART_SLOTS, 1u);
+    uint e = FLAT_ID / PARTS;
+    if (e >= (pc.sphere_count >> BATCH_SHIFT)) return;
+    uint id0 = (pc.list_base + e) << BATCH_SHIFT;
+    uvec4 b = scene_batch(id0);
+    uint from = (FLAT_ID % PARTS) * LIGHT_PART_SLOTS;
+    uint count = min(b.w & 0xFFu, from + LIGHT_PART_SLOTS);
+    View v = g.light;
+    float ppu = v.center.w;
+    // The instance's map into texel coordinates (plane_rect's: x ppu + W/2
+    // - 1/2, H/2 - 1/2 - y ppu): its origin's image and its axes' images.
+    vec3 p0 = instance_apply(b.x, vec3(0.0));
+    mat3 ax = mat3(instance_apply(b.x, vec3(1.0, 0.0, 0.0)) - p0,
+                   instance_apply(b.x, vec3(0.0, 1.0, 0.0)) - p0,
+                   instance_apply(b.x, vec3(0.0, 0.0, 1.0)) - p0);
+    vec3 rx = (v.right.xyz * ax) * ppu, ry = -(v.up.xyz * ax) * ppu;
+    vec2 o = vec2(dot(p0 - v.center.xyz, v.right.xyz) * ppu + 0.5 * v.right.w - 0.5,
+                  0.5 * v.up.w - 0.5 - dot(p0 - v.center.xyz, v.up.xyz) * ppu);
+    // (the rounding of the placed centres and of this map: far above
+    // either, in texels)
+    float margin = (1e-5 * (coord_max(p0) + coord_max(v.center.xyz)) + 1e-3) * ppu + 1e-3;
+    // The atoms whose disc may hold a texel centre (one at integer
+    // coordinates): the nearest centre within the radius, or a radius
+    // that may reach past it.
+    uint cand = 0u;
+    for (uint j = from; j < count; ++j) {
+        vec4 a = texelFetch(sphereTex, int(b.y + j));
+        vec2 t = o + vec2(dot(rx, a.xyz), dot(ry, a.xyz));
+        vec2 d = t - round(t);
+        float r = a.w * ppu + margin;
+        cand |= r >= 0.5 || dot(d, d) <= r * r ? 1u << (j - from) : 0u;
+    }
+    for (; cand != 0u; cand &= cand - 1u) {
+        band_sphere_id(id0 + from + uint(findLSB(cand)), min(pc.big_area, LIGHT_BATCH_AREA));
+    }
+}
+
+void raster_spheres() {
+    if (LIGHT_BATCHES) {
+        light_batch();
+    } else {
+        band_sphere();
+    }
+}

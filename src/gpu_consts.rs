@@ -190,6 +190,13 @@ gpu_constants! {
     LOD_DEFER_BATCHES: u32 = 6;
     LOD_DEFER_INSTANCE_ARGS: u32 = 7;
     LOD_DEFER_BATCH_ARGS: u32 = 10;
+    /// A list's indirect dispatch arguments with one invocation per batch
+    /// (the light's batch raster, glsl/raster.comp LIGHT_BATCHES).
+    LOD_BATCH_ARGS: u32 = 13;
+    /// Slots of a batch one invocation of the light's batch raster takes
+    /// (fewer for smaller batches): its loops' bound (glsl/raster.comp
+    /// `light_batch`).
+    LIGHT_PART_SLOTS: u32 = 32;
     /// The LOD cull's passes (specialization constant 2 of
     /// glsl/lod_cull.comp): an early phase over every instance, a late one
     /// over the instances the early one deferred, a late one over the

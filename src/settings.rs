@@ -595,6 +595,11 @@ pub struct LodParams {
     /// a quarter of a list's; tests force the overflow path with less).
     #[arg(skip)]
     pub lod_deferred_batches: Option<u32>,
+    /// Draw the key light's LOD lists per slot, as the camera's, instead
+    /// of per batch (glsl/raster.comp LIGHT_BATCHES; tests compare the
+    /// two).
+    #[arg(skip)]
+    pub lod_light_per_slot: bool,
 }
 
 default_from_args!(LodParams);

@@ -814,6 +814,53 @@ fn the_light_draws_only_what_visible_points_read() {
     }
 }
 
+/// The key light's lists drawn per batch (each atom projected by its
+/// instance's linear map; only those whose disc may hold a texel centre
+/// placed and keyed as the per-slot raster keys them) give the per-slot
+/// raster's frames bit for bit: coarse levels over the whole scene and
+/// zoomed in, full detail, a 2048^2 light map whose texels are smaller
+/// than the atoms zoomed in (every atom a candidate, footprints past 64
+/// texels in bands), ISSM soft, hard and PCF.
+#[test]
+fn the_light_per_batch_draws_the_per_slot_map() {
+    let ctx = validated_context();
+    let s = sphereshade::scene::meso::meso(1_000_000, 1).unwrap();
+    let whole = camera(&s, 160, 120, None);
+    let mut zoomed = whole;
+    zoomed.view_height /= 16.0;
+    let mut closer = whole;
+    closer.view_height /= 64.0;
+    for (cam, lod_pixels, shadows, size) in [
+        (whole, 2.0, ShadowMode::IssmSoft, 512),
+        (zoomed, 2.0, ShadowMode::IssmSoft, 512),
+        (zoomed, 0.0, ShadowMode::Issm, 512),
+        (closer, 0.0, ShadowMode::Issm, 2048),
+        (whole, 2.0, ShadowMode::SmPcf, 512),
+    ] {
+        let mut st = settings(cam, shadows);
+        st.lod.lod_pixels = lod_pixels;
+        st.issm.size = size;
+        let mut slots = st.clone();
+        slots.lod.lod_light_per_slot = true;
+        let mut a = Renderer::new(&ctx, &s, st).expect("renderer");
+        let mut b = Renderer::new(&ctx, &s, slots).expect("renderer");
+        for _ in 0..2 {
+            a.render_frame().expect("frame");
+            b.render_frame().expect("frame");
+        }
+        let counts = a.inspect().lod_counts().unwrap().expect("the cull ran");
+        let what = format!("{shadows:?} lod-pixels {lod_pixels} map {size}: {counts:?}");
+        assert!(counts.light_spheres > 0, "{what}");
+        assert_eq!(
+            Some(counts),
+            b.inspect().lod_counts().unwrap(),
+            "{what}: the same lists"
+        );
+        assert_same_frame(&a.inspect(), &b.inspect(), &what);
+        assert_no_validation_messages(&ctx);
+    }
+}
+
 /// A renderer's last frame is `b`: the same ids and depths, colours and
 /// shadow AOV, bit for bit.
 fn assert_frame_is(a: &Inspect, b: &Frame, what: &str) {

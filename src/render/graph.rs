@@ -38,7 +38,7 @@ pub const PASSES: &[(&str, &str)] = &[
     ),
     (
         "issm_raster",
-        "the same rasterizer from the key light into the ISSM (nearest sphere id per light texel), light view fitted to the spheres; like `raster` it visits the spheres in runs of 64, each half of the dispatch on one side of its view and front to back, so the early-depth test rejects more visits before their atomics and lavapipe's two threads get alike halves on different cache lines",
+        "the same rasterizer from the key light into the ISSM (nearest sphere id per light texel), light view fitted to the spheres; like `raster` it visits the spheres in runs of 64, each half of the dispatch on one side of its view and front to back, so the early-depth test rejects more visits before their atomics and lavapipe's two threads get alike halves on different cache lines; an instanced scene's light lists are drawn per batch (32 slots an invocation): the batch's record and transform read once, each atom projected by the transform's linear map, and only the atoms whose disc may hold a texel centre (most are smaller than a texel) placed, keyed and visited as the per-slot raster does, so the same map",
     ),
     (
         "light_cull",
@@ -50,7 +50,7 @@ pub const PASSES: &[(&str, &str)] = &[
     ),
     (
         "light_raster_late",
-        "the rasterizer over the light's late list, into the same light map; then its depth tiles for the next frame",
+        "the rasterizer over the light's late list (per batch, as `issm_raster`), into the same light map; then its depth tiles for the next frame",
     ),
     (
         "issm_resolve",

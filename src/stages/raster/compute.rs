@@ -3,7 +3,9 @@
 
 use crate::error::Result;
 use crate::gpu::blocks::RasterPush;
-use crate::gpu::consts::{R_ARGS, R_BANDS_REQ, R_BANDS_RUN, RASTER_ORDER};
+use crate::gpu::consts::{
+    LOD_ARGS, LOD_BATCH_ARGS, R_ARGS, R_BANDS_REQ, R_BANDS_RUN, RASTER_ORDER, SCENE_PLAIN,
+};
 use crate::passes::bands::{BandArgs, BandCounters, BandJob, BandPipelines};
 use crate::passes::scene::{SCENE_ATTRIBUTES, SCENE_GEOMETRY, SceneBuffers, SceneGeom};
 use crate::passes::{LOCAL_SIZE, spirv};
@@ -80,6 +82,9 @@ pub struct RasterPass {
     /// spheres whose alpha is below 1), made the first time a frame has
     /// see-through spheres.
     see_through: Option<[BandPipelines; 2]>,
+    /// The key light's LOD lists drawn per batch (constant 4,
+    /// LIGHT_BATCHES: glsl/raster.comp `light_batch`): instanced scenes.
+    light_batches: Option<BandPipelines>,
     /// Kept to make them.
     scene: u32,
     args: BandArgs,
@@ -206,6 +211,15 @@ impl RasterPass {
     /// The rasterizer's pipelines (orthographic, perspective) with or
     /// without SEE_THROUGH.
     fn pipelines(ctx: &Context, scene: u32, see_through: bool) -> Result<[BandPipelines; 2]> {
+        let st = see_through as u32;
+        let ortho = ctx.guard(Self::pipeline(ctx, scene, &[0, st])?);
+        let persp = Self::pipeline(ctx, scene, &[1, st])?;
+        Ok([ortho.keep(), persp])
+    }
+
+    /// The rasterizer's two pipelines with constants 2, 3, ... (PERSP,
+    /// SEE_THROUGH, LIGHT_BATCHES).
+    fn pipeline(ctx: &Context, scene: u32, constants: &[u32]) -> Result<BandPipelines> {
         let bindings = [
             &[
                 uniform("GlobalsBlock"),
@@ -228,17 +242,20 @@ impl RasterPass {
             constants: &[],
             scene,
         };
-        let st = see_through as u32;
-        let ortho = ctx.guard(BandPipelines::new(ctx, &desc, &[0, st])?);
-        let persp = BandPipelines::new(ctx, &desc, &[1, st])?;
-        Ok([ortho.keep(), persp])
+        BandPipelines::new(ctx, &desc, constants)
     }
 
-    /// The rasterizer for a scene of this SCENE_SPEC (passes::scene).
-    pub fn new(ctx: &Context, scene: u32) -> Result<Self> {
+    /// The rasterizer for a scene of this SCENE_SPEC (passes::scene);
+    /// `light_batches`: an instanced scene's light lists per batch.
+    pub fn new(ctx: &Context, scene: u32, light_batches: bool) -> Result<Self> {
         let [ortho, persp] = Self::pipelines(ctx, scene, false)?;
         let ortho = ctx.guard(ortho);
         let persp = ctx.guard(persp);
+        let light_batches = if light_batches && scene & 0xFF != SCENE_PLAIN {
+            Some(ctx.guard(Self::pipeline(ctx, scene, &[0, 0, 1])?))
+        } else {
+            None
+        };
         let args = ctx.guard(BandArgs::new(ctx, "raster band args")?);
         let jobs = ctx.guard(Buffer::storage(
             ctx,
@@ -255,6 +272,7 @@ impl RasterPass {
         Ok(RasterPass {
             pipes: [ortho.keep(), persp.keep()],
             see_through: None,
+            light_batches: light_batches.map(|p| p.keep()),
             scene,
             args: args.keep(),
             jobs: jobs.keep(),
@@ -378,7 +396,17 @@ impl RasterPass {
             }
             _ => &self.pipes,
         };
-        let pipe = &pipes[(view == ViewIndex::Camera && perspective) as usize];
+        // (the key light's LOD lists per batch where the scene allows it)
+        let batches = match (&self.light_batches, lod.as_ref()) {
+            (Some(b), Some(l)) if view == ViewIndex::Light => {
+                Some((b, l.args_offset + ((LOD_BATCH_ARGS - LOD_ARGS) * 4) as u64))
+            }
+            _ => None,
+        };
+        let pipe = match batches {
+            Some((b, _)) => b,
+            None => &pipes[(view == ViewIndex::Camera && perspective) as usize],
+        };
         let mut bindings = vec![
             ("GlobalsBlock", globals),
             ("Vis", vis),
@@ -402,7 +430,12 @@ impl RasterPass {
                 push: &push,
                 bindings: &bindings,
                 sphere_count,
-                indirect: lod.as_ref().map(|l| (l.counters, l.args_offset)),
+                indirect: lod.as_ref().map(|l| {
+                    (
+                        l.counters,
+                        batches.map_or(l.args_offset, |(_, offset)| offset),
+                    )
+                }),
                 counters: &self.counters,
                 layout: &RASTER_COUNTERS,
             },
@@ -426,6 +459,7 @@ impl RasterPass {
             .pipes
             .iter_mut()
             .chain(self.see_through.iter_mut().flatten())
+            .chain(self.light_batches.iter_mut())
         {
             p.destroy(ctx);
         }

@@ -116,7 +116,7 @@ impl RasterStage {
         } else {
             None
         });
-        let compute = ctx.guard(RasterPass::new(ctx, scene)?);
+        let compute = ctx.guard(RasterPass::new(ctx, scene, !lod.lod_light_per_slot)?);
         let coverage = ctx.guard(CoveragePass::new(ctx)?);
         let lod = match &mut scene_buffers.lod {
             Some(l) => Some(LodCull::new(
