@@ -210,9 +210,6 @@ float instance_stretch(uint k, vec3 c, vec3 p) {
     return max(sqrt(row), 1.0) * 1.001;
 }
 
-// (the f32 rounding of a placed point: ~1e-7 of its largest coordinate)
-float coord_max(vec3 p) { return max(max(abs(p.x), abs(p.y)), abs(p.z)); }
-
 // How much a batch sphere placed with an instance at p grows for the
 // rounding of its placed centre.
 float batch_grow(vec3 p) { return 1e-6 * coord_max(p) + 1e-4; }

@@ -98,8 +98,6 @@ void raster_spheres();
 layout(constant_id = 4) const bool LIGHT_BATCHES = false;
 const uint LIGHT_BATCH_AREA = 512u;
 
-float coord_max(vec3 p) { return max(max(abs(p.x), abs(p.y)), abs(p.z)); }
-
 void light_batch() {
     const uint PARTS = max((1u << BATCH_SHIFT) / LIGHT_PART_SLOTS, 1u);
     uint e = FLAT_ID / PARTS;

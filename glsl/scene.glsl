@@ -101,6 +101,10 @@ vec3 instance_apply(uint k, vec3 x) {
     return p;
 }
 
+// A point's largest coordinate: the f32 rounding of a placed point is
+// ~1e-7 of it (the cull's and the light raster's margins).
+float coord_max(vec3 p) { return max(max(abs(p.x), abs(p.y)), abs(p.z)); }
+
 // The batch record of sphere `id` for the `batch_*` readers below (plain:
 // none): a pass that reads several things of one sphere makes it once
 // (its three dependent fetches cost meso 10^9 at 2,025 A ~10 ms of SSDO
