@@ -8,6 +8,7 @@
 // band_args.comp makes them.
 #include "constants.glsl"
 #include "grid.glsl"
+#include "light_batches.glsl"
 
 layout(local_size_x = 1) in;
 layout(set = 0, binding = 0) buffer Counters { uint counters[]; };
@@ -25,7 +26,7 @@ void main() {
         uint w = v * LOD_WORDS;
         uint listed = min(counters[w + LOD_BATCHES], pc.capacity);
         dispatch_args(w + LOD_ARGS, listed * pc.per, pc.local_size);
-        dispatch_args(w + LOD_BATCH_ARGS, listed * max(pc.per / LIGHT_PART_SLOTS, 1u), pc.local_size);
+        dispatch_args(w + LOD_BATCH_ARGS, listed * light_parts(pc.per), pc.local_size);
         if (v < 2u) {
             dispatch_args(w + LOD_DEFER_INSTANCE_ARGS, counters[w + LOD_DEFER_INSTANCES], 64u);
             dispatch_args(w + LOD_DEFER_BATCH_ARGS, min(counters[w + LOD_DEFER_BATCHES], pc.deferred), 64u);

@@ -95,11 +95,12 @@ void raster_spheres();
 // 32 atoms, then at most 32 candidates of at most LIGHT_BATCH_AREA texels
 // each (larger footprints go to bands) with their band appends (at most
 // 1,025 each on an 8192-row map): 49 k.
+#include "light_batches.glsl"
 layout(constant_id = 4) const bool LIGHT_BATCHES = false;
 const uint LIGHT_BATCH_AREA = 512u;
 
 void light_batch() {
-    const uint PARTS = max((1u << BATCH_SHIFT) / LIGHT_PART_SLOTS, 1u);
+    const uint PARTS = light_parts(1u << BATCH_SHIFT);
     uint e = FLAT_ID / PARTS;
     if (e >= (pc.sphere_count >> BATCH_SHIFT)) return;
     uint id0 = (pc.list_base + e) << BATCH_SHIFT;

@@ -160,6 +160,9 @@ impl Resources {
         // The batch table: the LOD lists, or the static one (made by
         // `ensure_orders` the first time a frame draws every atom).
         self.scene.listed.set(self.lod_lists(settings));
+        if self.scene.listed.get() && settings.shadows != ShadowMode::None {
+            self.stages.raster.enable_light_batches(ctx)?;
+        }
         self.globals.counts[0] = self.scene.frame_slots();
         let (hw, hh) = self.targets.half();
         self.globals.counts[1] = hw;

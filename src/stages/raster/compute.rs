@@ -83,8 +83,11 @@ pub struct RasterPass {
     /// see-through spheres.
     see_through: Option<[BandPipelines; 2]>,
     /// The key light's LOD lists drawn per batch (constant 4,
-    /// LIGHT_BATCHES: glsl/raster.comp `light_batch`): instanced scenes.
+    /// LIGHT_BATCHES: glsl/raster.comp `light_batch`), made the first time
+    /// a frame draws them (instanced scenes; else per slot, as the camera's).
     light_batches: Option<BandPipelines>,
+    /// Whether this renderer draws the light's lists per batch.
+    light_per_batch: bool,
     /// Kept to make them.
     scene: u32,
     args: BandArgs,
@@ -246,16 +249,11 @@ impl RasterPass {
     }
 
     /// The rasterizer for a scene of this SCENE_SPEC (passes::scene);
-    /// `light_batches`: an instanced scene's light lists per batch.
-    pub fn new(ctx: &Context, scene: u32, light_batches: bool) -> Result<Self> {
+    /// `light_per_batch`: an instanced scene's light lists per batch.
+    pub fn new(ctx: &Context, scene: u32, light_per_batch: bool) -> Result<Self> {
         let [ortho, persp] = Self::pipelines(ctx, scene, false)?;
         let ortho = ctx.guard(ortho);
         let persp = ctx.guard(persp);
-        let light_batches = if light_batches && scene & 0xFF != SCENE_PLAIN {
-            Some(ctx.guard(Self::pipeline(ctx, scene, &[0, 0, 1])?))
-        } else {
-            None
-        };
         let args = ctx.guard(BandArgs::new(ctx, "raster band args")?);
         let jobs = ctx.guard(Buffer::storage(
             ctx,
@@ -272,7 +270,8 @@ impl RasterPass {
         Ok(RasterPass {
             pipes: [ortho.keep(), persp.keep()],
             see_through: None,
-            light_batches: light_batches.map(|p| p.keep()),
+            light_batches: None,
+            light_per_batch: light_per_batch && scene & 0xFF != SCENE_PLAIN,
             scene,
             args: args.keep(),
             jobs: jobs.keep(),
@@ -287,6 +286,15 @@ impl RasterPass {
     pub fn enable_see_through(&mut self, ctx: &Context) -> Result<()> {
         if self.see_through.is_none() {
             self.see_through = Some(Self::pipelines(ctx, self.scene, true)?);
+        }
+        Ok(())
+    }
+
+    /// Makes the light's per-batch pipelines (the first frame that draws
+    /// the light's LOD lists; nothing when the light is drawn per slot).
+    pub fn enable_light_batches(&mut self, ctx: &Context) -> Result<()> {
+        if self.light_per_batch && self.light_batches.is_none() {
+            self.light_batches = Some(Self::pipeline(ctx, self.scene, &[0, 0, 1])?);
         }
         Ok(())
     }

@@ -254,6 +254,12 @@ impl RasterStage {
         self.lod.as_ref().map(|l| l.view(view))
     }
 
+    /// The light's per-batch raster pipelines (a frame that draws the
+    /// light's LOD lists).
+    pub fn enable_light_batches(&mut self, ctx: &Context) -> Result<()> {
+        self.compute.enable_light_batches(ctx)
+    }
+
     /// Makes the pipelines that leave see-through spheres to the fragment
     /// lists (the first frame that has some).
     pub fn enable_see_through(&mut self, ctx: &Context) -> Result<()> {
