@@ -18,6 +18,11 @@ layout(set = 0, binding = 2) buffer Hiz { uint hiz[]; };
 // The light's receiver depths (lod_bounds.comp: per receiver tile, the
 // farthest of the visible points whose lookup is centred in it).
 layout(set = 0, binding = 3) readonly buffer Region { int region[]; };
+// With pc.compare: last frame's final tiles, and the LOD counters whose
+// LOD_TILES_CHANGED word is set where a fine tile differs (the camera's
+// recheck runs only then: src/gpu_consts.rs).
+layout(set = 0, binding = 4) uniform usamplerBuffer hizPrevTex;
+layout(set = 0, binding = 5) buffer Counters { uint counters[]; };
 #include "lod_receivers.glsl"
 
 layout(constant_id = 1) const uint MODE = 0u;
@@ -70,6 +75,9 @@ void main() {
             far = min(far, deepest);
         }
         hiz[i] = far;
+        if (pc.compare != 0u && texelFetch(hizPrevTex, int(i)).x != far) {
+            atomicOr(counters[LOD_TILES_CHANGED], 1u);
+        }
     } else {
         // (the level below: fine for MODE 1, coarse for MODE 2)
         uint below = MODE == 1u ? 0u : tf.x * tf.y;

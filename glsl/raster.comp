@@ -81,25 +81,60 @@ bool band_replay(uint id) { return false; }
 void raster_spheres();
 #include "bands.glsl"
 
-// The key light's LOD lists per batch (LIGHT_BATCHES): one invocation per
-// LIGHT_PART_SLOTS slots of a listed batch (pc.sphere_count: the list's
-// slots; dispatched by LOD_BATCH_ARGS). Most of the light's spheres are
-// smaller than its texels and cover no texel centre, yet the per-slot
-// raster pays each one's setup (batch record, placement, rectangle: ~8.6
-// ns a slot on lavapipe). Here the batch's record and transform are read
+// The LOD lists per batch (LIGHT_BATCHES: the key light's; CAM_BATCHES:
+// the orthographic camera's): one invocation per LIGHT_PART_SLOTS slots
+// of a listed batch (pc.sphere_count: the list's slots; dispatched by
+// LOD_BATCH_ARGS). The per-slot raster pays each slot's setup (batch
+// record, placement, rectangle: ~8.6 ns on lavapipe) though most slots
+// draw nothing: the light's spheres are mostly smaller than its texels
+// and cover no texel centre; most of the camera's lie behind nearer atoms
+// of their own protein. Here the batch's record and transform are read
 // once, each atom is projected by the transform's linear map (its images
-// of the molecule's axes) with a margin over both frames' rounding, and
-// only the atoms whose disc may hold a texel centre take the per-slot
-// path (band_sphere_id: the same footprint, keys and bands, so the same
-// map). An invocation's loops stay within lavapipe's 65,535 back-edges:
-// 32 atoms, then at most 32 candidates of at most LIGHT_BATCH_AREA texels
-// each (larger footprints go to bands) with their band appends (at most
-// 1,025 each on an 8192-row map): 49 k.
+// of the view's axes) with a margin over both frames' rounding, and only
+// the atoms that may draw take the per-slot path (band_sphere_id: the
+// same footprint, keys and bands, so the same image). An invocation's
+// loops stay within lavapipe's 65,535 back-edges: 32 atoms, then at most
+// 32 candidates of at most BATCH_PART_AREA texels each (larger footprints
+// go to bands) with their band appends (at most 1,025 each in a window of
+// 8,192 rows: the host's bound): 49 k.
 #include "light_batches.glsl"
 layout(constant_id = 4) const bool LIGHT_BATCHES = false;
-const uint LIGHT_BATCH_AREA = 512u;
+// The camera's test (CAM_EARLY, CAM_RECHECK, CAM_LATE; CAM_PER_SLOT: none).
+layout(constant_id = 5) const uint CAM_BATCHES = CAM_PER_SLOT;
+const uint BATCH_PART_AREA = 512u;
+const uint CAM_PART_AREA = 128u;
 
-void light_batch() {
+// The camera's depth tiles (glsl/lod_hiz.comp, fine tiles of
+// 2^pc.hiz_shift pixels first): of this frame's early image, and of last
+// frame's final image.
+layout(set = 0, binding = 7) uniform usamplerBuffer hizTex;
+layout(set = 0, binding = 8) uniform usamplerBuffer hizPrevTex;
+
+// Whether the tiles under window rectangle rc all hold surfaces nearer
+// than depth word `near` (last frame's with `prev`): 2x2 fine tiles
+// (2^pc.hiz_shift pixels) at most, else 2x2 coarse ones (8x8 fine), else
+// not hidden. (A bool, not the sampler: one function.)
+bool tiles_hide(bool prev, View v, ivec4 rc, uint near) {
+    ivec2 lo = ivec2(v.dims.zw);
+    int S = int(pc.hiz_shift);
+    ivec4 t = (rc - ivec4(lo, lo)) >> S;
+    bool fine = t.z - t.x <= 1 && t.w - t.y <= 1;
+    uint T = 1u << S;
+    int base = fine ? 0 : int(((v.dims.x + T - 1u) >> S) * ((v.dims.y + T - 1u) >> S));
+    int sh = fine ? S : S + 3;
+    t = (rc - ivec4(lo, lo)) >> sh;
+    if (t.z - t.x > 1 || t.w - t.y > 1) return false;
+    int tw = int((v.dims.x + (1u << sh) - 1u) >> sh);
+    int last = (prev ? textureSize(hizPrevTex) : textureSize(hizTex)) - 1;
+    ivec4 at = min(base + ivec4(t.y * tw + t.x, t.y * tw + t.z, t.w * tw + t.x, t.w * tw + t.z), last);
+    uvec4 w = prev ? uvec4(texelFetch(hizPrevTex, at.x).x, texelFetch(hizPrevTex, at.y).x,
+                           texelFetch(hizPrevTex, at.z).x, texelFetch(hizPrevTex, at.w).x)
+                   : uvec4(texelFetch(hizTex, at.x).x, texelFetch(hizTex, at.y).x,
+                           texelFetch(hizTex, at.z).x, texelFetch(hizTex, at.w).x);
+    return max(max(w.x, w.y), max(w.z, w.w)) < near;
+}
+
+void batch_part() {
     const uint PARTS = light_parts(1u << BATCH_SHIFT);
     uint e = FLAT_ID / PARTS;
     if (e >= (pc.sphere_count >> BATCH_SHIFT)) return;
@@ -107,39 +142,64 @@ void light_batch() {
     uvec4 b = scene_batch(id0);
     uint from = (FLAT_ID % PARTS) * LIGHT_PART_SLOTS;
     uint count = min(b.w & 0xFFu, from + LIGHT_PART_SLOTS);
-    View v = g.light;
+    View v = LIGHT_BATCHES ? g.light : g.cam;
     float ppu = v.center.w;
-    // The instance's map into texel coordinates (plane_rect's: x ppu + W/2
-    // - 1/2, H/2 - 1/2 - y ppu): its origin's image and its axes' images.
+    // The instance's map into pixel coordinates (plane_rect's: x ppu + W/2
+    // - 1/2, H/2 - 1/2 - y ppu; a pixel's centre at integer coordinates)
+    // and depth: its origin's image and its axes' images.
     vec3 p0 = instance_apply(b.x, vec3(0.0));
-    mat3 ax = mat3(instance_apply(b.x, vec3(1.0, 0.0, 0.0)) - p0,
-                   instance_apply(b.x, vec3(0.0, 1.0, 0.0)) - p0,
-                   instance_apply(b.x, vec3(0.0, 0.0, 1.0)) - p0);
-    vec3 rx = (v.right.xyz * ax) * ppu, ry = -(v.up.xyz * ax) * ppu;
-    vec2 o = vec2(dot(p0 - v.center.xyz, v.right.xyz) * ppu + 0.5 * v.right.w - 0.5,
-                  0.5 * v.up.w - 0.5 - dot(p0 - v.center.xyz, v.up.xyz) * ppu);
+    mat3 ax = mat3(instance_linear(b.x, vec3(1.0, 0.0, 0.0)),
+                   instance_linear(b.x, vec3(0.0, 1.0, 0.0)),
+                   instance_linear(b.x, vec3(0.0, 0.0, 1.0)));
+    // (`precise`: the camera's early and recheck pipelines must compute
+    // alike bits, whatever each one's contraction into fused
+    // multiply-adds; an atom both found hidden behind last frame's tiles
+    // would be lost)
+    precise vec3 rx = (v.right.xyz * ax) * ppu, ry = -(v.up.xyz * ax) * ppu, rz = v.dir.xyz * ax;
+    precise vec3 q = p0 - v.center.xyz;
+    precise vec2 o = vec2(dot(q, v.right.xyz) * ppu + 0.5 * v.right.w - 0.5,
+                  0.5 * v.up.w - 0.5 - dot(q, v.up.xyz) * ppu);
+    precise float oz = dot(q, v.dir.xyz);
     // (the rounding of the placed centres and of this map: far above
-    // either, in texels)
-    float margin = (1e-5 * (coord_max(p0) + coord_max(v.center.xyz)) + 1e-3) * ppu + 1e-3;
-    // The atoms whose disc may hold a texel centre (one at integer
-    // coordinates): the nearest centre within the radius, or a radius
-    // that may reach past it.
+    // either, in world units)
+    precise float slack = 1e-5 * (coord_max(p0) + coord_max(v.center.xyz)) + 1e-3;
+    precise float margin = slack * ppu + 1e-3;
+    ivec2 lo = ivec2(v.dims.zw), hi = min(lo + ivec2(v.dims.xy), ivec2(int(v.right.w), int(v.up.w))) - 1;
     uint cand = 0u;
     for (uint j = from; j < count; ++j) {
         vec4 a = texelFetch(sphereTex, int(b.y + j));
-        vec2 t = o + vec2(dot(rx, a.xyz), dot(ry, a.xyz));
-        vec2 d = t - round(t);
-        float r = a.w * ppu + margin;
-        cand |= r >= 0.5 || dot(d, d) <= r * r ? 1u << (j - from) : 0u;
+        precise vec2 t = o + vec2(dot(rx, a.xyz), dot(ry, a.xyz));
+        precise float r = a.w * ppu + margin;
+        bool draw;
+        if (LIGHT_BATCHES) {
+            // The atoms whose disc may hold a texel centre: the nearest
+            // centre within the radius, or a radius that may reach past it.
+            vec2 d = t - round(t);
+            draw = r >= 0.5 || dot(d, d) <= r * r;
+        } else {
+            // The atom's pixel rectangle, grown, and its nearest depth
+            // key, less the cull's margin for the keys' f32 rounding
+            // (glsl/lod_cull.comp `hidden`) and this map's.
+            ivec4 rc = ivec4(max(ivec2(ceil(t - r)), lo), min(ivec2(floor(t + r)), hi));
+            precise float z = oz + dot(rz, a.xyz);
+            precise float zmin = z - a.w + v.depth.x - (1e-4 * (abs(z) + abs(v.depth.x) + a.w) + 1e-3 + slack);
+            uint near = floatBitsToUint(max(zmin, 0.0));
+            bool some = rc.x <= rc.z && rc.y <= rc.w;
+            bool hid_prev = CAM_BATCHES != CAM_LATE && tiles_hide(true, v, rc, near);
+            bool hid_now = CAM_BATCHES != CAM_EARLY && tiles_hide(false, v, rc, near);
+            draw = some && (CAM_BATCHES == CAM_EARLY ? !hid_prev
+                           : CAM_BATCHES == CAM_RECHECK ? hid_prev && !hid_now : !hid_now);
+        }
+        cand |= draw ? 1u << (j - from) : 0u;
     }
     for (; cand != 0u; cand &= cand - 1u) {
-        band_sphere_id(id0 + from + uint(findLSB(cand)), min(pc.big_area, LIGHT_BATCH_AREA));
+        band_sphere_id(id0 + from + uint(findLSB(cand)), min(pc.big_area, LIGHT_BATCHES ? BATCH_PART_AREA : CAM_PART_AREA));
     }
 }
 
 void raster_spheres() {
-    if (LIGHT_BATCHES) {
-        light_batch();
+    if (LIGHT_BATCHES || CAM_BATCHES != CAM_PER_SLOT) {
+        batch_part();
     } else {
         band_sphere();
     }

@@ -101,6 +101,26 @@ vec3 instance_apply(uint k, vec3 x) {
     return p;
 }
 
+// Instance k's transform without its translation, applied to a vector:
+// its linear map (the batch rasterizers project atoms by it). Not the
+// difference of two placed points: far from the origin (the 10^12 scene's
+// 10^5 A) that loses ~10^-2 of a unit axis, times a proxy molecule's
+// hundreds of A.
+vec3 instance_linear(uint k, vec3 x) {
+    if (SCENE_KIND == SCENE_AFFINE) {
+        vec4 r0 = texelFetch(instanceTex, int(3u * k));
+        vec4 r1 = texelFetch(instanceTex, int(3u * k + 1u));
+        vec4 r2 = texelFetch(instanceTex, int(3u * k + 2u));
+        precise vec3 y = vec3(dot(r0.xyz, x), dot(r1.xyz, x), dot(r2.xyz, x));
+        return y;
+    }
+    // (`precise`: pipelines that must agree compute it alike)
+    vec4 q = texelFetch(instanceTex, int(2u * k));
+    precise vec3 u = 2.0 * cross(q.xyz, x);
+    precise vec3 y = x + q.w * u + cross(q.xyz, u);
+    return y;
+}
+
 // A point's largest coordinate: the f32 rounding of a placed point is
 // ~1e-7 of it (the cull's and the light raster's margins).
 float coord_max(vec3 p) { return max(max(abs(p.x), abs(p.y)), abs(p.z)); }

@@ -106,7 +106,10 @@ gpu_push! {
         /// glsl/lod_cull.comp): invocation i draws slot
         /// (list_base << shift) + i; RASTER_ORDER: the view's order.
         list_base: u32,
-        pad: [u32; 3],
+        /// The camera's depth tiles' shift (fine tiles of 2^s pixels,
+        /// glsl/lod_hiz.comp), for its per-batch tests (CAM_EARLY, ...).
+        hiz_shift: u32,
+        pad: [u32; 2],
     }
 
     /// `lod_cull` (glsl/lod_cull.comp): one invocation per instance.
@@ -156,6 +159,10 @@ gpu_push! {
         /// The light: its receiver tiles are 2^receiver_shift texels a
         /// side (src/stages/raster/lod.rs `receiver_shift`).
         receiver_shift: u32,
+        /// The camera's early tiles: flag LOD_TILES_CHANGED where a fine
+        /// tile differs from last frame's (hizPrevTex).
+        compare: u32,
+        pad: [u32; 3],
     }
 
     /// `lod_args` (glsl/lod_args.comp): the cull's counts into indirect

@@ -146,8 +146,10 @@ gpu_constants! {
     /// camera (early), light (early), camera (late), light (late). An early
     /// list's words then count what its view's early phase deferred to the
     /// late one (instances, batches) and hold the late phase's two
-    /// dispatches' arguments.
-    LOD_WORDS: u32 = 16;
+    /// dispatches' arguments; the camera's early list's also whether its
+    /// early depth tiles differ from last frame's final ones and the
+    /// arguments of its recheck (CAM_RECHECK).
+    LOD_WORDS: u32 = 20;
     LOD_VIEWS: u32 = 4;
     /// RasterPush.list_base of a view drawn in its order (not a LOD list).
     RASTER_ORDER: u32 = 0xFFFF_FFFF;
@@ -193,10 +195,26 @@ gpu_constants! {
     /// A list's indirect dispatch arguments with one invocation per batch
     /// (the light's batch raster, glsl/raster.comp LIGHT_BATCHES).
     LOD_BATCH_ARGS: u32 = 13;
+    /// (the camera's words) Non-zero when a fine depth tile of its early
+    /// image differs from last frame's final one (glsl/lod_hiz.comp);
+    /// else no atom of the early list can pass the recheck, whose
+    /// arguments (LOD_RECHECK_ARGS, glsl/lod_args.comp) are then empty.
+    LOD_TILES_CHANGED: u32 = 16;
+    LOD_RECHECK_ARGS: u32 = 17;
     /// Slots of a batch one invocation of the light's batch raster takes
     /// (fewer for smaller batches): its loops' bound (glsl/raster.comp
     /// `light_batch`).
     LIGHT_PART_SLOTS: u32 = 32;
+    /// The camera's LOD lists per batch (specialization constant 5 of
+    /// glsl/raster.comp): each atom projected and tested against depth
+    /// tiles before it is drawn. CAM_EARLY: the early list, atoms that
+    /// last frame's final tiles do not hide; CAM_RECHECK: the early list
+    /// again, atoms those tiles hid that this frame's early tiles do not;
+    /// CAM_LATE: the late list, atoms this frame's early tiles do not hide.
+    CAM_PER_SLOT: u32 = 0;
+    CAM_EARLY: u32 = 1;
+    CAM_RECHECK: u32 = 2;
+    CAM_LATE: u32 = 3;
     /// The LOD cull's passes (specialization constant 2 of
     /// glsl/lod_cull.comp): an early phase over every instance, a late one
     /// over the instances the early one deferred, a late one over the

@@ -600,6 +600,16 @@ pub struct LodParams {
     /// two).
     #[arg(skip)]
     pub lod_light_per_slot: bool,
+    /// Draw the camera's LOD lists per slot, untested, instead of per
+    /// batch with each atom tested against depth tiles (glsl/raster.comp
+    /// CAM_BATCHES; tests compare the two).
+    #[arg(skip)]
+    pub lod_camera_per_slot: bool,
+    /// Keep a moved view's last depth tiles (else emptied) and test the
+    /// camera's atoms against them: the early phase then hides atoms the
+    /// late one must recheck (tests; glsl/raster.comp CAM_RECHECK).
+    #[arg(skip)]
+    pub lod_keep_moved_history: bool,
 }
 
 default_from_args!(LodParams);

@@ -861,6 +861,88 @@ fn the_light_per_batch_draws_the_per_slot_map() {
     }
 }
 
+/// The camera's lists drawn per batch, each atom tested against depth
+/// tiles before it is drawn (early: last frame's final tiles; then the
+/// early list again: the atoms those tiles hid that this frame's early
+/// tiles do not; late: this frame's early tiles), give the per-slot
+/// raster's frames bit for bit: a still camera (the early test hides most
+/// atoms, the recheck is skipped: the tiles are the last frame's) over the
+/// whole scene, zoomed in and close (atoms past 2x2 fine tiles: coarse
+/// ones; footprints past 128 pixels in bands), a molecule far from the
+/// origin, and a panning one whose
+/// last tiles are kept (`lod_keep_moved_history`: the early test hides
+/// atoms now in view, which the recheck must draw). (A recheck that draws
+/// nothing, or an early test without the recheck's, fails it.)
+#[test]
+fn the_camera_per_batch_draws_the_per_slot_frame() {
+    let ctx = validated_context();
+    let s = sphereshade::scene::meso::meso(1_000_000, 1).unwrap();
+    let whole = camera(&s, 160, 120, None);
+    let mut zoomed = whole;
+    zoomed.view_height /= 16.0;
+    // (near the closest the camera's lists are drawn per batch: the median
+    // atom radius 5 pixels, under src/stages/raster/mod.rs
+    // CAM_BATCH_MAX_PIXELS; larger atoms span 2x2 coarse tiles and reach
+    // the bands)
+    let mut radii: Vec<f32> = s.spheres.iter().map(|a| a.radius).collect();
+    radii.sort_by(f32::total_cmp);
+    let mut closer = whole;
+    closer.view_height = closer.height as f64 * radii[radii.len() / 2] as f64 / 5.0;
+    let pan = meso_pan(&s);
+    let still = |c| vec![c, c, c];
+    let pans = [0.0, 0.0, 0.03, 0.06, 0.1].map(&pan).to_vec();
+    // A molecule of 1,600 A (4,096 atoms on a grid, overlapping) placed 10^6
+    // A from the origin, turned: the projection of its atoms by the
+    // instance's linear map must not lose the ~10^-2 of a unit axis that a
+    // difference of placed points there does (the 10^12 scene's proxies).
+    let far = {
+        use sphereshade::scene::instanced::InstancedBuilder;
+        let atoms: Vec<scene::Sphere> = (0..4096)
+            .map(|k| {
+                let (x, y, z) = (k % 16, k / 16 % 16, k / 256);
+                sphere([x as f32 * 100.0, y as f32 * 100.0, z as f32 * 100.0], 70.0)
+            })
+            .collect();
+        let mut b = InstancedBuilder::default();
+        let m = b.molecule("grid", 0, atoms);
+        for k in 0..4 {
+            let q = DQuat::from_rotation_y(0.7 * k as f64) * DQuat::from_rotation_x(0.5);
+            let t = [1e6 + k as f64 * 1200.0, 1e6 + (k % 2) as f64 * 900.0, 0.0];
+            b.instance_quat("grid", m, q, t).unwrap();
+        }
+        b.finish("far grids").unwrap()
+    };
+    let mut far_cam = camera(&far, 160, 120, None);
+    far_cam.view_height /= 3.0;
+    for (what, scene, cams, lod_pixels, keep) in [
+        ("whole", &s, still(whole), 2.0, false),
+        ("zoomed", &s, still(zoomed), 2.0, false),
+        ("close, full detail", &s, still(closer), 0.0, false),
+        ("panning, last tiles kept", &s, pans, 2.0, true),
+        ("far from the origin", &far, still(far_cam), 0.0, false),
+    ] {
+        let s = scene;
+        let mut st = settings(cams[0], ShadowMode::IssmSoft);
+        st.lod.lod_pixels = lod_pixels;
+        st.lod.lod_keep_moved_history = keep;
+        let mut slots = st.clone();
+        slots.lod.lod_camera_per_slot = true;
+        let mut a = Renderer::new(&ctx, s, st).expect("renderer");
+        let mut b = Renderer::new(&ctx, s, slots).expect("renderer");
+        for (f, cam) in cams.into_iter().enumerate() {
+            a.update(|x| x.camera = cam).expect("camera");
+            b.update(|x| x.camera = cam).expect("camera");
+            a.render_frame().expect("frame");
+            b.render_frame().expect("frame");
+            let counts = a.inspect().lod_counts().unwrap().expect("the cull ran");
+            let what = format!("{what}, frame {f}: {counts:?}");
+            assert!(counts.camera_spheres > 0, "{what}");
+            assert_same_frame(&a.inspect(), &b.inspect(), &what);
+        }
+        assert_no_validation_messages(&ctx);
+    }
+}
+
 /// A renderer's last frame is `b`: the same ids and depths, colours and
 /// shadow AOV, bit for bit.
 fn assert_frame_is(a: &Inspect, b: &Frame, what: &str) {

@@ -234,6 +234,7 @@ impl Resources {
             size,
             see_through: see.is_some(),
             lod,
+            pixels_per_unit: cam.height as f64 / cam.view_height,
         };
         self.stages.raster.record(rec, &raster_in, &t.raster)?;
         if lod {

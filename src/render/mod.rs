@@ -160,8 +160,9 @@ impl Resources {
         // The batch table: the LOD lists, or the static one (made by
         // `ensure_orders` the first time a frame draws every atom).
         self.scene.listed.set(self.lod_lists(settings));
-        if self.scene.listed.get() && settings.shadows != ShadowMode::None {
-            self.stages.raster.enable_light_batches(ctx)?;
+        if self.scene.listed.get() {
+            let light = settings.shadows != ShadowMode::None;
+            self.stages.raster.enable_batches(ctx, light)?;
         }
         self.globals.counts[0] = self.scene.frame_slots();
         let (hw, hh) = self.targets.half();
@@ -329,20 +330,22 @@ impl<'c> Renderer<'c> {
         // Without a hierarchy every sphere is its own region (semantic SSDO
         // then equals plain SSDO).
         let no_levels = levels.is_empty() as u32;
-        let stages = ctx.guard(graph::Stages::new(
+        let mut stages = ctx.guard(graph::Stages::new(
             ctx,
             &settings,
             levels,
             thresholds,
             &mut scene_buffers,
         )?);
+        let typical = typical_radius(scene);
+        stages.raster.set_atom_radius(typical);
         let mut res = Resources {
             geom,
             expanded: scene.expanded,
             ids: scene.id_map().map(std::sync::Arc::new),
             translucent: scene.has_translucent(),
             bounds: (bs_center.as_dvec3(), bs_radius as f64),
-            typical_radius: typical_radius(scene) as f64,
+            typical_radius: typical as f64,
             placements: scene.nesting().map(|n| n.placements.len() as u64),
             storage_range: ctx.props.limits.max_storage_buffer_range,
             globals: Globals {

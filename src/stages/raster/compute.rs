@@ -4,7 +4,8 @@
 use crate::error::Result;
 use crate::gpu::blocks::RasterPush;
 use crate::gpu::consts::{
-    LOD_ARGS, LOD_BATCH_ARGS, R_ARGS, R_BANDS_REQ, R_BANDS_RUN, RASTER_ORDER, SCENE_PLAIN,
+    CAM_EARLY, CAM_LATE, CAM_PER_SLOT, CAM_RECHECK, LOD_ARGS, LOD_BATCH_ARGS, LOD_RECHECK_ARGS,
+    R_ARGS, R_BANDS_REQ, R_BANDS_RUN, RASTER_ORDER, SCENE_PLAIN,
 };
 use crate::passes::bands::{BandArgs, BandCounters, BandJob, BandPipelines};
 use crate::passes::scene::{SCENE_ATTRIBUTES, SCENE_GEOMETRY, SceneBuffers, SceneGeom};
@@ -37,6 +38,14 @@ pub const RASTER_COUNTERS: BandCounters = BandCounters {
     run: R_BANDS_RUN,
     args: R_ARGS,
 };
+
+/// Which views' LOD lists are drawn per batch (glsl/raster.comp
+/// `batch_part`; else per slot, as tests compare).
+#[derive(Clone, Copy, Debug)]
+pub struct PerBatch {
+    pub light: bool,
+    pub camera: bool,
+}
 
 /// Which view a raster pass draws.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -72,6 +81,21 @@ pub struct RasterIo<'b> {
     /// Clear `target` first (not for the camera's late phase, which adds
     /// to the early one's image).
     pub clear: bool,
+    /// The camera's list drawn per batch, each atom tested against depth
+    /// tiles first (with `lod`); None: per slot.
+    pub tested: Option<TileTest<'b>>,
+}
+
+/// How the camera's LOD list is tested per atom (glsl/raster.comp
+/// `batch_part`): the mode (CAM_EARLY, CAM_RECHECK, CAM_LATE) and the
+/// depth tiles of this frame's early image and of last frame's final one,
+/// both of fine tiles of 2^`shift` pixels.
+#[derive(Clone, Copy)]
+pub struct TileTest<'b> {
+    pub mode: u32,
+    pub now: &'b Buffer,
+    pub prev: &'b Buffer,
+    pub shift: u32,
 }
 
 pub struct RasterPass {
@@ -88,6 +112,12 @@ pub struct RasterPass {
     light_batches: Option<BandPipelines>,
     /// Whether this renderer draws the light's lists per batch.
     light_per_batch: bool,
+    /// The orthographic camera's LOD lists per batch, tested against
+    /// depth tiles (constant 5: CAM_EARLY, CAM_RECHECK, CAM_LATE), made
+    /// with the light's.
+    cam_batches: Option<[BandPipelines; 3]>,
+    /// Whether this renderer draws the camera's lists per batch.
+    cam_per_batch: bool,
     /// Kept to make them.
     scene: u32,
     args: BandArgs,
@@ -221,7 +251,7 @@ impl RasterPass {
     }
 
     /// The rasterizer's two pipelines with constants 2, 3, ... (PERSP,
-    /// SEE_THROUGH, LIGHT_BATCHES).
+    /// SEE_THROUGH, LIGHT_BATCHES, CAM_BATCHES).
     fn pipeline(ctx: &Context, scene: u32, constants: &[u32]) -> Result<BandPipelines> {
         let bindings = [
             &[
@@ -231,6 +261,8 @@ impl RasterPass {
                 rw("Counters"),
                 texel("visWordTex", ash::vk::Format::R32_UINT),
                 texel("orderTex", ash::vk::Format::R32_UINT),
+                texel("hizTex", ash::vk::Format::R32_UINT),
+                texel("hizPrevTex", ash::vk::Format::R32_UINT),
             ][..],
             &SCENE_GEOMETRY,
             &SCENE_ATTRIBUTES,
@@ -249,8 +281,8 @@ impl RasterPass {
     }
 
     /// The rasterizer for a scene of this SCENE_SPEC (passes::scene);
-    /// `light_per_batch`: an instanced scene's light lists per batch.
-    pub fn new(ctx: &Context, scene: u32, light_per_batch: bool) -> Result<Self> {
+    /// `per_batch`: an instanced scene's light and camera lists per batch.
+    pub fn new(ctx: &Context, scene: u32, per_batch: PerBatch) -> Result<Self> {
         let [ortho, persp] = Self::pipelines(ctx, scene, false)?;
         let ortho = ctx.guard(ortho);
         let persp = ctx.guard(persp);
@@ -271,7 +303,9 @@ impl RasterPass {
             pipes: [ortho.keep(), persp.keep()],
             see_through: None,
             light_batches: None,
-            light_per_batch: light_per_batch && scene & 0xFF != SCENE_PLAIN,
+            light_per_batch: per_batch.light && scene & 0xFF != SCENE_PLAIN,
+            cam_batches: None,
+            cam_per_batch: per_batch.camera && scene & 0xFF != SCENE_PLAIN,
             scene,
             args: args.keep(),
             jobs: jobs.keep(),
@@ -290,13 +324,29 @@ impl RasterPass {
         Ok(())
     }
 
-    /// Makes the light's per-batch pipelines (the first frame that draws
-    /// the light's LOD lists; nothing when the light is drawn per slot).
-    pub fn enable_light_batches(&mut self, ctx: &Context) -> Result<()> {
-        if self.light_per_batch && self.light_batches.is_none() {
+    /// Makes the per-batch pipelines (the first frame that draws the LOD
+    /// lists, the light's with `light`; nothing for a view drawn per
+    /// slot).
+    pub fn enable_batches(&mut self, ctx: &Context, light: bool) -> Result<()> {
+        if light && self.light_per_batch && self.light_batches.is_none() {
             self.light_batches = Some(Self::pipeline(ctx, self.scene, &[0, 0, 1])?);
         }
+        if self.cam_per_batch && self.cam_batches.is_none() {
+            let early = ctx.guard(Self::pipeline(ctx, self.scene, &[0, 0, 0, CAM_EARLY])?);
+            let recheck = ctx.guard(Self::pipeline(ctx, self.scene, &[0, 0, 0, CAM_RECHECK])?);
+            let late = Self::pipeline(ctx, self.scene, &[0, 0, 0, CAM_LATE])?;
+            self.cam_batches = Some([early.keep(), recheck.keep(), late]);
+        }
         Ok(())
+    }
+
+    /// Whether the camera's LOD lists may be drawn per batch, tested
+    /// against depth tiles, in a `w` x `h` window from an orthographic
+    /// (not `perspective`) camera without see-through spheres: the
+    /// pipelines are made, and the window's rows keep an invocation's band
+    /// appends within lavapipe's loop bound (glsl/raster.comp).
+    pub fn cam_batches_fit(&self, perspective: bool, see_through: bool, h: u32) -> bool {
+        self.cam_batches.is_some() && !perspective && !see_through && h <= 8192
     }
 
     /// Band jobs and counters (with the visibility buffers they serve).
@@ -362,6 +412,7 @@ impl RasterPass {
             texels: pixels,
             ref lod,
             clear,
+            tested,
         } = *io;
         // (a LOD list's slots are ids, from its first; a view order's
         // batches are the static table's)
@@ -393,7 +444,8 @@ impl RasterPass {
             job_capacity: JOB_CAPACITY,
             sphere_count,
             list_base,
-            pad: [0; 3],
+            hiz_shift: tested.map_or(0, |t| t.shift),
+            pad: [0; 2],
         };
         let pipes = match (&self.see_through, see_through) {
             (Some(p), true) => p,
@@ -405,10 +457,27 @@ impl RasterPass {
             _ => &self.pipes,
         };
         // (the key light's LOD lists per batch where the scene allows it)
-        let batches = match (&self.light_batches, lod.as_ref()) {
-            (Some(b), Some(l)) if view == ViewIndex::Light => {
-                Some((b, l.args_offset + ((LOD_BATCH_ARGS - LOD_ARGS) * 4) as u64))
+        // (and the camera's, tested, where asked)
+        let per_batch = match (view, tested) {
+            (ViewIndex::Light, _) => self.light_batches.as_ref(),
+            (ViewIndex::Camera, Some(t)) if t.mode != CAM_PER_SLOT => {
+                let Some(c) = &self.cam_batches else {
+                    return Err(crate::error::Error::Internal(
+                        "the camera's per-batch pipelines were not made".into(),
+                    ));
+                };
+                c.get(t.mode as usize - CAM_EARLY as usize)
             }
+            _ => None,
+        };
+        // (the recheck's arguments are empty where the camera's tiles are
+        // last frame's: glsl/lod_args.comp)
+        let args = match tested {
+            Some(t) if t.mode == CAM_RECHECK => LOD_RECHECK_ARGS,
+            _ => LOD_BATCH_ARGS,
+        };
+        let batches = match (per_batch, lod.as_ref()) {
+            (Some(b), Some(l)) => Some((b, l.args_offset + ((args - LOD_ARGS) * 4) as u64)),
             _ => None,
         };
         let pipe = match batches {
@@ -428,6 +497,9 @@ impl RasterPass {
                     _ => &order.buf,
                 },
             ),
+            // (untested: any texel buffer, unread)
+            ("hizTex", tested.map_or(vis, |t| t.now)),
+            ("hizPrevTex", tested.map_or(vis, |t| t.prev)),
         ];
         bindings.extend(scene.geometry());
         bindings.extend(scene.attributes());
@@ -468,6 +540,7 @@ impl RasterPass {
             .iter_mut()
             .chain(self.see_through.iter_mut().flatten())
             .chain(self.light_batches.iter_mut())
+            .chain(self.cam_batches.iter_mut().flatten())
         {
             p.destroy(ctx);
         }

@@ -56,11 +56,13 @@ const BOUNDS_BINDINGS: [Binding; 3] = [
     rw("Region"),
 ];
 
-const HIZ_BINDINGS: [Binding; 4] = [
+const HIZ_BINDINGS: [Binding; 6] = [
     uniform("GlobalsBlock"),
     texel("visWordTex", Format::R32_UINT),
     rw("Hiz"),
     ro("Region"),
+    texel("hizPrevTex", Format::R32_UINT),
+    rw("Counters"),
 ];
 
 /// Receiver tiles of the light map (glsl/lod_receivers.glsl) at most: a
@@ -208,6 +210,10 @@ pub struct LodCull {
     /// 506 A on 10^9 drew 2.3x as much late).
     last_views: std::cell::RefCell<[Vec<u8>; 2]>,
     moved: [std::cell::Cell<bool>; 2],
+    /// Keep a moved view's last tiles and test the camera's atoms against
+    /// them (tests: the recheck then has work; the knob
+    /// `LodParams::lod_keep_moved_history`).
+    pub keep_moved_history: bool,
     /// `visible` holds a frame's result (cleared before the first).
     history: std::cell::Cell<bool>,
     /// The light texels of the camera's visible points (x0, y0, x1, y1).
@@ -379,6 +385,7 @@ impl LodCull {
             cull: [ortho.keep(), persp.keep(), light.keep()],
             deferral: deferral.keep(),
             deferred_given: deferred_batches,
+            keep_moved_history: false,
             args: args.keep(),
             hiz: [hiz_fine.keep(), hiz_coarse.keep(), hiz_super.keep()],
             visible: visible.keep(),
@@ -599,7 +606,7 @@ impl LodCull {
         // (the early phase reads the last final image's tiles, emptied
         // when the view moved: nothing hidden, every batch of last frame's
         // visible instances drawn early)
-        if self.moved[view as usize].get() {
+        if self.moved[view as usize].get() && !self.keep_moved_history {
             let b = &self.hiz_prev[view as usize];
             p.fill(b, b.size, u32::MAX);
         }
@@ -620,17 +627,25 @@ impl LodCull {
         (w, h): (u32, u32),
         shift: u32,
     ) {
+        // (the camera's early tiles are compared with last frame's; any
+        // other texel buffer where nothing is compared)
+        let prev = &self.hiz_prev[view as usize];
+        let compare = view == ViewIndex::Camera && !std::ptr::eq(tiles_buf, prev);
         let hb = [
             ("GlobalsBlock", globals),
             ("visWordTex", vis),
             ("Hiz", tiles_buf),
             ("Region", &self.region),
+            ("hizPrevTex", if compare { prev } else { vis }),
+            ("Counters", &self.counters),
         ];
         let push = LodHizPush {
             view_index: view as u32,
             hiz_shift: shift,
             reach: self.reach.get(),
             receiver_shift: receiver_shift(w, h),
+            compare: compare as u32,
+            pad: [0; 3],
         };
         p.dispatch(
             &self.hiz[0],
@@ -698,6 +713,23 @@ impl LodCull {
                 last[i] = v.to_vec();
             }
         }
+    }
+
+    /// The camera's depth tiles: of this frame's early image, of last
+    /// frame's final image.
+    pub fn camera_tiles(&self) -> (&Buffer, &Buffer) {
+        (&self.hiz_tiles[0], &self.hiz_prev[0])
+    }
+
+    /// Whether the camera moved since the last frame (its last tiles are
+    /// emptied before this frame's early phase).
+    pub fn camera_moved(&self) -> bool {
+        self.moved[0].get() && !self.keep_moved_history
+    }
+
+    /// The shift of the camera's last final tiles (28: none yet).
+    pub fn camera_prev_shift(&self) -> u32 {
+        self.prev_shift[0].get()
     }
 
     /// `view`'s late list.

@@ -63,6 +63,7 @@ impl<'a> ShadowInputs<'a> {
             texels: w as u64 * h as u64,
             lod,
             clear,
+            tested: None,
         };
         let light = ViewIndex::Light;
         self.raster
