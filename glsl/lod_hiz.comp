@@ -6,7 +6,9 @@
 // empty pixel's word is all ones: nothing behind it is hidden); MODE 1,
 // one per coarse tile (8T x 8T), the farthest of its 8x8 fine tiles;
 // MODE 2, one per super tile (64T x 64T), of its 8x8 coarse tiles. They
-// lie in that order in `hiz`.
+// lie in that order in `hiz`; the camera's 4-px fine tiles also write
+// their 2-px quadrants after them (pc.micro_base: the per-atom test of
+// its batch raster, glsl/raster.comp `tiles_hide`).
 #include "shared.glsl"
 
 layout(local_size_x = 64) in;
@@ -39,9 +41,27 @@ void main() {
         if (i >= tf.x * tf.y) return;
         uvec2 o = uvec2(i % tf.x, i / tf.x) * T;
         uint x1 = min(o.x + T, w), y1 = min(o.y + T, h);
+        // (the camera's 2-px tiles of a 4-px one, pc.micro_base: its
+        // quadrants, q[row][column])
+        uvec4 q = uvec4(0u);
         for (uint y = o.y; y < y1; ++y) {
             for (uint x = o.x; x < x1; ++x) {
-                far = max(far, texelFetch(visWordTex, int(2u * (y * w + x) + 1u)).x);
+                uint word = texelFetch(visWordTex, int(2u * (y * w + x) + 1u)).x;
+                far = max(far, word);
+                bool right = x - o.x >= 2u, low = y - o.y >= 2u;
+                q = max(q, uvec4(!low && !right, !low && right, low && !right, low && right) * word);
+            }
+        }
+        if (pc.micro_base != 0u) {
+            uint mw = (w + 1u) / 2u;
+            for (uint k = 0u; k < 4u; ++k) {
+                uvec2 m = o / 2u + uvec2(k & 1u, k >> 1u);
+                if (2u * m.x >= w || 2u * m.y >= h) continue;
+                uint at = pc.micro_base + m.y * mw + m.x;
+                hiz[at] = q[k];
+                if (pc.compare != 0u && texelFetch(hizPrevTex, int(at)).x != q[k]) {
+                    atomicOr(counters[LOD_TILES_CHANGED], 1u);
+                }
             }
         }
         // A light tile hides what lies farther from the light than every

@@ -111,18 +111,22 @@ layout(set = 0, binding = 7) uniform usamplerBuffer hizTex;
 layout(set = 0, binding = 8) uniform usamplerBuffer hizPrevTex;
 
 // Whether the tiles under window rectangle rc all hold surfaces nearer
-// than depth word `near` (last frame's with `prev`): 2x2 fine tiles
-// (2^pc.hiz_shift pixels) at most, else 2x2 coarse ones (8x8 fine), else
-// not hidden. (A bool, not the sampler: one function.)
+// than depth word `near` (last frame's with `prev`): 2x2 tiles of 2 px at
+// most (from word pc.micro_base; 0: none), else 2x2 fine tiles (2^pc.hiz_shift
+// pixels), else 2x2 coarse ones (8x8 fine), else not hidden. (A bool, not
+// the sampler: one function.)
 bool tiles_hide(bool prev, View v, ivec4 rc, uint near) {
     ivec2 lo = ivec2(v.dims.zw);
+    ivec4 r = rc - ivec4(lo, lo);
     int S = int(pc.hiz_shift);
-    ivec4 t = (rc - ivec4(lo, lo)) >> S;
+    ivec4 m = r >> 1, t = r >> S;
+    bool micro = pc.micro_base != 0u && m.z - m.x <= 1 && m.w - m.y <= 1;
     bool fine = t.z - t.x <= 1 && t.w - t.y <= 1;
     uint T = 1u << S;
-    int base = fine ? 0 : int(((v.dims.x + T - 1u) >> S) * ((v.dims.y + T - 1u) >> S));
-    int sh = fine ? S : S + 3;
-    t = (rc - ivec4(lo, lo)) >> sh;
+    int base = micro ? int(pc.micro_base)
+                     : fine ? 0 : int(((v.dims.x + T - 1u) >> S) * ((v.dims.y + T - 1u) >> S));
+    int sh = micro ? 1 : fine ? S : S + 3;
+    t = r >> sh;
     if (t.z - t.x > 1 || t.w - t.y > 1) return false;
     int tw = int((v.dims.x + (1u << sh) - 1u) >> sh);
     int last = (prev ? textureSize(hizPrevTex) : textureSize(hizTex)) - 1;

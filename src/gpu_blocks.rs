@@ -109,7 +109,10 @@ gpu_push! {
         /// The camera's depth tiles' shift (fine tiles of 2^s pixels,
         /// glsl/lod_hiz.comp), for its per-batch tests (CAM_EARLY, ...).
         hiz_shift: u32,
-        pad: [u32; 2],
+        /// Where the camera's 2-px tiles start in its tile buffers (0:
+        /// none; src/stages/raster/lod.rs `micro_base`).
+        micro_base: u32,
+        pad: u32,
     }
 
     /// `lod_cull` (glsl/lod_cull.comp): one invocation per instance.
@@ -162,7 +165,10 @@ gpu_push! {
         /// The camera's early tiles: flag LOD_TILES_CHANGED where a fine
         /// tile differs from last frame's (hizPrevTex).
         compare: u32,
-        pad: [u32; 3],
+        /// The camera's 4-px fine tiles: its 2-px tiles too, from this
+        /// word (0: none; src/stages/raster/lod.rs `micro_base`).
+        micro_base: u32,
+        pad: [u32; 2],
     }
 
     /// `lod_args` (glsl/lod_args.comp): the cull's counts into indirect

@@ -89,13 +89,15 @@ pub struct RasterIo<'b> {
 /// How the camera's LOD list is tested per atom (glsl/raster.comp
 /// `batch_part`): the mode (CAM_EARLY, CAM_RECHECK, CAM_LATE) and the
 /// depth tiles of this frame's early image and of last frame's final one,
-/// both of fine tiles of 2^`shift` pixels.
+/// both of fine tiles of 2^`shift` pixels, and of 2-px tiles from word
+/// `micro_base` (0: none).
 #[derive(Clone, Copy)]
 pub struct TileTest<'b> {
     pub mode: u32,
     pub now: &'b Buffer,
     pub prev: &'b Buffer,
     pub shift: u32,
+    pub micro_base: u32,
 }
 
 pub struct RasterPass {
@@ -445,7 +447,8 @@ impl RasterPass {
             sphere_count,
             list_base,
             hiz_shift: tested.map_or(0, |t| t.shift),
-            pad: [0; 2],
+            micro_base: tested.map_or(0, |t| t.micro_base),
+            pad: 0,
         };
         let pipes = match (&self.see_through, see_through) {
             (Some(p), true) => p,

@@ -119,6 +119,20 @@ pub fn hiz_shift(view: ViewIndex, w: u32, h: u32) -> u32 {
         .unwrap_or(28)
 }
 
+/// Where the camera's 2-px depth tiles start in its tile buffers, after
+/// its fine, coarse and super tiles, for a `w` x `h` window: the per-atom
+/// test of its batch raster (glsl/raster.comp `tiles_hide`) reads them for
+/// atoms of a few pixels, where a 4-px tile's farthest depth hides few
+/// (the batch cull keeps its coarser tiles: 2-px ones there cost the 10^12
+/// scene at 506 A 7x its raster). They are made with the 4-px tiles
+/// (glsl/lod_hiz.comp, a 4-px tile's quadrants); None where those are
+/// coarser or the buffer has no room (windows past ~2.7 M pixels).
+pub fn micro_base(w: u32, h: u32) -> Option<u32> {
+    let s = hiz_shift(ViewIndex::Camera, w, h);
+    let base = tiles(w, h, 1 << s) + tiles(w, h, 8 << s) + tiles(w, h, 64 << s);
+    (s == 2 && base + tiles(w, h, 2) <= HIZ_WORDS).then_some(base as u32)
+}
+
 /// Batches the early phases may defer with lists of `capacity`: a
 /// quarter (meso 10^9 deferred at most 148 k batches a view at 8,100 /
 /// 2,025 / 506 A, where the lists held 0.5-4 M; the lists grow 4x past
@@ -645,7 +659,12 @@ impl LodCull {
             reach: self.reach.get(),
             receiver_shift: receiver_shift(w, h),
             compare: compare as u32,
-            pad: [0; 3],
+            // (the camera's 2-px tiles, for its atoms: `micro_base`)
+            micro_base: match view {
+                ViewIndex::Camera => micro_base(w, h).unwrap_or(0),
+                ViewIndex::Light => 0,
+            },
+            pad: [0; 2],
         };
         p.dispatch(
             &self.hiz[0],

@@ -332,6 +332,7 @@ impl RasterStage {
             now,
             prev,
             shift,
+            micro_base: lod::micro_base(w, h).unwrap_or(0),
         })
     }
 
