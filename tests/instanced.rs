@@ -881,13 +881,13 @@ fn the_camera_per_batch_draws_the_per_slot_frame() {
     let mut zoomed = whole;
     zoomed.view_height /= 16.0;
     // (near the closest the camera's lists are drawn per batch: the median
-    // atom radius 5 pixels, under src/stages/raster/mod.rs
+    // atom radius 4.5 pixels, under src/stages/raster/mod.rs
     // CAM_BATCH_MAX_PIXELS; larger atoms span 2x2 coarse tiles and reach
     // the bands)
     let mut radii: Vec<f32> = s.spheres.iter().map(|a| a.radius).collect();
     radii.sort_by(f32::total_cmp);
     let mut closer = whole;
-    closer.view_height = closer.height as f64 * radii[radii.len() / 2] as f64 / 5.0;
+    closer.view_height = closer.height as f64 * radii[radii.len() / 2] as f64 / 4.5;
     let pan = meso_pan(&s);
     let still = |c| vec![c, c, c];
     let pans = [0.0, 0.0, 0.03, 0.06, 0.1].map(&pan).to_vec();

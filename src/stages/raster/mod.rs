@@ -69,12 +69,13 @@ pub struct RasterInputs<'a> {
 
 /// The largest typical atom radius, in pixels, at which the camera's LOD
 /// lists are drawn per batch (closer, per slot). Meso 10^9 at 1080p,
-/// camera raster (+ recheck) against per slot: 2,025 A (~0.9 px) 166 vs
-/// 323 ms, 506 A (~3.6 px) 165 vs 197, 127 A (~15 px) 149 vs 138; the
-/// 10^12 scene at 127 A 243 vs 117: one invocation draws its part's
-/// candidates one after another, or in bands, where the per-slot raster
-/// draws a vector of them side by side.
-const CAM_BATCH_MAX_PIXELS: f64 = 6.0;
+/// camera raster (+ recheck) per slot -> per batch: 2,025 A (~0.9 px)
+/// 323 -> 166 ms, 506 A (~3.6 px) 197 -> 165, 400 A 171 -> 141, but
+/// 330 A 144 -> 193 and 127 A (~15 px) 138 -> 149; the 10^12 scene at
+/// 127 A 117 -> 243: one invocation draws its part's candidates one after
+/// another, or in bands, where the per-slot raster draws a vector of them
+/// side by side.
+const CAM_BATCH_MAX_PIXELS: f64 = 5.0;
 
 /// The camera's visibility buffer as a rasterization's target.
 fn camera_io<'a>(
