@@ -28,11 +28,13 @@ pub fn counters_buffer(ctx: &Context, name: &str, bytes: u64) -> Result<Buffer> 
     )
 }
 
-/// One band-skeleton job of a pass: which pipelines, what they read and
-/// write (`bindings` serve both pipelines; `counters` is the buffer bound
-/// as "Counters", with its words at `layout`).
+/// One band-skeleton job of a pass: which pipelines (per sphere, per
+/// band: variants of the per-sphere pass may share one band pipeline),
+/// what they read and write (`bindings` serve both pipelines; `counters`
+/// is the buffer bound as "Counters", with its words at `layout`).
 pub struct BandJob<'a, 'b, P> {
-    pub pipes: &'b BandPipelines,
+    pub spheres: &'b ComputePipeline,
+    pub bands: &'b ComputePipeline,
     pub push: &'a P,
     pub bindings: &'a [(&'static str, &'b Buffer)],
     pub sphere_count: u32,
@@ -58,24 +60,33 @@ impl BandPipelines {
     /// Both pipelines of `desc`'s shader; `constants` are ids 2, 3, ... (id
     /// 1 is BAND_PASS).
     pub fn new(ctx: &Context, desc: &PipelineDesc, constants: &[u32]) -> Result<Self> {
-        let make = |band: u32, suffix: &str| {
-            let mut c = vec![band];
-            c.extend_from_slice(constants);
-            ComputePipeline::new(
-                ctx,
-                &PipelineDesc {
-                    name: &format!("{}{suffix}", desc.name),
-                    constants: &c,
-                    ..*desc
-                },
-            )
-        };
-        let spheres = ctx.guard(make(0, "")?);
-        let bands = make(1, " bands")?;
+        let spheres = ctx.guard(Self::pass(ctx, desc, 0, constants)?);
+        let bands = Self::pass(ctx, desc, 1, constants)?;
         Ok(BandPipelines {
             spheres: spheres.keep(),
             bands,
         })
+    }
+
+    /// One of the two: `band` 0, per sphere (alone for a variant that
+    /// shares another's band pipeline), 1 per band.
+    pub fn pass(
+        ctx: &Context,
+        desc: &PipelineDesc,
+        band: u32,
+        constants: &[u32],
+    ) -> Result<ComputePipeline> {
+        let mut c = vec![band];
+        c.extend_from_slice(constants);
+        let suffix = if band == 0 { "" } else { " bands" };
+        ComputePipeline::new(
+            ctx,
+            &PipelineDesc {
+                name: &format!("{}{suffix}", desc.name),
+                constants: &c,
+                ..*desc
+            },
+        )
     }
 
     pub fn destroy(&mut self, ctx: &Context) {
@@ -109,10 +120,10 @@ impl BandArgs {
             Some((b, offset)) => Grid::Indirect(b, offset),
             None => Grid::Invocations(job.sphere_count as u64),
         };
-        p.dispatch(&job.pipes.spheres, job.push, grid, job.bindings);
+        p.dispatch(job.spheres, job.push, grid, job.bindings);
         self.step(p, job.counters, job.layout);
         p.dispatch(
-            &job.pipes.bands,
+            job.bands,
             job.push,
             Grid::Indirect(job.counters, job.layout.args_offset()),
             job.bindings,

@@ -364,8 +364,9 @@ impl SeeThrough {
         };
         let view = io.perspective as usize;
         // count and fill: one enumeration, two modes
-        let job = |pipes| BandJob {
-            pipes,
+        let job = |spheres, bands| BandJob {
+            spheres,
+            bands,
             push: &push,
             bindings: &bufs,
             sphere_count: self.sphere_count,
@@ -379,7 +380,8 @@ impl SeeThrough {
             p.fill(&self.counters, COUNTER_WORDS * 4, 0);
             let words = (self.sphere_count as u64).div_ceil(32).max(1);
             p.fill(&self.inline_bits, words * 4, 0);
-            self.args.steps(p, &job(&self.count[view]));
+            self.args
+                .steps(p, &job(&self.count[view].spheres, &self.count[view].bands));
             Ok(())
         })?;
         rec.pass("oit_alloc", |p| {
@@ -399,7 +401,8 @@ impl SeeThrough {
             Ok(())
         })?;
         rec.pass("oit_fill", |p| {
-            self.args.steps(p, &job(&self.fill[view]));
+            self.args
+                .steps(p, &job(&self.fill[view].spheres, &self.fill[view].bands));
             Ok(())
         })
     }

@@ -12,7 +12,7 @@ use crate::passes::scene::{SCENE_ATTRIBUTES, SCENE_GEOMETRY, SceneBuffers, Scene
 use crate::passes::{LOCAL_SIZE, spirv};
 use crate::vk::guard::Destroy;
 use crate::vk::pipeline::{PipelineDesc, rw, texel, uniform};
-use crate::vk::{Buffer, Context, PassBuilder};
+use crate::vk::{Buffer, ComputePipeline, Context, PassBuilder};
 use glam::DVec3;
 
 /// Footprints above this many pixels are split into 8-row bands run by whole
@@ -109,15 +109,18 @@ pub struct RasterPass {
     /// see-through spheres.
     see_through: Option<[BandPipelines; 2]>,
     /// The key light's LOD lists drawn per batch (constant 4,
-    /// LIGHT_BATCHES: glsl/raster.comp `light_batch`), made the first time
-    /// a frame draws them (instanced scenes; else per slot, as the camera's).
-    light_batches: Option<BandPipelines>,
+    /// LIGHT_BATCHES: glsl/raster.comp `batch_part`), made the first time
+    /// a frame draws them (instanced scenes; else per slot). The per-batch
+    /// variants are per-sphere pipelines only: their bands are the
+    /// orthographic per-slot pipeline's (the same band code: ~10 ms of
+    /// start-up each).
+    light_batches: Option<ComputePipeline>,
     /// Whether this renderer draws the light's lists per batch.
     light_per_batch: bool,
     /// The orthographic camera's LOD lists per batch, tested against
     /// depth tiles (constant 5: CAM_EARLY, CAM_RECHECK, CAM_LATE), made
     /// with the light's.
-    cam_batches: Option<[BandPipelines; 3]>,
+    cam_batches: Option<[ComputePipeline; 3]>,
     /// Whether this renderer draws the camera's lists per batch.
     cam_per_batch: bool,
     /// Kept to make them.
@@ -255,6 +258,15 @@ impl RasterPass {
     /// The rasterizer's two pipelines with constants 2, 3, ... (PERSP,
     /// SEE_THROUGH, LIGHT_BATCHES, CAM_BATCHES).
     fn pipeline(ctx: &Context, scene: u32, constants: &[u32]) -> Result<BandPipelines> {
+        Self::with_desc(scene, |desc| BandPipelines::new(ctx, desc, constants))
+    }
+
+    /// Its per-sphere pipeline alone (a per-batch variant).
+    fn sphere_pipeline(ctx: &Context, scene: u32, constants: &[u32]) -> Result<ComputePipeline> {
+        Self::with_desc(scene, |desc| BandPipelines::pass(ctx, desc, 0, constants))
+    }
+
+    fn with_desc<T>(scene: u32, make: impl FnOnce(&PipelineDesc) -> Result<T>) -> Result<T> {
         let bindings = [
             &[
                 uniform("GlobalsBlock"),
@@ -270,7 +282,7 @@ impl RasterPass {
             &SCENE_ATTRIBUTES,
         ]
         .concat();
-        let desc = PipelineDesc {
+        make(&PipelineDesc {
             name: "raster spheres",
             shader: spirv::RASTER_COMP,
             bindings: &bindings,
@@ -278,8 +290,7 @@ impl RasterPass {
             local_size: LOCAL_SIZE,
             constants: &[],
             scene,
-        };
-        BandPipelines::new(ctx, &desc, constants)
+        })
     }
 
     /// The rasterizer for a scene of this SCENE_SPEC (passes::scene);
@@ -331,12 +342,13 @@ impl RasterPass {
     /// slot).
     pub fn enable_batches(&mut self, ctx: &Context, light: bool) -> Result<()> {
         if light && self.light_per_batch && self.light_batches.is_none() {
-            self.light_batches = Some(Self::pipeline(ctx, self.scene, &[0, 0, 1])?);
+            self.light_batches = Some(Self::sphere_pipeline(ctx, self.scene, &[0, 0, 1])?);
         }
         if self.cam_per_batch && self.cam_batches.is_none() {
-            let early = ctx.guard(Self::pipeline(ctx, self.scene, &[0, 0, 0, CAM_EARLY])?);
-            let recheck = ctx.guard(Self::pipeline(ctx, self.scene, &[0, 0, 0, CAM_RECHECK])?);
-            let late = Self::pipeline(ctx, self.scene, &[0, 0, 0, CAM_LATE])?;
+            let pipe = |mode| Self::sphere_pipeline(ctx, self.scene, &[0, 0, 0, mode]);
+            let early = ctx.guard(pipe(CAM_EARLY)?);
+            let recheck = ctx.guard(pipe(CAM_RECHECK)?);
+            let late = pipe(CAM_LATE)?;
             self.cam_batches = Some([early.keep(), recheck.keep(), late]);
         }
         Ok(())
@@ -483,9 +495,13 @@ impl RasterPass {
             (Some(b), Some(l)) => Some((b, l.args_offset + ((args - LOD_ARGS) * 4) as u64)),
             _ => None,
         };
-        let pipe = match batches {
-            Some((b, _)) => b,
-            None => &pipes[(view == ViewIndex::Camera && perspective) as usize],
+        // (a per-batch variant's bands: the orthographic per-slot one's)
+        let (spheres, bands) = match batches {
+            Some((b, _)) => (b, &self.pipes[0].bands),
+            None => {
+                let p = &pipes[(view == ViewIndex::Camera && perspective) as usize];
+                (&p.spheres, &p.bands)
+            }
         };
         let mut bindings = vec![
             ("GlobalsBlock", globals),
@@ -509,7 +525,8 @@ impl RasterPass {
         self.args.steps(
             p,
             &BandJob {
-                pipes: pipe,
+                spheres,
+                bands,
                 push: &push,
                 bindings: &bindings,
                 sphere_count,
@@ -542,7 +559,12 @@ impl RasterPass {
             .pipes
             .iter_mut()
             .chain(self.see_through.iter_mut().flatten())
-            .chain(self.light_batches.iter_mut())
+        {
+            p.destroy(ctx);
+        }
+        for p in self
+            .light_batches
+            .iter_mut()
             .chain(self.cam_batches.iter_mut().flatten())
         {
             p.destroy(ctx);

@@ -289,7 +289,8 @@ impl ShadowTechnique for OpacityShadows {
             self.args.steps(
                 p,
                 &BandJob {
-                    pipes: &self.raster,
+                    spheres: &self.raster.spheres,
+                    bands: &self.raster.bands,
                     push: &push,
                     bindings: &bindings,
                     sphere_count: self.sphere_count,

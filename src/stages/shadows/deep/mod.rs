@@ -476,7 +476,8 @@ impl DeepShadows {
             self.args.steps(
                 p,
                 &BandJob {
-                    pipes: &self.count,
+                    spheres: &self.count.spheres,
+                    bands: &self.count.bands,
                     push: &splat,
                     bindings: &splat_bufs,
                     sphere_count: self.sphere_count,
@@ -509,7 +510,8 @@ impl DeepShadows {
             self.args.steps(
                 p,
                 &BandJob {
-                    pipes: &self.fill,
+                    spheres: &self.fill.spheres,
+                    bands: &self.fill.bands,
                     push: &splat,
                     bindings: &splat_bufs,
                     sphere_count: self.sphere_count,
