@@ -26,11 +26,12 @@ void main() {
         uint w = v * LOD_WORDS;
         uint listed = min(counters[w + LOD_BATCHES], pc.capacity);
         dispatch_args(w + LOD_ARGS, listed * pc.per, pc.local_size);
-        dispatch_args(w + LOD_BATCH_ARGS, listed * light_parts(pc.per), pc.local_size);
+        uint parts = listed * light_parts(pc.per);
+        dispatch_args(w + LOD_BATCH_ARGS, parts, pc.local_size);
         // (the camera's recheck: nothing where its tiles are last frame's)
         if (v == 0u) {
             bool changed = counters[LOD_TILES_CHANGED] != 0u;
-            dispatch_args(LOD_RECHECK_ARGS, changed ? listed * light_parts(pc.per) : 0u, pc.local_size);
+            dispatch_args(LOD_RECHECK_ARGS, changed ? parts : 0u, pc.local_size);
         }
         if (v < 2u) {
             dispatch_args(w + LOD_DEFER_INSTANCE_ARGS, counters[w + LOD_DEFER_INSTANCES], 64u);

@@ -154,13 +154,15 @@ pub(crate) struct Stages {
 
 impl Stages {
     /// `levels` and `thresholds`: the semantic SSDO levels of the scene;
-    /// `scene`: its kind (passes::scene), every scene pipeline's SCENE_KIND.
+    /// `scene`: its kind (passes::scene), every scene pipeline's SCENE_KIND;
+    /// `typical_radius`: its typical sphere radius.
     pub fn new(
         ctx: &Context,
         settings: &RenderSettings,
         levels: Vec<u32>,
         thresholds: Vec<f64>,
         scene_buffers: &mut crate::passes::scene::SceneBuffers,
+        typical_radius: f32,
     ) -> Result<Self> {
         let scene = scene_buffers.spec;
         Ok(Stages {
@@ -169,6 +171,7 @@ impl Stages {
                 settings.raster == RasterMode::Graphics,
                 scene_buffers,
                 &settings.lod,
+                typical_radius,
             )?,
             see_through: None,
             shadows: ShadowStage::new(),

@@ -330,15 +330,15 @@ impl<'c> Renderer<'c> {
         // Without a hierarchy every sphere is its own region (semantic SSDO
         // then equals plain SSDO).
         let no_levels = levels.is_empty() as u32;
-        let mut stages = ctx.guard(graph::Stages::new(
+        let typical = typical_radius(scene);
+        let stages = ctx.guard(graph::Stages::new(
             ctx,
             &settings,
             levels,
             thresholds,
             &mut scene_buffers,
+            typical,
         )?);
-        let typical = typical_radius(scene);
-        stages.raster.set_atom_radius(typical);
         let mut res = Resources {
             geom,
             expanded: scene.expanded,

@@ -355,7 +355,7 @@ impl RasterPass {
     }
 
     /// Whether the camera's LOD lists may be drawn per batch, tested
-    /// against depth tiles, in a `w` x `h` window from an orthographic
+    /// against depth tiles, in a window `h` rows high from an orthographic
     /// (not `perspective`) camera without see-through spheres: the
     /// pipelines are made, and the window's rows keep an invocation's band
     /// appends within lavapipe's loop bound (glsl/raster.comp).

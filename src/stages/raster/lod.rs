@@ -227,7 +227,7 @@ pub struct LodCull {
     /// Keep a moved view's last tiles and test the camera's atoms against
     /// them (tests: the recheck then has work; the knob
     /// `LodParams::lod_keep_moved_history`).
-    pub keep_moved_history: bool,
+    keep_moved_history: bool,
     /// `visible` holds a frame's result (cleared before the first).
     history: std::cell::Cell<bool>,
     /// The light texels of the camera's visible points (x0, y0, x1, y1).
@@ -264,16 +264,18 @@ impl LodCull {
     pub const LIGHT_LATE: &'static str = "light_raster_late";
 
     /// The cull of a scene (SCENE_SPEC `scene`) with levels `lod`, whose
-    /// lists it makes: each view's starts `list_batches` long (default
-    /// [`initial_capacity`]) and grows on overflow
-    /// ([`LodCull::grow_lists`]).
+    /// lists it makes: each view's starts `params.lod_list_batches` long
+    /// (default [`initial_capacity`]) and grows on overflow
+    /// ([`LodCull::grow_lists`]); the deferral room and the kept history
+    /// as `params` says.
     pub fn new(
         ctx: &Context,
         scene: u32,
         lod: &mut LodBuffers,
-        list_batches: Option<u32>,
-        deferred_batches: Option<u32>,
+        params: &crate::settings::LodParams,
     ) -> Result<Self> {
+        let (list_batches, deferred_batches) =
+            (params.lod_list_batches, params.lod_deferred_batches);
         let bindings = [&BINDINGS[..], &SCENE_GEOMETRY].concat();
         let make = |name: &str, (persp, view): (u32, u32), mode: u32| {
             ComputePipeline::new(
@@ -399,7 +401,7 @@ impl LodCull {
             cull: [ortho.keep(), persp.keep(), light.keep()],
             deferral: deferral.keep(),
             deferred_given: deferred_batches,
-            keep_moved_history: false,
+            keep_moved_history: params.lod_keep_moved_history,
             args: args.keep(),
             hiz: [hiz_fine.keep(), hiz_coarse.keep(), hiz_super.keep()],
             visible: visible.keep(),
@@ -629,22 +631,22 @@ impl LodCull {
     }
 
     /// Dispatches that build the depth tiles of `view`'s image `vis` (`w`
-    /// x `h`) into `tiles`: fine ones of 2^shift pixels, then coarse and super ones.
+    /// x `h`) into `tiles_buf`: fine ones of 2^shift pixels, then coarse and
+    /// super ones; with `compare`, LOD_TILES_CHANGED set where a fine (or
+    /// 2-px) tile differs from last frame's.
     #[allow(clippy::too_many_arguments)]
     fn tiles_steps<'b>(
         &'b self,
         p: &mut PassBuilder<'b>,
         globals: &'b Buffer,
         vis: &'b Buffer,
-        tiles_buf: &'b Buffer,
+        (tiles_buf, compare): (&'b Buffer, bool),
         view: ViewIndex,
         (w, h): (u32, u32),
         shift: u32,
     ) {
-        // (the camera's early tiles are compared with last frame's; any
-        // other texel buffer where nothing is compared)
+        // (any other texel buffer where nothing is compared)
         let prev = &self.hiz_prev[view as usize];
-        let compare = view == ViewIndex::Camera && !std::ptr::eq(tiles_buf, prev);
         let hb = [
             ("GlobalsBlock", globals),
             ("visWordTex", vis),
@@ -698,7 +700,9 @@ impl LodCull {
     ) -> Result<()> {
         let shift = hiz_shift(view, size.0, size.1);
         let buf = &self.hiz_tiles[view as usize];
-        self.tiles_steps(p, globals, vis, buf, view, size, shift);
+        // (the camera's early tiles are compared with last frame's)
+        let compare = view == ViewIndex::Camera;
+        self.tiles_steps(p, globals, vis, (buf, compare), view, size, shift);
         let list = LATE + view as usize;
         self.cull_into(p, globals, scene, list, view, perspective, shift)
     }
@@ -716,7 +720,7 @@ impl LodCull {
         let shift = hiz_shift(view, size.0, size.1);
         self.prev_shift[view as usize].set(shift);
         let buf = &self.hiz_prev[view as usize];
-        self.tiles_steps(p, globals, vis, buf, view, size, shift);
+        self.tiles_steps(p, globals, vis, (buf, false), view, size, shift);
     }
 
     /// Before a frame's culls: the camera's and the light's GPU views, to

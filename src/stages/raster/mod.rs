@@ -112,14 +112,16 @@ pub struct RasterStage {
 }
 
 impl RasterStage {
-    /// The stage for a scene (its SCENE_SPEC and levels of detail).
-    /// `lod`: the LOD lists' initial length (`--lod-list-batches`) and
-    /// the cull's deferral room.
+    /// The stage for a scene (its SCENE_SPEC and levels of detail, its
+    /// typical atom radius `atom_radius`). `lod`: the LOD lists' initial
+    /// length (`--lod-list-batches`), the cull's deferral room, the views
+    /// drawn per batch.
     pub fn new(
         ctx: &Context,
         graphics: bool,
         scene_buffers: &mut SceneBuffers,
         lod: &crate::settings::LodParams,
+        atom_radius: f32,
     ) -> Result<Self> {
         let scene = scene_buffers.spec;
         if graphics && scene & 0xFF != crate::gpu::consts::SCENE_PLAIN {
@@ -140,17 +142,7 @@ impl RasterStage {
         let compute = ctx.guard(RasterPass::new(ctx, scene, per_batch)?);
         let coverage = ctx.guard(CoveragePass::new(ctx)?);
         let lod = match &mut scene_buffers.lod {
-            Some(l) => {
-                let mut cull = LodCull::new(
-                    ctx,
-                    scene,
-                    l,
-                    lod.lod_list_batches,
-                    lod.lod_deferred_batches,
-                )?;
-                cull.keep_moved_history = lod.lod_keep_moved_history;
-                Some(cull)
-            }
+            Some(l) => Some(LodCull::new(ctx, scene, l, lod)?),
             None => None,
         };
         Ok(RasterStage {
@@ -159,7 +151,7 @@ impl RasterStage {
             graphics: graphics.keep(),
             lod,
             lod_used: std::cell::Cell::new(false),
-            atom_radius: 0.0,
+            atom_radius,
         })
     }
 
@@ -234,9 +226,10 @@ impl RasterStage {
         // not (what the early image hides could not win a pixel; so every
         // atom that shows is drawn, whatever last frame was).
         let mut again = camera_io(io, t, Some(l.view(ViewIndex::Camera)), false);
-        again.tested = self
-            .tile_test(io, CAM_EARLY)
-            .and_then(|_| self.tile_test(io, CAM_RECHECK));
+        again.tested = self.tile_test(io, CAM_EARLY).map(|t| TileTest {
+            mode: CAM_RECHECK,
+            ..t
+        });
         let mut target = camera_io(io, t, Some(l.late(ViewIndex::Camera)), false);
         target.tested = self.tile_test(io, CAM_LATE);
         rec.pass(LodCull::LATE, |p| {
@@ -299,14 +292,8 @@ impl RasterStage {
         self.compute.enable_batches(ctx, light)
     }
 
-    /// The scene's typical atom radius (world units): the camera's lists
-    /// are drawn per batch while it is small on screen.
-    pub fn set_atom_radius(&mut self, r: f32) {
-        self.atom_radius = r;
-    }
-
-    /// How the camera's LOD list of this phase (CAM_EARLY, CAM_RECHECK,
-    /// CAM_LATE) is tested per atom: None where it is drawn per slot
+    /// How the camera's LOD list of this phase (CAM_EARLY, CAM_LATE; the
+    /// recheck is the early one's) is tested per atom: None where it is drawn per slot
     /// (perspective, see-through spheres, a window too tall, atoms large on
     /// screen, per-batch drawing off) and, before the late phase, where last frame's tiles
     /// cannot hide anything (the view moved: emptied) or are of another
