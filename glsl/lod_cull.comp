@@ -34,7 +34,10 @@
 //     depth of every pixel tile its rectangle touches is hidden (two-phase
 //     occlusion culling, as niagara and Mol* do it: exact, what it drops
 //     could not win a pixel); the instances' results are the next frame's
-//     history.
+//     history. A camera that keeps moving empties its last tiles every
+//     frame, so the early phase cannot hide an instance and each it lists
+//     passes again: after a small move it reads which instances the last
+//     final image showed instead (pc.history).
 // What is visible in the final image is drawn in one phase or the other:
 // exact, whatever the last frame was (a camera that moved only moves work
 // to the late phase). Where the deferral buffer is full, the instance is
@@ -61,9 +64,12 @@ layout(set = 0, binding = 2) uniform samplerBuffer lodBoundTex;
 layout(set = 0, binding = 4) buffer Levels { uint levels[]; };
 layout(set = 0, binding = 5) buffer List { uvec2 list[]; };
 layout(set = 0, binding = 6) buffer Counters { uint counters[]; };
-// Per instance and view (2k + view), two arrays (pc.parity picks): it
-// passed the occlusion test last frame (read), and this frame (written:
-// an instance's chunks run side by side and all read last frame's).
+// Per instance and view (2k + view), two arrays (pc.parity picks): last
+// frame's (read) and this frame's (written: an instance's chunks run side
+// by side and all read last frame's). VISIBLE_PASSED: it passed the
+// occlusion test (early: listed; late: not hidden); VISIBLE_SHOWN (the
+// camera's, a moved one's frames, glsl/lod_shown.comp): the final image
+// shows it. pc.history says which the early phase reads.
 layout(set = 0, binding = 7) buffer Visible { uint visible[]; };
 // The view's farthest depth word per fine tile, then per coarse one,
 // then per super one (lod_hiz.comp; fine tiles of 2^pc.hiz_shift pixels,
@@ -348,10 +354,11 @@ void main() {
     // (the early phase's candidates: the instances seen last frame that
     // the last final image does not hide whole; the late phase recomputes
     // the same test on the same tiles)
-    bool listed_early = inside && visible[last_at] != 0u && !hidden(true, v, cv, r, ext.z, rc, persp);
+    bool listed_early = inside && (visible[last_at] & pc.history) != 0u
+                        && !hidden(true, v, cv, r, ext.z, rc, persp);
     if (late) {
         bool seen = inside && !hidden(false, v, cv, r, ext.z, rc, persp);
-        visible[now_at] = seen ? 1u : 0u;
+        visible[now_at] = seen ? VISIBLE_PASSED : 0u;
         if (!seen) return;
     } else if (!listed_early) {
         // (outside: not seen; inside: the late phase tests it whole)
@@ -362,7 +369,7 @@ void main() {
         }
         return;
     } else {
-        visible[now_at] = 1u;
+        visible[now_at] = VISIBLE_PASSED;
     }
     uint first = uint(texelFetch(lodBoundTex, int(2u * (base + level) + 1u)).w);
     float stretch = instance_stretch(k, bs.xyz, p);

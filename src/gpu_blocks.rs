@@ -137,6 +137,19 @@ gpu_push! {
         /// Which of the two per-instance visibility arrays holds last
         /// frame's (the other is this frame's).
         parity: u32,
+        /// The flags of last frame's visibility array the early phase
+        /// lists instances by: VISIBLE_PASSED, or after a camera's small
+        /// move VISIBLE_SHOWN (src/stages/raster/lod.rs `small_move`).
+        history: u32,
+    }
+
+    /// `lod_shown` (glsl/lod_shown.comp).
+    LodShownPush "lod_shown" {
+        /// Slots per LOD batch: 2^batch_shift.
+        batch_shift: u32,
+        /// LodCullPush.parity (this frame's visibility array is the other).
+        parity: u32,
+        instances: u32,
         pad: u32,
     }
 

@@ -201,6 +201,11 @@ gpu_constants! {
     /// arguments (LOD_RECHECK_ARGS, glsl/lod_args.comp) are then empty.
     LOD_TILES_CHANGED: u32 = 16;
     LOD_RECHECK_ARGS: u32 = 17;
+    /// An instance's flags in the LOD cull's visibility arrays: it passed
+    /// the occlusion test; the camera's final image shows it (written in
+    /// a moved camera's frames, glsl/lod_shown.comp).
+    VISIBLE_PASSED: u32 = 1;
+    VISIBLE_SHOWN: u32 = 2;
     /// Slots of a batch one invocation of the light's batch raster takes
     /// (fewer for smaller batches): its loops' bound (glsl/raster.comp
     /// `light_batch`).

@@ -160,6 +160,16 @@ fn bad_options_are_named() {
         assert!(stderr(&o).contains(flag), "{flag}: {}", stderr(&o));
     }
     assert!(!png.exists());
+    // bench's orbit: a finite step, not with --no-orbit
+    let json = tmp("opt.json");
+    for args in [vec!["--orbit", "inf"], vec!["--orbit", "2", "--no-orbit"]] {
+        let mut a = vec!["bench", "--json", json.to_str().unwrap()];
+        a.extend(args.iter());
+        let o = run(&a);
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {}", stderr(&o));
+        assert!(stderr(&o).contains("--orbit"), "{args:?}: {}", stderr(&o));
+    }
+    assert!(!json.exists());
     // an EXR holds every layer; --aov is for PNGs
     let exr = tmp("opt.exr");
     let mut a = vec!["render", "--out", exr.to_str().unwrap(), "--aov", "id"];

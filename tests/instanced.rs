@@ -1036,6 +1036,103 @@ fn culled_coarse_levels_are_never_visible() {
     assert!(coarse > 0, "no instance drew a coarse level");
 }
 
+/// A camera that keeps moving empties its last depth tiles every frame, so
+/// its early phase hides nothing and every instance it lists passes again;
+/// its history is then the instances its final image shows
+/// (glsl/lod_shown.comp), which the next frame lists early after a small
+/// move (src/stages/raster/lod.rs `small_move`). Panning in small steps
+/// over the meso scene, then standing, then turning 30 degrees and back:
+/// each moved frame flags exactly the instances its id AOV shows (the CPU
+/// reads each pixel's instance from its expanded id), a still frame none;
+/// the frame after a moved one lists early only instances that showed
+/// (not after the turn); and every frame equals a fresh renderer's first
+/// frame at its camera.
+#[test]
+fn a_moving_camera_remembers_the_instances_it_showed() {
+    use sphereshade::gpu::consts::VISIBLE_SHOWN;
+    let ctx = validated_context();
+    let s = sphereshade::scene::meso::meso(1_000_000, 1).unwrap();
+    let inst = s.instancing.as_ref().expect("an instanced scene");
+    let pan = meso_pan(&s);
+    let turned = {
+        let mut c = pan(0.03);
+        let q = DQuat::from_axis_angle(c.up, 30f64.to_radians());
+        c = sphereshade::camera::Camera::new(
+            c.center,
+            q * c.dir,
+            c.up,
+            c.view_height,
+            c.fov_deg,
+            c.width,
+            c.height,
+        )
+        .unwrap();
+        c
+    };
+    // (whether the camera moved: the first frame's has no last view)
+    let frames = [
+        (pan(0.0), true),
+        (pan(0.0), false),
+        (pan(0.01), true),
+        (pan(0.02), true),
+        (pan(0.03), true),
+        (pan(0.03), false),
+        (turned, true),
+        (pan(0.03), true),
+    ];
+    let mut rd = Renderer::new(&ctx, &s, settings(pan(0.0), ShadowMode::IssmSoft)).unwrap();
+    let mut last: Option<(Vec<bool>, bool)> = None;
+    let mut checked = 0;
+    for (f, (cam, moved)) in frames.into_iter().enumerate() {
+        rd.update(|x| x.camera = cam).expect("camera");
+        rd.render_frame().expect("frame");
+        let a = rd.inspect();
+        // After a moved frame, and a small move or none since: the early
+        // list holds only instances that frame showed.
+        let early = a
+            .lod_camera_early_instances()
+            .unwrap()
+            .expect("the cull ran");
+        if let Some((shown, true)) = &last
+            && f != 7
+        {
+            let other = early.iter().filter(|&&k| !shown[k as usize]).count();
+            assert_eq!(
+                other,
+                0,
+                "frame {f}: {other} of {} early batches",
+                early.len()
+            );
+            assert!(!early.is_empty(), "frame {f}: nothing listed early");
+            checked += 1;
+        }
+        let flags = a.lod_camera_flags().unwrap().expect("the cull ran");
+        let mut shown = vec![false; flags.len()];
+        for id in a.read_ids().unwrap().into_iter().flatten() {
+            let (k, _) = inst.locate(id).expect("an atom of the scene");
+            shown[k] = true;
+        }
+        let flagged: Vec<bool> = flags.iter().map(|&w| w & VISIBLE_SHOWN != 0).collect();
+        let count = shown.iter().filter(|&&x| x).count();
+        assert!(count > 10, "frame {f}: {count} instances shown");
+        if moved {
+            let wrong = (0..shown.len()).filter(|&k| shown[k] != flagged[k]).count();
+            assert_eq!(
+                wrong, 0,
+                "frame {f}: {wrong} of {count} instances flagged wrong"
+            );
+        } else {
+            assert!(!flagged.contains(&true), "frame {f}: a still frame flagged");
+        }
+        let mut fresh = Renderer::new(&ctx, &s, settings(cam, ShadowMode::IssmSoft)).unwrap();
+        fresh.render_frame().unwrap();
+        assert_same_frame(&a, &fresh.inspect(), &format!("frame {f}"));
+        assert_no_validation_messages(&ctx);
+        last = Some((shown, moved));
+    }
+    assert_eq!(checked, 4, "frames after a moved one");
+}
+
 /// The late phase tests only what the early one deferred: a batch the
 /// last frame's image hides on its own, an instance whole. Where the
 /// deferral room is full, the instance is deferred from the batch that did

@@ -97,6 +97,15 @@ pub struct BenchArgs {
     /// every fourth one zoomed in 4x).
     #[arg(long)]
     pub no_orbit: bool,
+    /// Orbit DEG per measured frame instead, none zoomed: a viewer's
+    /// moving camera (its culls' history is a moved view's every frame).
+    #[arg(
+        long,
+        value_name = "DEG",
+        conflicts_with = "no_orbit",
+        allow_negative_numbers = true
+    )]
+    pub orbit: Option<f64>,
     /// Run nothing: print the table and summary of the existing --json
     /// file (e.g. of an interrupted bench).
     #[arg(long)]
@@ -363,7 +372,31 @@ pub fn orbit_camera(base: &crate::camera::Camera, k: u32, n: u32) -> Result<crat
     )
 }
 
+/// The camera of measured frame `k` orbiting `deg` a frame about the up
+/// axis, none zoomed.
+pub fn orbit_step_camera(
+    base: &crate::camera::Camera,
+    k: u32,
+    deg: f64,
+) -> Result<crate::camera::Camera> {
+    let dir = glam::DQuat::from_axis_angle(base.up, (deg * k as f64).to_radians()) * base.dir;
+    crate::camera::Camera::new(
+        base.center,
+        dir,
+        base.up,
+        base.view_height,
+        base.fov_deg,
+        base.width,
+        base.height,
+    )
+}
+
 pub fn run(a: &BenchArgs) -> Result<BenchReport> {
+    if a.orbit.is_some_and(|d| !d.is_finite()) {
+        return Err(Error::Input(
+            "--orbit must be a finite number of degrees".into(),
+        ));
+    }
     let explicit =
         a.shadows.is_some() || a.ssdo.is_some() || a.raster.is_some() || a.opacity.is_some();
     let techniques = if explicit || a.quick {
@@ -722,7 +755,10 @@ fn measure_pool(
     let mut live: Vec<(Pending, Option<Error>)> = pool.into_iter().map(|p| (p, None)).collect();
     let step = |p: &mut Pending, k: u32, f: &mut dyn FnMut(&mut run::PreparedRun) -> Result<()>| {
         if orbit {
-            let cam = orbit_camera(&p.base, k, frames)?;
+            let cam = match a.orbit {
+                Some(deg) => orbit_step_camera(&p.base, k, deg)?,
+                None => orbit_camera(&p.base, k, frames)?,
+            };
             p.run.renderer().update(|s| s.camera = cam)?;
         }
         f(&mut p.run)

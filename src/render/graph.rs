@@ -223,10 +223,7 @@ impl Resources {
                 globals,
                 &self.scene,
                 cam.fov_deg.is_some(),
-                [
-                    bytemuck::bytes_of(&self.globals.cam),
-                    bytemuck::bytes_of(&self.globals.light),
-                ],
+                [&self.globals.cam, &self.globals.light],
             )?;
 
         let raster_in = RasterInputs {

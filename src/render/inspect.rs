@@ -67,6 +67,23 @@ impl<'r> Inspect<'r, '_> {
         cull.map(|l| l.levels(self.r.ctx)).transpose()
     }
 
+    /// The instances of the last frame's camera early list, one per batch
+    /// listed (None: the cull did not run).
+    pub fn lod_camera_early_instances(&self) -> Result<Option<Vec<u32>>> {
+        let (Some(cull), Some(lod)) = (self.r.res.stages.raster.last_cull(), &self.r.res.scene.lod)
+        else {
+            return Ok(None);
+        };
+        cull.camera_early_instances(self.r.ctx, lod).map(Some)
+    }
+
+    /// Each instance's camera flags of the last frame (VISIBLE_PASSED,
+    /// VISIBLE_SHOWN: src/gpu_consts.rs; None: the cull did not run).
+    pub fn lod_camera_flags(&self) -> Result<Option<Vec<u32>>> {
+        let cull = self.r.res.stages.raster.last_cull();
+        cull.map(|l| l.camera_flags(self.r.ctx)).transpose()
+    }
+
     /// Scene ids to input indices (None: the same; rules hid nothing).
     pub fn id_map(&self) -> Option<std::sync::Arc<crate::scene::paint::IdMap>> {
         self.r.res.ids.clone()

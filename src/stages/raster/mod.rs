@@ -187,7 +187,7 @@ impl RasterStage {
         globals: &Buffer,
         scene: &SceneBuffers,
         perspective: bool,
-        views: [&[u8]; 2],
+        views: [&crate::gpu::GpuView; 2],
     ) -> Result<bool> {
         let Some(l) = &self.lod else {
             return Ok(false);
@@ -241,6 +241,7 @@ impl RasterStage {
                 .steps(p, &target, ViewIndex::Camera, io.perspective, false)?;
             // (the final image's depth tiles: next frame's early batches)
             l.history_steps(p, io.globals, &t.vis, ViewIndex::Camera, io.size);
+            l.shown_steps(p, io.globals, &t.vis, io.scene, io.size)?;
             Ok(())
         })
     }
