@@ -72,6 +72,11 @@ gpu_constants! {
     R_BANDS_RUN: u32 = 1;
     /// Raster counters: first of the three indirect dispatch words.
     R_ARGS: u32 = 4;
+    /// Raster counters: set where a sphere's bands did not fit the job
+    /// list (its own invocation drew it); kept over the frame's passes,
+    /// read and cleared after it (the frame is drawn again, the list
+    /// longer).
+    R_BANDS_FULL: u32 = 8;
     /// SSDO block side in pixels: SSDO runs on one representative pixel per
     /// SSDO_BLOCK x SSDO_BLOCK block.
     SSDO_BLOCK: u32 = 2;

@@ -253,6 +253,10 @@ pub struct RenderSettings {
     /// For tests and comparisons of translucent shadows alone: their
     /// receivers must be visible surfaces.
     pub opaque_view: bool,
+    /// The rasterizers' band job list's first length (None: 2^20,
+    /// src/stages/raster/compute.rs JOB_CAPACITY); a frame that asks more
+    /// is drawn again with a longer one (tests force that with less).
+    pub band_jobs: Option<u32>,
 }
 
 impl RenderSettings {
@@ -825,6 +829,7 @@ impl Options {
             tile_lists: true,
             opaque_view: false,
             look: self.look,
+            band_jobs: None,
         })
     }
 }

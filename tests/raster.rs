@@ -308,6 +308,53 @@ fn edge_cases_match_reference() {
     assert_no_validation_messages(&ctx);
 }
 
+/// Band jobs that do not fit the job list: the sphere's own invocation
+/// draws it, where lavapipe ends its loops after 65,535 back-edges (a
+/// larger footprint loses its last rows); the frame is then drawn again
+/// with a list four times longer. Four spheres over a 512x384 image (48
+/// bands each) and a list of 16 jobs: the same ids and depths as with the
+/// default list, the list grown to 256. (With no second drawing the ids
+/// differ.)
+#[test]
+fn band_jobs_past_the_list_are_drawn_again_longer() {
+    let ctx = validated_context();
+    let s = scene_of(
+        vec![
+            sphere([0.0, 0.0, -50.0], 400.0),
+            sphere([5.0, 3.0, -20.0], 380.0),
+            sphere([-4.0, 2.0, 0.0], 390.0),
+            sphere([2.0, -6.0, 10.0], 385.0),
+        ],
+        "screen-filling spheres",
+    );
+    let cam = sphereshade::camera::Camera::new(
+        glam::DVec3::ZERO,
+        glam::DVec3::new(0.0, 0.0, -1.0),
+        glam::DVec3::Y,
+        60.0,
+        None,
+        512,
+        384,
+    )
+    .unwrap();
+    let st = settings(cam, ShadowMode::None);
+    let mut tight = st.clone();
+    tight.band_jobs = Some(16);
+    let mut a = Renderer::new(&ctx, &s, st).expect("renderer");
+    let mut b = Renderer::new(&ctx, &s, tight).expect("renderer");
+    a.render_frame().expect("frame");
+    b.render_frame().expect("frame");
+    let (va, vb) = (
+        a.inspect().read_vis().unwrap(),
+        b.inspect().read_vis().unwrap(),
+    );
+    let differ = va.iter().zip(&vb).filter(|(x, y)| x != y).count();
+    assert_eq!(differ, 0, "{differ} pixels differ");
+    assert_eq!(b.inspect().band_job_capacity(), 256);
+    assert_eq!(a.inspect().band_job_capacity(), 1 << 20);
+    assert_no_validation_messages(&ctx);
+}
+
 #[test]
 fn timestamps_report_every_pass() {
     let ctx = validated_context();

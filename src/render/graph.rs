@@ -172,6 +172,7 @@ impl Stages {
                 scene_buffers,
                 &settings.lod,
                 typical_radius,
+                settings.band_jobs,
             )?,
             see_through: None,
             shadows: ShadowStage::new(),

@@ -77,6 +77,12 @@ impl<'r> Inspect<'r, '_> {
         cull.camera_early_instances(self.r.ctx, lod).map(Some)
     }
 
+    /// Entries of the rasterizers' band job list (grown where a frame
+    /// asked more).
+    pub fn band_job_capacity(&self) -> u32 {
+        self.r.res.stages.raster.compute.job_capacity()
+    }
+
     /// Each instance's camera flags of the last frame (VISIBLE_PASSED,
     /// VISIBLE_SHOWN: src/gpu_consts.rs; None: the cull did not run).
     pub fn lod_camera_flags(&self) -> Result<Option<Vec<u32>>> {

@@ -74,14 +74,15 @@ impl Renderer<'_> {
             }
         }
         Err(Error::DeviceLimit(
-            "the deep shadow lists', see-through fragments' or LOD lists' pool still overflows \
-             after growing it"
+            "the deep shadow lists', see-through fragments', LOD lists' or band jobs' pool still \
+             overflows after growing it"
                 .into(),
         ))
     }
 
-    /// The deep lists, the see-through fragments and the LOD lists check
-    /// their pools; a frame any of them overflowed is rendered again.
+    /// The deep lists, the see-through fragments, the LOD lists and the
+    /// band jobs check their pools; a frame any of them overflowed is
+    /// rendered again.
     fn after_frame(&mut self) -> Result<FrameCheck> {
         let shadows = self.res.stages.shadows.after_frame(self.ctx)?;
         let see = self.res.see_through(&self.settings);

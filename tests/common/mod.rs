@@ -100,6 +100,7 @@ pub fn settings(camera: Camera, shadows: ShadowMode) -> RenderSettings {
         tile_size: None,
         tile_lists: true,
         opaque_view: false,
+        band_jobs: None,
     }
 }
 

@@ -5,7 +5,7 @@ use crate::error::Result;
 use crate::gpu::blocks::RasterPush;
 use crate::gpu::consts::{
     CAM_EARLY, CAM_LATE, CAM_PER_SLOT, CAM_RECHECK, LOD_ARGS, LOD_BATCH_ARGS, LOD_RECHECK_ARGS,
-    R_ARGS, R_BANDS_REQ, R_BANDS_RUN, RASTER_ORDER, SCENE_PLAIN,
+    R_ARGS, R_BANDS_FULL, R_BANDS_REQ, R_BANDS_RUN, RASTER_ORDER, SCENE_PLAIN,
 };
 use crate::passes::bands::{BandArgs, BandCounters, BandJob, BandPipelines};
 use crate::passes::scene::{SCENE_ATTRIBUTES, SCENE_GEOMETRY, SceneBuffers, SceneGeom};
@@ -24,7 +24,10 @@ use glam::DVec3;
 pub fn big_area(ctx: &Context) -> u32 {
     if ctx.info.kind == "cpu" { 1024 } else { 256 }
 }
-/// Band jobs per frame before the per-sphere fallback kicks in.
+/// Band jobs a frame's raster sequences may each queue at first: past
+/// that a sphere's own invocation draws it (loop-limited on lavapipe) and
+/// the frame is drawn again with a list four times longer
+/// ([`RasterPass::after_frame`]).
 pub const JOB_CAPACITY: u32 = 1 << 20;
 /// u64 words after the visibility buffer that no pass may touch (GPU-AV does
 /// not check atomics, so tests look at these instead).
@@ -38,6 +41,15 @@ pub const RASTER_COUNTERS: BandCounters = BandCounters {
     run: R_BANDS_RUN,
     args: R_ARGS,
 };
+
+/// The most band jobs one buffer holds (8 bytes each).
+fn max_jobs(ctx: &Context) -> u32 {
+    (ctx.props.limits.max_storage_buffer_range / 8).max(1)
+}
+
+fn jobs_buffer(ctx: &Context, capacity: u32) -> Result<Buffer> {
+    Buffer::storage(ctx, "raster band jobs", capacity as u64 * 8)
+}
 
 /// Which views' LOD lists are drawn per batch (glsl/raster.comp
 /// `batch_part`; else per slot, as tests compare).
@@ -127,7 +139,10 @@ pub struct RasterPass {
     scene: u32,
     args: BandArgs,
     jobs: Buffer,
+    /// Entries of `jobs`.
+    job_capacity: u32,
     big_area: u32,
+    /// RASTER_COUNTERS' words, then R_BANDS_FULL (kept over a frame).
     counters: Buffer,
     /// The order each view visits the spheres in ([`view_order`]).
     orders: [ViewOrder; 2],
@@ -295,21 +310,26 @@ impl RasterPass {
 
     /// The rasterizer for a scene of this SCENE_SPEC (passes::scene);
     /// `per_batch`: an instanced scene's light and camera lists per batch.
-    pub fn new(ctx: &Context, scene: u32, per_batch: PerBatch) -> Result<Self> {
+    /// `band_jobs`: the job list's first length (None: [`JOB_CAPACITY`]).
+    pub fn new(
+        ctx: &Context,
+        scene: u32,
+        per_batch: PerBatch,
+        band_jobs: Option<u32>,
+    ) -> Result<Self> {
+        let job_capacity = band_jobs.unwrap_or(JOB_CAPACITY).clamp(1, max_jobs(ctx));
         let [ortho, persp] = Self::pipelines(ctx, scene, false)?;
         let ortho = ctx.guard(ortho);
         let persp = ctx.guard(persp);
         let args = ctx.guard(BandArgs::new(ctx, "raster band args")?);
-        let jobs = ctx.guard(Buffer::storage(
-            ctx,
-            "raster band jobs",
-            JOB_CAPACITY as u64 * 8,
-        )?);
+        let jobs = ctx.guard(jobs_buffer(ctx, job_capacity)?);
         let counters = ctx.guard(crate::passes::bands::counters_buffer(
             ctx,
             "raster counters",
-            32,
+            (R_BANDS_FULL as u64 + 1) * 4,
         )?);
+        // (R_BANDS_FULL: no frame fills it)
+        counters.upload(ctx, R_BANDS_FULL as u64 * 4, &0u32.to_le_bytes())?;
         let camera = ctx.guard(ViewOrder::new(ctx, "camera sphere order")?);
         let light = ViewOrder::new(ctx, "light sphere order")?;
         Ok(RasterPass {
@@ -322,6 +342,7 @@ impl RasterPass {
             scene,
             args: args.keep(),
             jobs: jobs.keep(),
+            job_capacity,
             big_area: big_area(ctx),
             counters: counters.keep(),
             orders: [camera.keep(), light],
@@ -361,6 +382,40 @@ impl RasterPass {
     /// appends within lavapipe's loop bound (glsl/raster.comp).
     pub fn cam_batches_fit(&self, perspective: bool, see_through: bool, h: u32) -> bool {
         self.cam_batches.is_some() && !perspective && !see_through && h <= 8192
+    }
+
+    /// After a frame, the GPU idle: whether a sphere's bands did not fit
+    /// the job list (R_BANDS_FULL); the list is then four times longer
+    /// and the frame must be drawn again (its own invocation drew that
+    /// sphere, and on lavapipe a footprint past 65,535 pixels loses rows).
+    pub fn after_frame(&mut self, ctx: &Context) -> Result<bool> {
+        let at = R_BANDS_FULL as u64;
+        let full: Vec<u32> = self.counters.download_pod(ctx, at, 1)?;
+        if full[0] == 0 {
+            return Ok(false);
+        }
+        self.counters.upload(ctx, at * 4, &0u32.to_le_bytes())?;
+        let most = max_jobs(ctx);
+        if self.job_capacity >= most {
+            return Err(crate::error::Error::DeviceLimit(format!(
+                "a frame's large spheres need more than {most} band jobs (one buffer's most)"
+            )));
+        }
+        let grown = self.job_capacity.saturating_mul(4).min(most);
+        let jobs = jobs_buffer(ctx, grown)?;
+        let mut old = std::mem::replace(&mut self.jobs, jobs);
+        old.destroy(ctx);
+        log::info!(
+            "band jobs: {} -> {grown} (a frame asked more)",
+            self.job_capacity
+        );
+        self.job_capacity = grown;
+        Ok(true)
+    }
+
+    /// Entries of the band job list.
+    pub fn job_capacity(&self) -> u32 {
+        self.job_capacity
     }
 
     /// Band jobs and counters (with the visibility buffers they serve).
@@ -451,11 +506,12 @@ impl RasterPass {
         if clear {
             p.fill(vis, pixels * 8, u32::MAX);
         }
-        p.fill(&self.counters, 32, 0);
+        // (not R_BANDS_FULL: kept over the frame)
+        p.fill(&self.counters, R_BANDS_FULL as u64 * 4, 0);
         let push = RasterPush {
             view_index: view as u32,
             big_area: self.big_area,
-            job_capacity: JOB_CAPACITY,
+            job_capacity: self.job_capacity,
             sphere_count,
             list_base,
             hiz_shift: tested.map_or(0, |t| t.shift),
@@ -537,7 +593,10 @@ impl RasterPass {
                     )
                 }),
                 counters: &self.counters,
-                layout: &RASTER_COUNTERS,
+                layout: &BandCounters {
+                    job_capacity: self.job_capacity,
+                    ..RASTER_COUNTERS
+                },
             },
         );
         Ok(())

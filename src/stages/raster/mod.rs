@@ -122,6 +122,7 @@ impl RasterStage {
         scene_buffers: &mut SceneBuffers,
         lod: &crate::settings::LodParams,
         atom_radius: f32,
+        band_jobs: Option<u32>,
     ) -> Result<Self> {
         let scene = scene_buffers.spec;
         if graphics && scene & 0xFF != crate::gpu::consts::SCENE_PLAIN {
@@ -139,7 +140,7 @@ impl RasterStage {
             light: !lod.lod_light_per_slot,
             camera: !lod.lod_camera_per_slot,
         };
-        let compute = ctx.guard(RasterPass::new(ctx, scene, per_batch)?);
+        let compute = ctx.guard(RasterPass::new(ctx, scene, per_batch, band_jobs)?);
         let coverage = ctx.guard(CoveragePass::new(ctx)?);
         let lod = match &mut scene_buffers.lod {
             Some(l) => Some(LodCull::new(ctx, scene, l, lod)?),
@@ -156,13 +157,15 @@ impl RasterStage {
     }
 
     /// After a frame: whether it must be drawn again because a LOD list
-    /// overflowed (the lists, `scene`'s, were grown). The GPU must be
-    /// idle.
+    /// (the lists, `scene`'s) or the band job list overflowed (grown). The
+    /// GPU must be idle.
     pub fn after_frame(&mut self, ctx: &Context, scene: &mut SceneBuffers) -> Result<bool> {
-        match (&mut self.lod, &mut scene.lod) {
-            (Some(l), Some(buffers)) if self.lod_used.get() => l.grow_lists(ctx, buffers),
-            _ => Ok(false),
-        }
+        let jobs = self.compute.after_frame(ctx)?;
+        let lists = match (&mut self.lod, &mut scene.lod) {
+            (Some(l), Some(buffers)) if self.lod_used.get() => l.grow_lists(ctx, buffers)?,
+            _ => false,
+        };
+        Ok(jobs || lists)
     }
 
     /// Whether the LOD lists grow before the next frame.
