@@ -7,7 +7,9 @@
 // one workgroup per band, so one big sphere never serialises thousands of
 // texels on one invocation. When the job list is full the sphere's own
 // invocation visits its whole footprint instead (band_inline() lets the
-// includer remember that, e.g. for the deep lists' fill pass).
+// includer remember that, e.g. for the deep lists' fill pass, and flag a
+// footprint that lavapipe's loop limit may cut: the frame is then drawn
+// again with a longer list).
 //
 // Before including, define:
 //   struct Footprint { ...; ivec4 rect; }   inclusive texel rectangle
@@ -15,7 +17,9 @@
 //   void visit(uint id, Footprint f, ivec2 t);
 //   bool band_queue();          false: do not queue (a previous pass did),
 //                               only replay the spheres band_replay() names
-//   void band_inline(uint id);  the job list was full for this sphere
+//   void band_inline(uint id, uint area);  the job list was full for this
+//                               sphere (of `area` texels): its invocation
+//                               visits it
 //   bool band_replay(uint id);
 //   #define BAND_REQ, BAND_RUN  word indices of counters[]
 //   (optionally) #define SPHERE_AT(i): the sphere of invocation i
@@ -73,7 +77,7 @@ void band_sphere_id(uint id, uint big_area) {
             for (uint j = base; j < last; ++j) {
                 jobs[j] = queued ? uvec2(id, uint(rc.y) + (j - base) * BAND_ROWS) : uvec2(NO_SPHERE, 0u);
             }
-            if (!queued) band_inline(id);
+            if (!queued) band_inline(id, area);
             here = !queued;
         }
     }

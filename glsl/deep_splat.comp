@@ -92,7 +92,14 @@ void visit(uint id, Footprint f, ivec2 t) {
 // The count pass queues the band jobs; the fill pass replays them (and the
 // spheres whose job list was full, marked in inline_bits).
 bool band_queue() { return MODE == DEEP_COUNT; }
-void band_inline(uint id) { atomicOr(inline_bits[id >> 5], 1u << (id & 31u)); }
+// (the job list was full: this invocation counts the footprint and the fill
+// replays it; lavapipe ends a loop after 65,535 back-edges, so a larger one
+// would lose rows: the frame is drawn again with a longer list,
+// src/stages/shadows/deep/mod.rs `grow_jobs`; a smaller one is exact here)
+void band_inline(uint id, uint area) {
+    atomicOr(inline_bits[id >> 5], 1u << (id & 31u));
+    if (area > BAND_INLINE_SAFE) atomicOr(counters[C_BANDS_FULL], 1u);
+}
 bool band_replay(uint id) { return (inline_bits[id >> 5] & (1u << (id & 31u))) != 0u; }
 #define BAND_REQ C_BANDS_REQ
 #define BAND_RUN C_BANDS_RUN

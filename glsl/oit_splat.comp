@@ -73,7 +73,14 @@ void visit(uint id, Footprint f, ivec2 t) {
 }
 
 bool band_queue() { return MODE == 0u; }
-void band_inline(uint id) { atomicOr(inline_bits[id >> 5], 1u << (id & 31u)); }
+// (the job list was full: this invocation visits the footprint, its fill
+// replays it; lavapipe ends a loop after 65,535 back-edges, so a larger
+// one would lose rows: the frame is drawn again with a longer list,
+// src/stages/see_through.rs `after_frame`; a smaller one is exact here)
+void band_inline(uint id, uint area) {
+    atomicOr(inline_bits[id >> 5], 1u << (id & 31u));
+    if (area > BAND_INLINE_SAFE) atomicOr(counters[F_BANDS_FULL], 1u);
+}
 bool band_replay(uint id) { return (inline_bits[id >> 5] & (1u << (id & 31u))) != 0u; }
 #define BAND_REQ F_BANDS_REQ
 #define BAND_RUN F_BANDS_RUN

@@ -57,7 +57,7 @@ void visit(uint id, Footprint f, ivec2 t) {
 }
 
 bool band_queue() { return true; }
-void band_inline(uint id) {}
+void band_inline(uint id, uint area) {}
 bool band_replay(uint id) { return false; }
 #define BAND_REQ R_BANDS_REQ
 #define BAND_RUN R_BANDS_RUN

@@ -75,9 +75,10 @@ void visit(uint id, Footprint f, ivec2 t) {
 bool band_queue() { return true; }
 // (the job list was full: this invocation draws the footprint itself,
 // and lavapipe ends its loops after 65,535 back-edges, so a footprint
-// past that would lose its last rows; the frame is drawn again with a
-// longer list, src/stages/raster/compute.rs `after_frame`)
-void band_inline(uint id) { atomicOr(counters[R_BANDS_FULL], 1u); }
+// past that would lose its last rows, and a per-batch invocation's
+// candidates together sooner: the frame is drawn again with a longer
+// list, src/stages/raster/compute.rs `after_frame`)
+void band_inline(uint id, uint area) { atomicOr(counters[R_BANDS_FULL], 1u); }
 bool band_replay(uint id) { return false; }
 #define BAND_REQ R_BANDS_REQ
 #define BAND_RUN R_BANDS_RUN

@@ -37,6 +37,16 @@ gpu_constants! {
     /// (lavapipe ends a shader invocation's loops after 65,535 back-edges,
     /// CULL_CHUNK_BATCHES; a run of thousands of entries reaches it).
     C_SORT_CUT: u32 = 9;
+    /// The largest footprint (texels) a per-sphere invocation visits
+    /// itself where the job list is full and stays within lavapipe's
+    /// 65,535 loop back-edges with room for its other loops (the deep
+    /// lists' and see-through fragments' count and fill passes; past it
+    /// they flag the frame, drawn again with a longer list).
+    BAND_INLINE_SAFE: u32 = 32768;
+    /// Deep counters: set where a sphere's bands did not fit the job list
+    /// and its own invocation counted more than BAND_INLINE_SAFE texels:
+    /// the frame is drawn again with a longer list.
+    C_BANDS_FULL: u32 = 10;
     /// Deep counters: band jobs requested.
     C_BANDS_REQ: u32 = 16;
     /// Deep counters: band jobs dispatched.
@@ -64,6 +74,10 @@ gpu_constants! {
     /// Fragment counters: band jobs requested, dispatched, and the first
     /// of the three indirect dispatch words.
     F_BANDS_REQ: u32 = 16;
+    /// Fragment counters: set where a sphere's bands did not fit the job
+    /// list and its own invocation visited more than BAND_INLINE_SAFE
+    /// texels: the frame is drawn again with a longer list.
+    F_BANDS_FULL: u32 = 6;
     F_BANDS_RUN: u32 = 17;
     F_ARGS: u32 = 20;
     /// Raster counters: band jobs requested.

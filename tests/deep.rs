@@ -637,6 +637,50 @@ fn full_band_job_list_falls_back_to_per_sphere_loops() {
     assert_no_validation_messages(&ctx);
 }
 
+/// Band jobs past the list where a sphere's footprint is larger than one
+/// invocation may visit (BAND_INLINE_SAFE texels: lavapipe ends a loop
+/// after 65,535 back-edges): the frame is drawn again with four times the
+/// jobs. Four spheres over a 512^2 light map (64 bands each) and room for
+/// 16 jobs: the same lists and shadows as with the default room, which is
+/// then 256 (and smaller spheres' fallback, above, stays exact without).
+#[test]
+fn band_jobs_past_a_large_footprint_grow_and_match() {
+    let ctx = validated_context();
+    let scene = scene_of(
+        vec![
+            sphere([0.0, 0.0, -50.0], 400.0),
+            sphere([5.0, 3.0, -20.0], 380.0),
+            sphere([-4.0, 2.0, 0.0], 390.0),
+            sphere([2.0, -6.0, 10.0], 385.0),
+        ],
+        "screen-filling spheres",
+    );
+    let render = |limit: Option<u32>| {
+        let s = deep_settings(&scene, 128, 96, 512, 0.5);
+        let mut r = Renderer::new(&ctx, &scene, s).expect("renderer");
+        r.render_frame().expect("frame");
+        if let Some(l) = limit {
+            r.inspect().deep().unwrap().set_job_limit(l);
+            r.render_frame().expect("frame");
+        }
+        guards_ok("large footprints", &ctx, &r);
+        let d = r.inspect().deep().unwrap();
+        let c = d.read_counters(&ctx).unwrap();
+        assert!(!c.bands_full && c.fill_errors == 0, "{c:?}");
+        (
+            d.read_lists(&ctx).expect("lists"),
+            r.inspect().read_shadow().expect("shadow"),
+            d.job_limit(),
+        )
+    };
+    let (la, sa, _) = render(None);
+    let (lb, sb, limit) = render(Some(16));
+    assert_eq!(limit, 256);
+    assert!(la == lb, "the lists differ");
+    assert!(sa == sb, "the shadows differ");
+    assert_no_validation_messages(&ctx);
+}
+
 #[test]
 fn overflow_grows_pool_and_matches_big_pool() {
     let ctx = validated_context();

@@ -315,6 +315,55 @@ fn a_one_fragment_pool_overflows_grows_and_renders_the_same() {
     assert_no_validation_messages(&ctx);
 }
 
+/// Band jobs past the list: the sphere's own invocation counts and fills
+/// its fragments, where lavapipe ends a loop after 65,535 back-edges (a
+/// larger footprint loses rows); the frame is then drawn again with a list
+/// four times longer. Four see-through spheres over a 512x384 image (48
+/// bands each) and a list of 16 jobs: the same colours, ids and fragments
+/// as with the default list, the list grown to 256.
+#[test]
+fn see_through_band_jobs_past_the_list_are_drawn_again_longer() {
+    let ctx = validated_context();
+    let scene = scene_of(
+        vec![
+            ball([0.0, 0.0, 0.0], 400.0, [230, 40, 40], 128),
+            ball([5.0, 3.0, -30.0], 380.0, [40, 220, 60], 90),
+            ball([-4.0, 2.0, -60.0], 390.0, [50, 80, 240], 200),
+            ball([2.0, -6.0, -90.0], 385.0, [240, 220, 30], 60),
+        ],
+        "screen-filling see-through spheres",
+    );
+    let cam = Camera::new(
+        glam::DVec3::new(0.0, 0.0, 500.0),
+        glam::DVec3::new(0.0, 0.0, -1.0),
+        glam::DVec3::Y,
+        60.0,
+        None,
+        512,
+        384,
+    )
+    .unwrap();
+    let a = render(&ctx, &scene, flat(cam));
+    let mut s = flat(cam);
+    s.band_jobs = Some(16);
+    let mut r = Renderer::new(&ctx, &scene, s).expect("renderer");
+    r.render_frame().expect("frame");
+    let i = r.inspect();
+    let st = i.see_through().expect("see-through spheres");
+    assert_eq!(st.job_capacity(), 256);
+    assert_eq!(st.damaged_guards(&ctx).unwrap(), Vec::<String>::new());
+    let b = rgba16(&i.read_color().unwrap());
+    let differ = a.color.iter().zip(&b).filter(|(x, y)| x != y).count();
+    assert_eq!(differ, 0, "{differ} pixels differ");
+    assert_eq!(a.ids, ids_from_vis(&i.read_vis().unwrap()));
+    assert_eq!(
+        a.stats.unwrap().fragments,
+        i.see_through_stats().unwrap().fragments
+    );
+    drop(r);
+    assert_no_validation_messages(&ctx);
+}
+
 /// With deep shadows, translucent spheres are lit with their translucent
 /// shadow and cast 1 - alpha; a fully opaque alpha rule changes nothing.
 #[test]

@@ -174,7 +174,8 @@ impl Resources {
             settings.check_see_through(self.translucent)?;
             self.stages.raster.enable_see_through(ctx)?;
             if self.stages.see_through.is_none() {
-                let mut st = SeeThrough::new(ctx, self.scene.spec, self.scene.slots)?;
+                let mut st =
+                    SeeThrough::new(ctx, self.scene.spec, self.scene.slots, settings.band_jobs)?;
                 // (made by an image's first frame: a tile when tiled)
                 st.set_tiled(settings.window.is_some(), true);
                 self.stages.see_through = Some(st);

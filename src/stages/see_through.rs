@@ -25,8 +25,8 @@
 use crate::error::{Error, Result};
 use crate::gpu::blocks::{OitAllocPush, OitSplatPush};
 use crate::gpu::consts::{
-    F_ARGS, F_BANDS_REQ, F_BANDS_RUN, F_COMPOSITE_CUT, F_FILL_ERRORS, F_MAX, F_OVERFLOW, F_PIXELS,
-    F_TOTAL,
+    F_ARGS, F_BANDS_FULL, F_BANDS_REQ, F_BANDS_RUN, F_COMPOSITE_CUT, F_FILL_ERRORS, F_MAX,
+    F_OVERFLOW, F_PIXELS, F_TOTAL,
 };
 use crate::passes::bands::{BandArgs, BandCounters, BandJob, BandPipelines};
 use crate::passes::scene::{SCENE_ATTRIBUTES, SCENE_GEOMETRY, SceneBuffers};
@@ -44,17 +44,24 @@ const COUNTER_WORDS: u64 = 32;
 /// Footprints above this many pixels go to band jobs (the rasterizer's
 /// CPU threshold: the lists are a camera raster too).
 const BIG_AREA: u32 = 1024;
-/// Band jobs per frame before the per-sphere fallback loop.
+/// Band jobs per frame at first (past them a sphere's own invocation
+/// visits it and the frame is drawn again with a list four times longer).
 const JOB_CAPACITY: u32 = 1 << 18;
 /// Initial pool: fragments per pixel of the window.
 const INITIAL_PER_PIXEL: u64 = 2;
 
-const LAYOUT: BandCounters = BandCounters {
-    job_capacity: JOB_CAPACITY,
-    requested: F_BANDS_REQ,
-    run: F_BANDS_RUN,
-    args: F_ARGS,
-};
+const fn layout(job_capacity: u32) -> BandCounters {
+    BandCounters {
+        job_capacity,
+        requested: F_BANDS_REQ,
+        run: F_BANDS_RUN,
+        args: F_ARGS,
+    }
+}
+
+fn jobs_buffer(ctx: &Context, capacity: u32) -> Result<Buffer> {
+    Buffer::storage(ctx, "oit band jobs", capacity as u64 * 8)
+}
 
 /// A frame's fragment lists as read back: per pixel its count and head
 /// (F_NONE: no fragments, or its tile did not fit), and the pool's
@@ -171,6 +178,8 @@ pub struct SeeThrough {
     alloc: ComputePipeline,
     counters: Buffer,
     jobs: Buffer,
+    /// Entries of `jobs`.
+    job_capacity: u32,
     inline_bits: Buffer,
     sphere_count: u32,
     lists: Option<Lists>,
@@ -205,7 +214,16 @@ pub struct SeeThroughOutputs<'a> {
 }
 
 impl SeeThrough {
-    pub fn new(ctx: &Context, scene: u32, sphere_count: u32) -> Result<Self> {
+    /// `band_jobs`: the band job list's first length (None: 2^18).
+    pub fn new(
+        ctx: &Context,
+        scene: u32,
+        sphere_count: u32,
+        band_jobs: Option<u32>,
+    ) -> Result<Self> {
+        let job_capacity = band_jobs
+            .unwrap_or(JOB_CAPACITY)
+            .clamp(1, crate::stages::raster::compute::max_jobs(ctx));
         let splat = |mode: u32, name: &str| -> Result<[BandPipelines; 2]> {
             let bindings = [
                 &[
@@ -267,11 +285,7 @@ impl SeeThrough {
             GUARD_PATTERN,
             usage,
         )?);
-        let jobs = ctx.guard(Buffer::storage(
-            ctx,
-            "oit band jobs",
-            JOB_CAPACITY as u64 * 8,
-        )?);
+        let jobs = ctx.guard(jobs_buffer(ctx, job_capacity)?);
         let inline_bits = Buffer::storage(
             ctx,
             "oit inline spheres",
@@ -284,6 +298,7 @@ impl SeeThrough {
             alloc: alloc.keep(),
             counters: counters.keep(),
             jobs: jobs.keep(),
+            job_capacity,
             inline_bits,
             sphere_count,
             lists: None,
@@ -359,10 +374,11 @@ impl SeeThrough {
         let push = OitSplatPush {
             sphere_count: self.sphere_count,
             big_area: BIG_AREA,
-            job_capacity: JOB_CAPACITY,
+            job_capacity: self.job_capacity,
             capacity: l.capacity,
         };
         let view = io.perspective as usize;
+        let layout = layout(self.job_capacity);
         // count and fill: one enumeration, two modes
         let job = |spheres, bands| BandJob {
             spheres,
@@ -372,7 +388,7 @@ impl SeeThrough {
             sphere_count: self.sphere_count,
             indirect: None,
             counters: &self.counters,
-            layout: &LAYOUT,
+            layout: &layout,
         };
         rec.pass("oit_count", |p| {
             p.fill(&l.counts, pixels * 4, 0);
@@ -416,6 +432,22 @@ impl SeeThrough {
     /// frame needs (plus 1/8) so it can be rendered again.
     pub fn after_frame(&mut self, ctx: &Context) -> Result<bool> {
         let c = self.read_counters(ctx)?;
+        // (first: a visit the loop limit cut may also have filled outside
+        // its run)
+        if c[F_BANDS_FULL as usize] != 0 {
+            let most = crate::stages::raster::compute::max_jobs(ctx);
+            if self.job_capacity >= most {
+                return Err(Error::DeviceLimit(format!(
+                    "see-through spheres need more than {most} band jobs (one buffer's most)"
+                )));
+            }
+            let grown = self.job_capacity.saturating_mul(4).min(most);
+            ctx.wait_idle();
+            let mut old = std::mem::replace(&mut self.jobs, jobs_buffer(ctx, grown)?);
+            old.destroy(ctx);
+            self.job_capacity = grown;
+            return Ok(true);
+        }
         if c[F_FILL_ERRORS as usize] != 0 {
             return Err(Error::Internal(format!(
                 "see-through fill wrote {} fragments outside their runs",
@@ -469,6 +501,11 @@ impl SeeThrough {
         }
         self.retried = true;
         Ok(true)
+    }
+
+    /// Entries of the band job list (grown where a frame asked more).
+    pub fn job_capacity(&self) -> u32 {
+        self.job_capacity
     }
 
     /// Frames from now on are tiles of one image (`first`: its first tile

@@ -43,7 +43,7 @@ pub const RASTER_COUNTERS: BandCounters = BandCounters {
 };
 
 /// The most band jobs one buffer holds (8 bytes each).
-fn max_jobs(ctx: &Context) -> u32 {
+pub fn max_jobs(ctx: &Context) -> u32 {
     (ctx.props.limits.max_storage_buffer_range / 8).max(1)
 }
 

@@ -112,6 +112,7 @@ pub mod counter {
     pub const NONEMPTY: usize = c::C_NONEMPTY as usize;
     pub const DROPPED: usize = c::C_DROPPED as usize;
     pub const SORT_CUT: usize = c::C_SORT_CUT as usize;
+    pub const BANDS_FULL: usize = c::C_BANDS_FULL as usize;
     pub const BANDS_REQ: usize = c::C_BANDS_REQ as usize;
     pub const BANDS_RUN: usize = c::C_BANDS_RUN as usize;
     pub const ARGS: usize = c::C_ARGS as usize;
@@ -175,6 +176,8 @@ pub struct DeepShadows {
     tiles: Buffer,
     counters: Buffer,
     jobs: Buffer,
+    /// Entries `jobs` holds (`job_limit` at most).
+    jobs_entries: u32,
     inline_bits: Buffer,
     lists: Lists,
     /// The splat shader in count mode and in fill mode (specialization
@@ -367,6 +370,7 @@ impl DeepShadows {
             tiles,
             counters,
             jobs,
+            jobs_entries: JOB_CAPACITY,
             inline_bits,
             lists,
             count: count.keep(),
@@ -407,12 +411,44 @@ impl DeepShadows {
     }
 
     /// Test hook: allow at most `jobs` band jobs per frame (clamped to
-    /// [`JOB_CAPACITY`]) so the full-job-list fallback (voided slots, the
+    /// the list's entries) so the full-job-list fallback (voided slots, the
     /// sphere's own invocation looping over its footprint) can be exercised
     /// on small scenes. Takes effect from the next recorded frame.
     pub fn set_job_limit(&self, jobs: u32) {
         self.job_limit
-            .store(jobs.min(JOB_CAPACITY), Ordering::Relaxed);
+            .store(jobs.min(self.jobs_entries), Ordering::Relaxed);
+    }
+
+    /// The band jobs a frame may queue.
+    pub fn job_limit(&self) -> u32 {
+        self.job_limit.load(Ordering::Relaxed)
+    }
+
+    /// After a frame a sphere's bands did not fit: four times the jobs
+    /// (a new list where the old holds fewer), the GPU idle.
+    fn grow_jobs(&mut self, ctx: &Context) -> Result<()> {
+        let limit = self.job_limit();
+        let most = crate::stages::raster::compute::max_jobs(ctx).saturating_sub(GUARD_WORDS as u32);
+        if limit >= most {
+            return Err(Error::DeviceLimit(format!(
+                "deep shadow lists' spheres need more than {most} band jobs (one buffer's most)"
+            )));
+        }
+        let grown = limit.max(1).saturating_mul(4).min(most);
+        if grown > self.jobs_entries {
+            ctx.wait_idle();
+            let jobs = lists::guarded(
+                ctx,
+                "deep band jobs",
+                grown as u64 * 2,
+                vk::BufferUsageFlags::STORAGE_BUFFER,
+            )?;
+            let mut old = std::mem::replace(&mut self.jobs, jobs);
+            old.destroy(ctx);
+            self.jobs_entries = grown;
+        }
+        self.job_limit.store(grown, Ordering::Relaxed);
+        Ok(())
     }
 
     pub fn tiles_xy(&self) -> (u32, u32) {
@@ -678,6 +714,12 @@ impl ShadowTechnique for DeepShadows {
     /// can be rendered again (the renderer gives up after a few tries).
     fn after_frame(&mut self, ctx: &Context) -> Result<FrameCheck> {
         let c = self.read_counters(ctx)?;
+        // (first: a visit the loop limit cut may also have filled outside
+        // its run)
+        if c.bands_full {
+            self.grow_jobs(ctx)?;
+            return Ok(FrameCheck::Retry);
+        }
         if c.sort_cut > 0 {
             return Err(Error::DeviceLimit(format!(
                 "deep shadow lists of up to {} entries a light texel: {} texels are longer than \

@@ -66,6 +66,8 @@ pub struct DeepCounters {
     /// Texels whose sort the device's loop limit cut short (lavapipe).
     pub sort_cut: u32,
     pub band_jobs: u32,
+    /// A sphere's bands did not fit the job list (C_BANDS_FULL).
+    pub bands_full: bool,
 }
 
 impl DeepShadows {
@@ -84,6 +86,7 @@ impl DeepShadows {
             fill_errors: c[counter::FILL_ERRORS],
             sort_cut: c[counter::SORT_CUT],
             band_jobs: c[counter::BANDS_RUN],
+            bands_full: c[counter::BANDS_FULL] != 0,
         })
     }
 
@@ -168,7 +171,7 @@ impl DeepShadows {
             (&self.texels, self.texel_count() * 4),
             (&self.tiles, tile_count(&self.light) * 4),
             (&self.counters, COUNTER_WORDS),
-            (&self.jobs, JOB_CAPACITY as u64 * 2),
+            (&self.jobs, self.jobs_entries as u64 * 2),
             (
                 &self.inline_bits,
                 (self.sphere_count as u64).div_ceil(32).max(1),
