@@ -57,7 +57,12 @@ void visit(uint id, Footprint f, ivec2 t) {
 }
 
 bool band_queue() { return true; }
-void band_inline(uint id, uint area) {}
+// (the job list was full: this invocation visits the footprint; lavapipe
+// ends a loop after 65,535 back-edges, so a larger one would lose rows:
+// the frame is drawn again with a longer list, src/stages/shadows/osm.rs)
+void band_inline(uint id, uint area) {
+    if (area > BAND_INLINE_SAFE) atomicOr(counters[R_BANDS_FULL], 1u);
+}
 bool band_replay(uint id) { return false; }
 #define BAND_REQ R_BANDS_REQ
 #define BAND_RUN R_BANDS_RUN

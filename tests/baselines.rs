@@ -307,6 +307,40 @@ fn osm_vs_deep(ctx: &Context, name: &str, scene: &Scene) {
     }
 }
 
+/// Band jobs past the list where a sphere's footprint is larger than one
+/// invocation may visit (BAND_INLINE_SAFE texels: lavapipe ends a loop
+/// after 65,535 back-edges): the frame is drawn again with four times the
+/// jobs. Four translucent spheres over a 512^2 opacity map (64 bands each)
+/// and room for 16 jobs: the same shadows as with the default room, the
+/// room then 256.
+#[test]
+fn osm_band_jobs_past_a_large_footprint_grow_and_match() {
+    let ctx = validated_context();
+    let scene = scene_of(
+        vec![
+            sphere([0.0, 0.0, -50.0], 400.0),
+            sphere([5.0, 3.0, -20.0], 380.0),
+            sphere([-4.0, 2.0, 0.0], 390.0),
+            sphere([2.0, -6.0, 10.0], 385.0),
+        ],
+        "screen-filling spheres",
+    );
+    let mut s = settings(camera(&scene, 128, 96, None), ShadowMode::Osm);
+    s.opacity = 0.5;
+    s.opaque_view = true;
+    let mut tight = s.clone();
+    tight.band_jobs = Some(16);
+    let a = render(&ctx, &scene, s);
+    let mut r = Renderer::new(&ctx, &scene, tight).expect("renderer");
+    r.render_frame().expect("frame");
+    assert_eq!(r.inspect().opacity_shadows().unwrap().job_capacity(), 256);
+    assert!(
+        r.inspect().read_shadow().unwrap() == a.shadow,
+        "the shadows differ"
+    );
+    assert_no_validation_messages(&ctx);
+}
+
 #[test]
 fn osm_transmittance_vs_exact_and_deep_1tii() {
     let ctx = validated_context();

@@ -27,11 +27,12 @@
 //! [`ALPHA_MAX`], so a fully opaque sphere leaves 0.001 of the light through
 //! (below one 8-bit step).
 
-use super::ShadowInputs;
+use super::{FrameCheck, ShadowInputs};
 use super::{Lookup, LookupKind, ShadowParams, ShadowSetup, ShadowTechnique};
 use crate::camera::Camera;
 use crate::error::{Error, Result};
 use crate::gpu::blocks::{OsmRasterPush as RasterPush, PrefixPush};
+use crate::gpu::consts::R_BANDS_FULL;
 use crate::passes::bands::{BandArgs, BandCounters, BandJob, BandPipelines};
 use crate::passes::scene::SCENE_GEOMETRY;
 use crate::passes::{LOCAL_SIZE, spirv};
@@ -47,7 +48,9 @@ pub const FIXED_SCALE: f32 = 65536.0;
 pub const ALPHA_MAX: f32 = 0.999;
 /// Footprints above this many texels go to band jobs.
 pub const BIG_AREA: u32 = 256;
-/// Band jobs per frame before the per-sphere fallback loop.
+/// Band jobs per frame at first (past them a sphere's own invocation
+/// visits it; a footprint past BAND_INLINE_SAFE texels has the frame drawn
+/// again with four times the jobs).
 pub const JOB_CAPACITY: u32 = 1 << 18;
 /// u32 words after the opacity slices that no pass may touch (GPU-AV does
 /// not check atomics, so tests look at these instead).
@@ -60,11 +63,13 @@ pub fn tau_fixed(alpha: f32) -> u32 {
     (-(1.0 - a).ln() * FIXED_SCALE as f64).round() as u32
 }
 
-/// Same counter words as the camera raster (glsl/osm_raster.comp).
-const OSM_COUNTERS: BandCounters = BandCounters {
-    job_capacity: JOB_CAPACITY,
-    ..RASTER_COUNTERS
-};
+/// Same counter words as the camera raster (glsl/osm_raster.comp), and
+/// R_BANDS_FULL.
+const COUNTER_BYTES: u64 = (R_BANDS_FULL as u64 + 1) * 4;
+
+fn jobs_buffer(ctx: &Context, capacity: u32) -> Result<Buffer> {
+    Buffer::storage(ctx, "osm band jobs", capacity as u64 * 8)
+}
 
 pub struct OpacityShadows {
     pub light: Camera,
@@ -75,6 +80,8 @@ pub struct OpacityShadows {
     z_max: f32,
     opacity_map: Buffer,
     jobs: Buffer,
+    /// Entries of `jobs`.
+    job_capacity: u32,
     /// [0] bands requested, [1] bands run, [4..7] indirect dispatch args.
     counters: Buffer,
     raster: BandPipelines,
@@ -173,12 +180,13 @@ impl OpacityShadows {
         )?);
         let guard = vec![GUARD_PATTERN; GUARD_WORDS as usize];
         map.upload(ctx, words * 4, bytemuck::cast_slice(&guard))?;
-        let jobs = ctx.guard(Buffer::storage(
-            ctx,
-            "osm band jobs",
-            JOB_CAPACITY as u64 * 8,
-        )?);
-        let counters = crate::passes::bands::counters_buffer(ctx, "osm counters", 32)?;
+        let job_capacity = setup
+            .settings
+            .band_jobs
+            .unwrap_or(JOB_CAPACITY)
+            .clamp(1, crate::stages::raster::compute::max_jobs(ctx));
+        let jobs = ctx.guard(jobs_buffer(ctx, job_capacity)?);
+        let counters = crate::passes::bands::counters_buffer(ctx, "osm counters", COUNTER_BYTES)?;
         let o = OpacityShadows {
             light,
             slices,
@@ -187,6 +195,7 @@ impl OpacityShadows {
             z_max,
             opacity_map: map.keep(),
             jobs: jobs.keep(),
+            job_capacity,
             counters,
             raster: raster.keep(),
             args: args.keep(),
@@ -194,6 +203,11 @@ impl OpacityShadows {
         };
         o.log();
         Ok(o)
+    }
+
+    /// Entries of the band job list (grown where a frame asked more).
+    pub fn job_capacity(&self) -> u32 {
+        self.job_capacity
     }
 
     fn centres<'a>(setup: &'a ShadowSetup) -> impl Iterator<Item = ([f32; 3], f32)> + 'a {
@@ -256,6 +270,28 @@ impl ShadowTechnique for OpacityShadows {
         ShadowMode::Osm
     }
 
+    /// A sphere's bands did not fit and its own invocation visited more
+    /// than BAND_INLINE_SAFE texels (R_BANDS_FULL): four times the jobs,
+    /// the frame drawn again.
+    fn after_frame(&mut self, ctx: &Context) -> Result<FrameCheck> {
+        let full: Vec<u32> = self.counters.download_pod(ctx, R_BANDS_FULL as u64, 1)?;
+        if full[0] == 0 {
+            return Ok(FrameCheck::Done);
+        }
+        let most = crate::stages::raster::compute::max_jobs(ctx);
+        if self.job_capacity >= most {
+            return Err(Error::DeviceLimit(format!(
+                "opacity shadow maps' spheres need more than {most} band jobs (one buffer's most)"
+            )));
+        }
+        let grown = self.job_capacity.saturating_mul(4).min(most);
+        ctx.wait_idle();
+        let mut old = std::mem::replace(&mut self.jobs, jobs_buffer(ctx, grown)?);
+        old.destroy(ctx);
+        self.job_capacity = grown;
+        Ok(FrameCheck::Retry)
+    }
+
     fn light(&self) -> &Camera {
         &self.light
     }
@@ -268,11 +304,11 @@ impl ShadowTechnique for OpacityShadows {
         let tau = tau_fixed(f.opacity);
         rec.pass(Self::RASTER_NAME, |p| {
             p.fill(&self.opacity_map, words * 4, 0);
-            p.fill(&self.counters, 32, 0);
+            p.fill(&self.counters, COUNTER_BYTES, 0);
             let push = RasterPush {
                 sphere_count: self.sphere_count,
                 big_area: BIG_AREA,
-                job_capacity: JOB_CAPACITY,
+                job_capacity: self.job_capacity,
                 tau_fixed: tau,
                 slices: self.slices,
                 z_min: self.z_min,
@@ -296,7 +332,10 @@ impl ShadowTechnique for OpacityShadows {
                     sphere_count: self.sphere_count,
                     indirect: None,
                     counters: &self.counters,
-                    layout: &OSM_COUNTERS,
+                    layout: &BandCounters {
+                        job_capacity: self.job_capacity,
+                        ..RASTER_COUNTERS
+                    },
                 },
             );
             Ok(())
