@@ -2,13 +2,13 @@
 // The LOD cull's counts into indirect dispatch arguments: per list
 // (camera early, light early, camera late, light late) the rasterizer's,
 // enough workgroups for every slot of the listed batches (and for one
-// invocation per LIGHT_PART_SLOTS of them: the light's batch raster); per view the
-// late phase's two cull passes', one invocation per deferred instance and
-// per deferred batch (lod_cull.comp, 64 a workgroup). 2D as
+// invocation per BATCH_PART_SLOTS of them: the per-batch rasters); per
+// view the late phase's two cull passes', one invocation per deferred
+// instance and per deferred batch (lod_cull.comp, 64 a workgroup). 2D as
 // band_args.comp makes them.
 #include "constants.glsl"
 #include "grid.glsl"
-#include "light_batches.glsl"
+#include "batch_parts.glsl"
 
 layout(local_size_x = 1) in;
 layout(set = 0, binding = 0) buffer Counters { uint counters[]; };
@@ -26,7 +26,7 @@ void main() {
         uint w = v * LOD_WORDS;
         uint listed = min(counters[w + LOD_BATCHES], pc.capacity);
         dispatch_args(w + LOD_ARGS, listed * pc.per, pc.local_size);
-        uint parts = listed * light_parts(pc.per);
+        uint parts = listed * batch_parts(pc.per);
         dispatch_args(w + LOD_BATCH_ARGS, parts, pc.local_size);
         // (the camera's recheck: nothing where its tiles are last frame's)
         if (v == 0u) {

@@ -87,7 +87,7 @@ void raster_spheres();
 #include "bands.glsl"
 
 // The LOD lists per batch (LIGHT_BATCHES: the key light's; CAM_BATCHES:
-// the orthographic camera's): one invocation per LIGHT_PART_SLOTS slots
+// the orthographic camera's): one invocation per BATCH_PART_SLOTS slots
 // of a listed batch (pc.sphere_count: the list's slots; dispatched by
 // LOD_BATCH_ARGS). The per-slot raster pays each slot's setup (batch
 // record, placement, rectangle: ~8.6 ns on lavapipe) though most slots
@@ -102,7 +102,7 @@ void raster_spheres();
 // 32 candidates of at most BATCH_PART_AREA texels each (larger footprints
 // go to bands) with their band appends (at most 1,025 each in a window of
 // 8,192 rows: the host's bound): 49 k.
-#include "light_batches.glsl"
+#include "batch_parts.glsl"
 layout(constant_id = 4) const bool LIGHT_BATCHES = false;
 // The camera's test (CAM_EARLY, CAM_RECHECK, CAM_LATE; CAM_PER_SLOT: none).
 layout(constant_id = 5) const uint CAM_BATCHES = CAM_PER_SLOT;
@@ -144,13 +144,13 @@ bool tiles_hide(bool prev, View v, ivec4 rc, uint near) {
 }
 
 void batch_part() {
-    const uint PARTS = light_parts(1u << BATCH_SHIFT);
+    const uint PARTS = batch_parts(1u << BATCH_SHIFT);
     uint e = FLAT_ID / PARTS;
     if (e >= (pc.sphere_count >> BATCH_SHIFT)) return;
     uint id0 = (pc.list_base + e) << BATCH_SHIFT;
     uvec4 b = scene_batch(id0);
-    uint from = (FLAT_ID % PARTS) * LIGHT_PART_SLOTS;
-    uint count = min(b.w & 0xFFu, from + LIGHT_PART_SLOTS);
+    uint from = (FLAT_ID % PARTS) * BATCH_PART_SLOTS;
+    uint count = min(b.w & 0xFFu, from + BATCH_PART_SLOTS);
     View v = LIGHT_BATCHES ? g.light : g.cam;
     float ppu = v.center.w;
     // The instance's map into pixel coordinates (plane_rect's: x ppu + W/2

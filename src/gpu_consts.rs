@@ -225,10 +225,10 @@ gpu_constants! {
     /// a moved camera's frames, glsl/lod_shown.comp).
     VISIBLE_PASSED: u32 = 1;
     VISIBLE_SHOWN: u32 = 2;
-    /// Slots of a batch one invocation of the light's batch raster takes
-    /// (fewer for smaller batches): its loops' bound (glsl/raster.comp
-    /// `light_batch`).
-    LIGHT_PART_SLOTS: u32 = 32;
+    /// Slots of a batch one invocation of a per-batch raster (the light's,
+    /// the camera's) takes (fewer for smaller batches): its loops' bound
+    /// (glsl/raster.comp `batch_part`).
+    BATCH_PART_SLOTS: u32 = 32;
     /// The camera's LOD lists per batch (specialization constant 5 of
     /// glsl/raster.comp): each atom projected and tested against depth
     /// tiles before it is drawn. CAM_EARLY: the early list, atoms that
