@@ -316,15 +316,7 @@ fn osm_vs_deep(ctx: &Context, name: &str, scene: &Scene) {
 #[test]
 fn osm_band_jobs_past_a_large_footprint_grow_and_match() {
     let ctx = validated_context();
-    let scene = scene_of(
-        vec![
-            sphere([0.0, 0.0, -50.0], 400.0),
-            sphere([5.0, 3.0, -20.0], 380.0),
-            sphere([-4.0, 2.0, 0.0], 390.0),
-            sphere([2.0, -6.0, 10.0], 385.0),
-        ],
-        "screen-filling spheres",
-    );
+    let scene = scene_of(screen_filling_spheres(), "screen-filling spheres");
     let mut s = settings(camera(&scene, 128, 96, None), ShadowMode::Osm);
     s.opacity = 0.5;
     s.opaque_view = true;

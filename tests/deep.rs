@@ -646,15 +646,7 @@ fn full_band_job_list_falls_back_to_per_sphere_loops() {
 #[test]
 fn band_jobs_past_a_large_footprint_grow_and_match() {
     let ctx = validated_context();
-    let scene = scene_of(
-        vec![
-            sphere([0.0, 0.0, -50.0], 400.0),
-            sphere([5.0, 3.0, -20.0], 380.0),
-            sphere([-4.0, 2.0, 0.0], 390.0),
-            sphere([2.0, -6.0, 10.0], 385.0),
-        ],
-        "screen-filling spheres",
-    );
+    let scene = scene_of(screen_filling_spheres(), "screen-filling spheres");
     let render = |limit: Option<u32>| {
         let s = deep_settings(&scene, 128, 96, 512, 0.5);
         let mut r = Renderer::new(&ctx, &scene, s).expect("renderer");

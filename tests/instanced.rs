@@ -1054,21 +1054,7 @@ fn a_moving_camera_remembers_the_instances_it_showed() {
     let s = sphereshade::scene::meso::meso(1_000_000, 1).unwrap();
     let inst = s.instancing.as_ref().expect("an instanced scene");
     let pan = meso_pan(&s);
-    let turned = {
-        let mut c = pan(0.03);
-        let q = DQuat::from_axis_angle(c.up, 30f64.to_radians());
-        c = sphereshade::camera::Camera::new(
-            c.center,
-            q * c.dir,
-            c.up,
-            c.view_height,
-            c.fov_deg,
-            c.width,
-            c.height,
-        )
-        .unwrap();
-        c
-    };
+    let turned = sphereshade::bench::orbit_step_camera(&pan(0.03), 1, 30.0).unwrap();
     // (whether the camera moved: the first frame's has no last view)
     let frames = [
         (pan(0.0), true),

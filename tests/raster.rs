@@ -318,15 +318,7 @@ fn edge_cases_match_reference() {
 #[test]
 fn band_jobs_past_the_list_are_drawn_again_longer() {
     let ctx = validated_context();
-    let s = scene_of(
-        vec![
-            sphere([0.0, 0.0, -50.0], 400.0),
-            sphere([5.0, 3.0, -20.0], 380.0),
-            sphere([-4.0, 2.0, 0.0], 390.0),
-            sphere([2.0, -6.0, 10.0], 385.0),
-        ],
-        "screen-filling spheres",
-    );
+    let s = scene_of(screen_filling_spheres(), "screen-filling spheres");
     let cam = sphereshade::camera::Camera::new(
         glam::DVec3::ZERO,
         glam::DVec3::new(0.0, 0.0, -1.0),

@@ -324,15 +324,16 @@ fn a_one_fragment_pool_overflows_grows_and_renders_the_same() {
 #[test]
 fn see_through_band_jobs_past_the_list_are_drawn_again_longer() {
     let ctx = validated_context();
-    let scene = scene_of(
-        vec![
-            ball([0.0, 0.0, 0.0], 400.0, [230, 40, 40], 128),
-            ball([5.0, 3.0, -30.0], 380.0, [40, 220, 60], 90),
-            ball([-4.0, 2.0, -60.0], 390.0, [50, 80, 240], 200),
-            ball([2.0, -6.0, -90.0], 385.0, [240, 220, 30], 60),
-        ],
-        "screen-filling see-through spheres",
-    );
+    let mut spheres = screen_filling_spheres();
+    for (s, color) in spheres.iter_mut().zip([
+        [230, 40, 40, 128],
+        [40, 220, 60, 90],
+        [50, 80, 240, 200],
+        [240, 220, 30, 60],
+    ]) {
+        s.color = color;
+    }
+    let scene = scene_of(spheres, "screen-filling see-through spheres");
     let cam = Camera::new(
         glam::DVec3::new(0.0, 0.0, 500.0),
         glam::DVec3::new(0.0, 0.0, -1.0),

@@ -10,6 +10,24 @@ use crate::vk::pipeline::{PipelineDesc, rw};
 use crate::vk::{Buffer, ComputePipeline, Context, Grid, PassBuilder};
 use bytemuck::Pod;
 
+/// The most band jobs one buffer holds (8 bytes each).
+pub fn max_jobs(ctx: &Context) -> u32 {
+    (ctx.props.limits.max_storage_buffer_range / 8).max(1)
+}
+
+/// A band job list's next length after a frame's spheres did not fit it
+/// (one invocation visited a footprint lavapipe's loop limit may cut):
+/// four times `capacity`, at most `most`; past that a one-line error
+/// naming `what` (the pass).
+pub fn grown_jobs(capacity: u32, most: u32, what: &str) -> Result<u32> {
+    if capacity >= most {
+        return Err(crate::error::Error::DeviceLimit(format!(
+            "{what}: a frame's large spheres need more than {most} band jobs (one buffer's most)"
+        )));
+    }
+    Ok(capacity.max(1).saturating_mul(4).min(most))
+}
+
 impl BandCounters {
     /// Byte offset of the indirect dispatch arguments.
     pub fn args_offset(&self) -> u64 {
@@ -152,3 +170,21 @@ impl BandArgs {
 }
 
 crate::impl_destroy!(BandPipelines);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Four times the list, at most one buffer's; at that most, an error
+    /// naming the pass.
+    #[test]
+    fn job_lists_grow_fourfold_up_to_one_buffer() {
+        assert_eq!(grown_jobs(16, 1 << 24, "x").unwrap(), 64);
+        assert_eq!(grown_jobs(0, 1 << 24, "x").unwrap(), 4);
+        assert_eq!(grown_jobs(5 << 20, 1 << 24, "x").unwrap(), 1 << 24);
+        let e = grown_jobs(1 << 24, 1 << 24, "the raster")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("the raster") && e.contains("16777216"), "{e}");
+    }
+}

@@ -223,7 +223,7 @@ impl SeeThrough {
     ) -> Result<Self> {
         let job_capacity = band_jobs
             .unwrap_or(JOB_CAPACITY)
-            .clamp(1, crate::stages::raster::compute::max_jobs(ctx));
+            .clamp(1, crate::passes::bands::max_jobs(ctx));
         let splat = |mode: u32, name: &str| -> Result<[BandPipelines; 2]> {
             let bindings = [
                 &[
@@ -435,13 +435,8 @@ impl SeeThrough {
         // (first: a visit the loop limit cut may also have filled outside
         // its run)
         if c[F_BANDS_FULL as usize] != 0 {
-            let most = crate::stages::raster::compute::max_jobs(ctx);
-            if self.job_capacity >= most {
-                return Err(Error::DeviceLimit(format!(
-                    "see-through spheres need more than {most} band jobs (one buffer's most)"
-                )));
-            }
-            let grown = self.job_capacity.saturating_mul(4).min(most);
+            let most = crate::passes::bands::max_jobs(ctx);
+            let grown = crate::passes::bands::grown_jobs(self.job_capacity, most, "see-through")?;
             ctx.wait_idle();
             let mut old = std::mem::replace(&mut self.jobs, jobs_buffer(ctx, grown)?);
             old.destroy(ctx);

@@ -65,6 +65,18 @@ pub fn sphere(c: [f32; 3], r: f32) -> Sphere {
     }
 }
 
+/// Four spheres of radius ~400 about the origin: each covers a view or a
+/// light map fitted to them (footprints past lavapipe's 65,535-step loops:
+/// the band job tests).
+pub fn screen_filling_spheres() -> Vec<Sphere> {
+    vec![
+        sphere([0.0, 0.0, -50.0], 400.0),
+        sphere([5.0, 3.0, -20.0], 380.0),
+        sphere([-4.0, 2.0, 0.0], 390.0),
+        sphere([2.0, -6.0, 10.0], 385.0),
+    ]
+}
+
 pub fn scene_of(spheres: Vec<Sphere>, name: &str) -> Scene {
     Scene {
         spheres,

@@ -7,7 +7,7 @@ use crate::gpu::consts::{
     CAM_EARLY, CAM_LATE, CAM_PER_SLOT, CAM_RECHECK, LOD_ARGS, LOD_BATCH_ARGS, LOD_RECHECK_ARGS,
     R_ARGS, R_BANDS_FULL, R_BANDS_REQ, R_BANDS_RUN, RASTER_ORDER, SCENE_PLAIN,
 };
-use crate::passes::bands::{BandArgs, BandCounters, BandJob, BandPipelines};
+use crate::passes::bands::{BandArgs, BandCounters, BandJob, BandPipelines, grown_jobs, max_jobs};
 use crate::passes::scene::{SCENE_ATTRIBUTES, SCENE_GEOMETRY, SceneBuffers, SceneGeom};
 use crate::passes::{LOCAL_SIZE, spirv};
 use crate::vk::guard::Destroy;
@@ -41,11 +41,6 @@ pub const RASTER_COUNTERS: BandCounters = BandCounters {
     run: R_BANDS_RUN,
     args: R_ARGS,
 };
-
-/// The most band jobs one buffer holds (8 bytes each).
-pub fn max_jobs(ctx: &Context) -> u32 {
-    (ctx.props.limits.max_storage_buffer_range / 8).max(1)
-}
 
 fn jobs_buffer(ctx: &Context, capacity: u32) -> Result<Buffer> {
     Buffer::storage(ctx, "raster band jobs", capacity as u64 * 8)
@@ -395,13 +390,7 @@ impl RasterPass {
             return Ok(false);
         }
         self.counters.upload(ctx, at * 4, &0u32.to_le_bytes())?;
-        let most = max_jobs(ctx);
-        if self.job_capacity >= most {
-            return Err(crate::error::Error::DeviceLimit(format!(
-                "a frame's large spheres need more than {most} band jobs (one buffer's most)"
-            )));
-        }
-        let grown = self.job_capacity.saturating_mul(4).min(most);
+        let grown = grown_jobs(self.job_capacity, max_jobs(ctx), "the raster")?;
         let jobs = jobs_buffer(ctx, grown)?;
         let mut old = std::mem::replace(&mut self.jobs, jobs);
         old.destroy(ctx);

@@ -184,7 +184,7 @@ impl OpacityShadows {
             .settings
             .band_jobs
             .unwrap_or(JOB_CAPACITY)
-            .clamp(1, crate::stages::raster::compute::max_jobs(ctx));
+            .clamp(1, crate::passes::bands::max_jobs(ctx));
         let jobs = ctx.guard(jobs_buffer(ctx, job_capacity)?);
         let counters = crate::passes::bands::counters_buffer(ctx, "osm counters", COUNTER_BYTES)?;
         let o = OpacityShadows {
@@ -278,13 +278,8 @@ impl ShadowTechnique for OpacityShadows {
         if full[0] == 0 {
             return Ok(FrameCheck::Done);
         }
-        let most = crate::stages::raster::compute::max_jobs(ctx);
-        if self.job_capacity >= most {
-            return Err(Error::DeviceLimit(format!(
-                "opacity shadow maps' spheres need more than {most} band jobs (one buffer's most)"
-            )));
-        }
-        let grown = self.job_capacity.saturating_mul(4).min(most);
+        let most = crate::passes::bands::max_jobs(ctx);
+        let grown = crate::passes::bands::grown_jobs(self.job_capacity, most, "opacity maps")?;
         ctx.wait_idle();
         let mut old = std::mem::replace(&mut self.jobs, jobs_buffer(ctx, grown)?);
         old.destroy(ctx);

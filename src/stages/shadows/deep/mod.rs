@@ -427,14 +427,9 @@ impl DeepShadows {
     /// After a frame a sphere's bands did not fit: four times the jobs
     /// (a new list where the old holds fewer), the GPU idle.
     fn grow_jobs(&mut self, ctx: &Context) -> Result<()> {
-        let limit = self.job_limit();
-        let most = crate::stages::raster::compute::max_jobs(ctx).saturating_sub(GUARD_WORDS as u32);
-        if limit >= most {
-            return Err(Error::DeviceLimit(format!(
-                "deep shadow lists' spheres need more than {most} band jobs (one buffer's most)"
-            )));
-        }
-        let grown = limit.max(1).saturating_mul(4).min(most);
+        // (the guard words share the buffer's range)
+        let most = crate::passes::bands::max_jobs(ctx).saturating_sub(GUARD_WORDS as u32);
+        let grown = crate::passes::bands::grown_jobs(self.job_limit(), most, "deep lists")?;
         if grown > self.jobs_entries {
             ctx.wait_idle();
             let jobs = lists::guarded(
