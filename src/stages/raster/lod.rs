@@ -204,9 +204,10 @@ pub struct LodCounts {
 /// better early list than those that passed its tests, which a moving
 /// camera's early phase passes every frame (glsl/lod_shown.comp); after a
 /// larger move the early image they give is sparse, and the late phase
-/// lists more (meso 10^9 at 2,025 A, bench's orbit of 72 degrees a frame,
-/// every fourth zoomed 4x: 1,513 -> 1,732 ms; 1 degree a frame: 1,255 ->
-/// 960; 5: 1,297 -> 1,095; 20: 1,273 -> 1,239).
+/// lists more (meso 10^9 at 2,025 A, frame ms with the passed flags ->
+/// the shown ones: `bench --orbit 1` 1,221 -> 977, 5: 1,347 -> 1,122, 10:
+/// 1,342 -> 1,331, 20: 1,215 -> 1,296; bench's orbit of 72 degrees a
+/// frame, every fourth zoomed 4x: 1,513 -> 1,732).
 pub fn small_move(a: &GpuView, b: &GpuView) -> bool {
     let v = |x: [f32; 4]| glam::DVec3::new(x[0] as f64, x[1] as f64, x[2] as f64);
     let turn = v(a.dir).dot(v(b.dir)).clamp(-1.0, 1.0).acos().to_degrees();
@@ -681,8 +682,8 @@ impl LodCull {
             );
         }
         // (the early phase reads the last final image's tiles, emptied
-        // when the view moved: nothing hidden, every batch of last frame's
-        // visible instances drawn early)
+        // when the view moved: nothing hidden, every batch of the
+        // instances last frame's flags name drawn early: `history_flag`)
         if self.moved[view as usize].get() && !self.keep_moved_history {
             let b = &self.hiz_prev[view as usize];
             p.fill(b, b.size, u32::MAX);
@@ -836,8 +837,9 @@ impl LodCull {
             last[i] = Some(*v);
         }
         // (last frame's shown flags where it wrote them and the camera
-        // stayed or moved a little since)
-        let shown = self.shown_written.replace(false) && (!self.moved[0].get() || small);
+        // moved a little since; a still camera's early phase tests the
+        // instances that passed against last frame's tiles, valid again)
+        let shown = self.shown_written.replace(false) && self.moved[0].get() && small;
         self.history_flag
             .set(if shown { VISIBLE_SHOWN } else { VISIBLE_PASSED });
     }
