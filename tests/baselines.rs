@@ -309,9 +309,9 @@ fn osm_vs_deep(ctx: &Context, name: &str, scene: &Scene) {
 
 /// Band jobs past the list where a sphere's footprint is larger than one
 /// invocation may visit (BAND_INLINE_SAFE texels: lavapipe ends a loop
-/// after 65,535 back-edges): the frame is drawn again with four times the
+/// after 65,535 back-edges): the frame is drawn again with twice the
 /// jobs. Four translucent spheres over a 512^2 opacity map (64 bands each)
-/// and room for 16 jobs: the same shadows as with the default room, the
+/// and room for 64 jobs: the same shadows as with the default room, the
 /// room then 256.
 #[test]
 fn osm_band_jobs_past_a_large_footprint_grow_and_match() {
@@ -321,7 +321,7 @@ fn osm_band_jobs_past_a_large_footprint_grow_and_match() {
     s.opacity = 0.5;
     s.opaque_view = true;
     let mut tight = s.clone();
-    tight.band_jobs = Some(16);
+    tight.band_jobs = Some(64);
     let a = render(&ctx, &scene, s);
     let mut r = Renderer::new(&ctx, &scene, tight).expect("renderer");
     r.render_frame().expect("frame");

@@ -639,9 +639,9 @@ fn full_band_job_list_falls_back_to_per_sphere_loops() {
 
 /// Band jobs past the list where a sphere's footprint is larger than one
 /// invocation may visit (BAND_INLINE_SAFE texels: lavapipe ends a loop
-/// after 65,535 back-edges): the frame is drawn again with four times the
+/// after 65,535 back-edges): the frame is drawn again with twice the
 /// jobs. Four spheres over a 512^2 light map (64 bands each) and room for
-/// 16 jobs: the same lists and shadows as with the default room, which is
+/// 64 jobs: the same lists and shadows as with the default room, which is
 /// then 256 (and smaller spheres' fallback, above, stays exact without).
 #[test]
 fn band_jobs_past_a_large_footprint_grow_and_match() {
@@ -666,7 +666,7 @@ fn band_jobs_past_a_large_footprint_grow_and_match() {
         )
     };
     let (la, sa, _) = render(None);
-    let (lb, sb, limit) = render(Some(16));
+    let (lb, sb, limit) = render(Some(64));
     assert_eq!(limit, 256);
     assert!(la == lb, "the lists differ");
     assert!(sa == sb, "the shadows differ");

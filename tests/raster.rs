@@ -311,8 +311,8 @@ fn edge_cases_match_reference() {
 /// Band jobs that do not fit the job list: the sphere's own invocation
 /// draws it, where lavapipe ends its loops after 65,535 back-edges (a
 /// larger footprint loses its last rows); the frame is then drawn again
-/// with a list four times longer. Four spheres over a 512x384 image (48
-/// bands each) and a list of 16 jobs: the same ids and depths as with the
+/// with a list twice as long. Four spheres over a 512x384 image (48
+/// bands each) and a list of 64 jobs: the same ids and depths as with the
 /// default list, the list grown to 256. (With no second drawing the ids
 /// differ.)
 #[test]
@@ -331,7 +331,7 @@ fn band_jobs_past_the_list_are_drawn_again_longer() {
     .unwrap();
     let st = settings(cam, ShadowMode::None);
     let mut tight = st.clone();
-    tight.band_jobs = Some(16);
+    tight.band_jobs = Some(64);
     let mut a = Renderer::new(&ctx, &s, st).expect("renderer");
     let mut b = Renderer::new(&ctx, &s, tight).expect("renderer");
     a.render_frame().expect("frame");

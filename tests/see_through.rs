@@ -318,8 +318,8 @@ fn a_one_fragment_pool_overflows_grows_and_renders_the_same() {
 /// Band jobs past the list: the sphere's own invocation counts and fills
 /// its fragments, where lavapipe ends a loop after 65,535 back-edges (a
 /// larger footprint loses rows); the frame is then drawn again with a list
-/// four times longer. Four see-through spheres over a 512x384 image (48
-/// bands each) and a list of 16 jobs: the same colours, ids and fragments
+/// twice as long. Four see-through spheres over a 512x384 image (48
+/// bands each) and a list of 64 jobs: the same colours, ids and fragments
 /// as with the default list, the list grown to 256.
 #[test]
 fn see_through_band_jobs_past_the_list_are_drawn_again_longer() {
@@ -346,7 +346,7 @@ fn see_through_band_jobs_past_the_list_are_drawn_again_longer() {
     .unwrap();
     let a = render(&ctx, &scene, flat(cam));
     let mut s = flat(cam);
-    s.band_jobs = Some(16);
+    s.band_jobs = Some(64);
     let mut r = Renderer::new(&ctx, &scene, s).expect("renderer");
     r.render_frame().expect("frame");
     let i = r.inspect();

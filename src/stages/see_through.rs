@@ -45,7 +45,7 @@ const COUNTER_WORDS: u64 = 32;
 /// CPU threshold: the lists are a camera raster too).
 const BIG_AREA: u32 = 1024;
 /// Band jobs per frame at first (past them a sphere's own invocation
-/// visits it and the frame is drawn again with a list four times longer).
+/// visits it and the frame is drawn again with a list twice as long).
 const JOB_CAPACITY: u32 = 1 << 18;
 /// Initial pool: fragments per pixel of the window.
 const INITIAL_PER_PIXEL: u64 = 2;

@@ -26,7 +26,7 @@ pub fn big_area(ctx: &Context) -> u32 {
 }
 /// Band jobs a frame's raster sequences may each queue at first: past
 /// that a sphere's own invocation draws it (loop-limited on lavapipe) and
-/// the frame is drawn again with a list four times longer
+/// the frame is drawn again with a list twice as long
 /// ([`RasterPass::after_frame`]).
 pub const JOB_CAPACITY: u32 = 1 << 20;
 /// u64 words after the visibility buffer that no pass may touch (GPU-AV does
@@ -380,7 +380,7 @@ impl RasterPass {
     }
 
     /// After a frame, the GPU idle: whether a sphere's bands did not fit
-    /// the job list (R_BANDS_FULL); the list is then four times longer
+    /// the job list (R_BANDS_FULL); the list is then twice as long
     /// and the frame must be drawn again (its own invocation drew that
     /// sphere, and on lavapipe a footprint past 65,535 pixels loses rows).
     pub fn after_frame(&mut self, ctx: &Context) -> Result<bool> {

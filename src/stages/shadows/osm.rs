@@ -50,7 +50,7 @@ pub const ALPHA_MAX: f32 = 0.999;
 pub const BIG_AREA: u32 = 256;
 /// Band jobs per frame at first (past them a sphere's own invocation
 /// visits it; a footprint past BAND_INLINE_SAFE texels has the frame drawn
-/// again with four times the jobs).
+/// again with twice the jobs).
 pub const JOB_CAPACITY: u32 = 1 << 18;
 /// u32 words after the opacity slices that no pass may touch (GPU-AV does
 /// not check atomics, so tests look at these instead).
@@ -271,7 +271,7 @@ impl ShadowTechnique for OpacityShadows {
     }
 
     /// A sphere's bands did not fit and its own invocation visited more
-    /// than BAND_INLINE_SAFE texels (R_BANDS_FULL): four times the jobs,
+    /// than BAND_INLINE_SAFE texels (R_BANDS_FULL): twice the jobs,
     /// the frame drawn again.
     fn after_frame(&mut self, ctx: &Context) -> Result<FrameCheck> {
         let full: Vec<u32> = self.counters.download_pod(ctx, R_BANDS_FULL as u64, 1)?;

@@ -424,7 +424,7 @@ impl DeepShadows {
         self.job_limit.load(Ordering::Relaxed)
     }
 
-    /// After a frame a sphere's bands did not fit: four times the jobs
+    /// After a frame a sphere's bands did not fit: twice the jobs
     /// (a new list where the old holds fewer), the GPU idle.
     fn grow_jobs(&mut self, ctx: &Context) -> Result<()> {
         // (the guard words share the buffer's range)
