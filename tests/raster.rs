@@ -319,17 +319,7 @@ fn edge_cases_match_reference() {
 fn band_jobs_past_the_list_are_drawn_again_longer() {
     let ctx = validated_context();
     let s = scene_of(screen_filling_spheres(), "screen-filling spheres");
-    let cam = sphereshade::camera::Camera::new(
-        glam::DVec3::ZERO,
-        glam::DVec3::new(0.0, 0.0, -1.0),
-        glam::DVec3::Y,
-        60.0,
-        None,
-        512,
-        384,
-    )
-    .unwrap();
-    let st = settings(cam, ShadowMode::None);
+    let st = settings(screen_filling_camera(), ShadowMode::None);
     let mut tight = st.clone();
     tight.band_jobs = Some(64);
     let mut a = Renderer::new(&ctx, &s, st).expect("renderer");

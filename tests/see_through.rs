@@ -334,16 +334,7 @@ fn see_through_band_jobs_past_the_list_are_drawn_again_longer() {
         s.color = color;
     }
     let scene = scene_of(spheres, "screen-filling see-through spheres");
-    let cam = Camera::new(
-        glam::DVec3::new(0.0, 0.0, 500.0),
-        glam::DVec3::new(0.0, 0.0, -1.0),
-        glam::DVec3::Y,
-        60.0,
-        None,
-        512,
-        384,
-    )
-    .unwrap();
+    let cam = screen_filling_camera();
     let a = render(&ctx, &scene, flat(cam));
     let mut s = flat(cam);
     s.band_jobs = Some(64);

@@ -30,6 +30,60 @@ pub fn grown_jobs(capacity: u32, most: u32, what: &str) -> Result<u32> {
     Ok(capacity.max(1).saturating_mul(2).min(most))
 }
 
+/// A pass's band job list (8 bytes a job), bound as "Jobs": its length
+/// goes to the push constants and `BandCounters::job_capacity`; where a
+/// frame's spheres did not fit, the pass grows it ([`JobList::grow`]) and
+/// the frame is drawn again.
+pub struct JobList {
+    pub buf: Buffer,
+    capacity: u32,
+    name: &'static str,
+}
+
+impl JobList {
+    /// `first` jobs (at least 1, at most one buffer's).
+    pub fn new(ctx: &Context, name: &'static str, first: u32) -> Result<Self> {
+        let capacity = first.clamp(1, max_jobs(ctx));
+        Ok(JobList {
+            buf: Buffer::storage(ctx, name, capacity as u64 * 8)?,
+            capacity,
+            name,
+        })
+    }
+
+    pub fn capacity(&self) -> u32 {
+        self.capacity
+    }
+
+    /// `base` (the pass's counter words) with this list's length.
+    pub fn layout(&self, base: BandCounters) -> BandCounters {
+        BandCounters {
+            job_capacity: self.capacity,
+            ..base
+        }
+    }
+
+    /// After a frame whose spheres did not fit: a list [`grown_jobs`]
+    /// long (`what` names the pass in the error past one buffer's most).
+    pub fn grow(&mut self, ctx: &Context, what: &str) -> Result<()> {
+        let grown = grown_jobs(self.capacity, max_jobs(ctx), what)?;
+        ctx.wait_idle();
+        let buf = Buffer::storage(ctx, self.name, grown as u64 * 8)?;
+        let mut old = std::mem::replace(&mut self.buf, buf);
+        old.destroy(ctx);
+        log::info!(
+            "{what}: band jobs {} -> {grown} (a frame asked more)",
+            self.capacity
+        );
+        self.capacity = grown;
+        Ok(())
+    }
+
+    pub fn destroy(&mut self, ctx: &Context) {
+        self.buf.destroy(ctx);
+    }
+}
+
 impl BandCounters {
     /// Byte offset of the indirect dispatch arguments.
     pub fn args_offset(&self) -> u64 {
@@ -171,7 +225,7 @@ impl BandArgs {
     }
 }
 
-crate::impl_destroy!(BandPipelines);
+crate::impl_destroy!(BandPipelines, JobList);
 
 #[cfg(test)]
 mod tests {

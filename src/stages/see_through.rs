@@ -28,7 +28,7 @@ use crate::gpu::consts::{
     F_ARGS, F_BANDS_FULL, F_BANDS_REQ, F_BANDS_RUN, F_COMPOSITE_CUT, F_FILL_ERRORS, F_MAX,
     F_OVERFLOW, F_PIXELS, F_TOTAL,
 };
-use crate::passes::bands::{BandArgs, BandCounters, BandJob, BandPipelines};
+use crate::passes::bands::{BandArgs, BandCounters, BandJob, BandPipelines, JobList};
 use crate::passes::scene::{SCENE_ATTRIBUTES, SCENE_GEOMETRY, SceneBuffers};
 use crate::passes::{LOCAL_SIZE, spirv};
 use crate::vk::pipeline::{PipelineDesc, ro, rw, texel, uniform, wo};
@@ -50,18 +50,12 @@ const JOB_CAPACITY: u32 = 1 << 18;
 /// Initial pool: fragments per pixel of the window.
 const INITIAL_PER_PIXEL: u64 = 2;
 
-const fn layout(job_capacity: u32) -> BandCounters {
-    BandCounters {
-        job_capacity,
-        requested: F_BANDS_REQ,
-        run: F_BANDS_RUN,
-        args: F_ARGS,
-    }
-}
-
-fn jobs_buffer(ctx: &Context, capacity: u32) -> Result<Buffer> {
-    Buffer::storage(ctx, "oit band jobs", capacity as u64 * 8)
-}
+const LAYOUT: BandCounters = BandCounters {
+    job_capacity: JOB_CAPACITY,
+    requested: F_BANDS_REQ,
+    run: F_BANDS_RUN,
+    args: F_ARGS,
+};
 
 /// A frame's fragment lists as read back: per pixel its count and head
 /// (F_NONE: no fragments, or its tile did not fit), and the pool's
@@ -177,9 +171,7 @@ pub struct SeeThrough {
     args: BandArgs,
     alloc: ComputePipeline,
     counters: Buffer,
-    jobs: Buffer,
-    /// Entries of `jobs`.
-    job_capacity: u32,
+    jobs: JobList,
     inline_bits: Buffer,
     sphere_count: u32,
     lists: Option<Lists>,
@@ -221,9 +213,6 @@ impl SeeThrough {
         sphere_count: u32,
         band_jobs: Option<u32>,
     ) -> Result<Self> {
-        let job_capacity = band_jobs
-            .unwrap_or(JOB_CAPACITY)
-            .clamp(1, crate::passes::bands::max_jobs(ctx));
         let splat = |mode: u32, name: &str| -> Result<[BandPipelines; 2]> {
             let bindings = [
                 &[
@@ -285,7 +274,11 @@ impl SeeThrough {
             GUARD_PATTERN,
             usage,
         )?);
-        let jobs = ctx.guard(jobs_buffer(ctx, job_capacity)?);
+        let jobs = ctx.guard(JobList::new(
+            ctx,
+            "oit band jobs",
+            band_jobs.unwrap_or(JOB_CAPACITY),
+        )?);
         let inline_bits = Buffer::storage(
             ctx,
             "oit inline spheres",
@@ -298,7 +291,6 @@ impl SeeThrough {
             alloc: alloc.keep(),
             counters: counters.keep(),
             jobs: jobs.keep(),
-            job_capacity,
             inline_bits,
             sphere_count,
             lists: None,
@@ -365,7 +357,7 @@ impl SeeThrough {
             ("oitHeadTex", &l.heads),
             ("Frags", &l.frags),
             ("Counters", &self.counters),
-            ("Jobs", &self.jobs),
+            ("Jobs", &self.jobs.buf),
             ("Inline", &self.inline_bits),
             ("orderTex", io.order),
         ];
@@ -374,11 +366,11 @@ impl SeeThrough {
         let push = OitSplatPush {
             sphere_count: self.sphere_count,
             big_area: BIG_AREA,
-            job_capacity: self.job_capacity,
+            job_capacity: self.jobs.capacity(),
             capacity: l.capacity,
         };
         let view = io.perspective as usize;
-        let layout = layout(self.job_capacity);
+        let layout = self.jobs.layout(LAYOUT);
         // count and fill: one enumeration, two modes
         let job = |spheres, bands| BandJob {
             spheres,
@@ -435,12 +427,7 @@ impl SeeThrough {
         // (first: a visit the loop limit cut may also have filled outside
         // its run)
         if c[F_BANDS_FULL as usize] != 0 {
-            let most = crate::passes::bands::max_jobs(ctx);
-            let grown = crate::passes::bands::grown_jobs(self.job_capacity, most, "see-through")?;
-            ctx.wait_idle();
-            let mut old = std::mem::replace(&mut self.jobs, jobs_buffer(ctx, grown)?);
-            old.destroy(ctx);
-            self.job_capacity = grown;
+            self.jobs.grow(ctx, "see-through")?;
             return Ok(true);
         }
         if c[F_FILL_ERRORS as usize] != 0 {
@@ -500,7 +487,7 @@ impl SeeThrough {
 
     /// Entries of the band job list (grown where a frame asked more).
     pub fn job_capacity(&self) -> u32 {
-        self.job_capacity
+        self.jobs.capacity()
     }
 
     /// Frames from now on are tiles of one image (`first`: its first tile
@@ -523,7 +510,7 @@ impl SeeThrough {
     pub fn memory_bytes(&self) -> u64 {
         self.lists.as_ref().map_or(0, Lists::bytes)
             + self.counters.size
-            + self.jobs.size
+            + self.jobs.buf.size
             + self.inline_bits.size
     }
 
@@ -567,7 +554,11 @@ impl SeeThrough {
         }
         self.args.destroy(ctx);
         self.alloc.destroy(ctx);
-        for b in [&mut self.counters, &mut self.jobs, &mut self.inline_bits] {
+        for b in [
+            &mut self.counters,
+            &mut self.jobs.buf,
+            &mut self.inline_bits,
+        ] {
             b.destroy(ctx);
         }
         if let Some(l) = &mut self.lists {

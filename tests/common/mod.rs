@@ -77,6 +77,21 @@ pub fn screen_filling_spheres() -> Vec<Sphere> {
     ]
 }
 
+/// A 512x384 orthographic camera 60 units high on the origin, looking
+/// down -z: [`screen_filling_spheres`] each cover its image (48 bands).
+pub fn screen_filling_camera() -> Camera {
+    Camera::new(
+        DVec3::ZERO,
+        DVec3::new(0.0, 0.0, -1.0),
+        DVec3::Y,
+        60.0,
+        None,
+        512,
+        384,
+    )
+    .unwrap()
+}
+
 pub fn scene_of(spheres: Vec<Sphere>, name: &str) -> Scene {
     Scene {
         spheres,

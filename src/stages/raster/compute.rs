@@ -7,7 +7,7 @@ use crate::gpu::consts::{
     CAM_EARLY, CAM_LATE, CAM_PER_SLOT, CAM_RECHECK, LOD_ARGS, LOD_BATCH_ARGS, LOD_RECHECK_ARGS,
     R_ARGS, R_BANDS_FULL, R_BANDS_REQ, R_BANDS_RUN, RASTER_ORDER, SCENE_PLAIN,
 };
-use crate::passes::bands::{BandArgs, BandCounters, BandJob, BandPipelines, grown_jobs, max_jobs};
+use crate::passes::bands::{BandArgs, BandCounters, BandJob, BandPipelines, JobList};
 use crate::passes::scene::{SCENE_ATTRIBUTES, SCENE_GEOMETRY, SceneBuffers, SceneGeom};
 use crate::passes::{LOCAL_SIZE, spirv};
 use crate::vk::guard::Destroy;
@@ -41,10 +41,6 @@ pub const RASTER_COUNTERS: BandCounters = BandCounters {
     run: R_BANDS_RUN,
     args: R_ARGS,
 };
-
-fn jobs_buffer(ctx: &Context, capacity: u32) -> Result<Buffer> {
-    Buffer::storage(ctx, "raster band jobs", capacity as u64 * 8)
-}
 
 /// Which views' LOD lists are drawn per batch (glsl/raster.comp
 /// `batch_part`; else per slot, as tests compare).
@@ -133,9 +129,7 @@ pub struct RasterPass {
     /// Kept to make them.
     scene: u32,
     args: BandArgs,
-    jobs: Buffer,
-    /// Entries of `jobs`.
-    job_capacity: u32,
+    jobs: JobList,
     big_area: u32,
     /// RASTER_COUNTERS' words, then R_BANDS_FULL (kept over a frame).
     counters: Buffer,
@@ -312,12 +306,15 @@ impl RasterPass {
         per_batch: PerBatch,
         band_jobs: Option<u32>,
     ) -> Result<Self> {
-        let job_capacity = band_jobs.unwrap_or(JOB_CAPACITY).clamp(1, max_jobs(ctx));
         let [ortho, persp] = Self::pipelines(ctx, scene, false)?;
         let ortho = ctx.guard(ortho);
         let persp = ctx.guard(persp);
         let args = ctx.guard(BandArgs::new(ctx, "raster band args")?);
-        let jobs = ctx.guard(jobs_buffer(ctx, job_capacity)?);
+        let jobs = ctx.guard(JobList::new(
+            ctx,
+            "raster band jobs",
+            band_jobs.unwrap_or(JOB_CAPACITY),
+        )?);
         let counters = ctx.guard(crate::passes::bands::counters_buffer(
             ctx,
             "raster counters",
@@ -337,7 +334,6 @@ impl RasterPass {
             scene,
             args: args.keep(),
             jobs: jobs.keep(),
-            job_capacity,
             big_area: big_area(ctx),
             counters: counters.keep(),
             orders: [camera.keep(), light],
@@ -390,26 +386,18 @@ impl RasterPass {
             return Ok(false);
         }
         self.counters.upload(ctx, at * 4, &0u32.to_le_bytes())?;
-        let grown = grown_jobs(self.job_capacity, max_jobs(ctx), "the raster")?;
-        let jobs = jobs_buffer(ctx, grown)?;
-        let mut old = std::mem::replace(&mut self.jobs, jobs);
-        old.destroy(ctx);
-        log::info!(
-            "band jobs: {} -> {grown} (a frame asked more)",
-            self.job_capacity
-        );
-        self.job_capacity = grown;
+        self.jobs.grow(ctx, "the raster")?;
         Ok(true)
     }
 
     /// Entries of the band job list.
     pub fn job_capacity(&self) -> u32 {
-        self.job_capacity
+        self.jobs.capacity()
     }
 
     /// Band jobs and counters (with the visibility buffers they serve).
     pub fn memory_bytes(&self) -> u64 {
-        self.jobs.size + self.counters.size
+        self.jobs.buf.size + self.counters.size
     }
 
     /// The view orders, 4 bytes per sphere (instanced: per batch) each
@@ -500,7 +488,7 @@ impl RasterPass {
         let push = RasterPush {
             view_index: view as u32,
             big_area: self.big_area,
-            job_capacity: self.job_capacity,
+            job_capacity: self.jobs.capacity(),
             sphere_count,
             list_base,
             hiz_shift: tested.map_or(0, |t| t.shift),
@@ -551,7 +539,7 @@ impl RasterPass {
         let mut bindings = vec![
             ("GlobalsBlock", globals),
             ("Vis", vis),
-            ("Jobs", &self.jobs),
+            ("Jobs", &self.jobs.buf),
             ("Counters", &self.counters),
             ("visWordTex", vis),
             (
@@ -582,10 +570,7 @@ impl RasterPass {
                     )
                 }),
                 counters: &self.counters,
-                layout: &BandCounters {
-                    job_capacity: self.job_capacity,
-                    ..RASTER_COUNTERS
-                },
+                layout: &self.jobs.layout(RASTER_COUNTERS),
             },
         );
         Ok(())

@@ -33,7 +33,7 @@ use crate::camera::Camera;
 use crate::error::{Error, Result};
 use crate::gpu::blocks::{OsmRasterPush as RasterPush, PrefixPush};
 use crate::gpu::consts::R_BANDS_FULL;
-use crate::passes::bands::{BandArgs, BandCounters, BandJob, BandPipelines};
+use crate::passes::bands::{BandArgs, BandJob, BandPipelines, JobList};
 use crate::passes::scene::SCENE_GEOMETRY;
 use crate::passes::{LOCAL_SIZE, spirv};
 use crate::settings::ShadowMode;
@@ -67,10 +67,6 @@ pub fn tau_fixed(alpha: f32) -> u32 {
 /// R_BANDS_FULL.
 const COUNTER_BYTES: u64 = (R_BANDS_FULL as u64 + 1) * 4;
 
-fn jobs_buffer(ctx: &Context, capacity: u32) -> Result<Buffer> {
-    Buffer::storage(ctx, "osm band jobs", capacity as u64 * 8)
-}
-
 pub struct OpacityShadows {
     pub light: Camera,
     slices: u32,
@@ -79,9 +75,7 @@ pub struct OpacityShadows {
     z_min: f32,
     z_max: f32,
     opacity_map: Buffer,
-    jobs: Buffer,
-    /// Entries of `jobs`.
-    job_capacity: u32,
+    jobs: JobList,
     /// [0] bands requested, [1] bands run, [4..7] indirect dispatch args.
     counters: Buffer,
     raster: BandPipelines,
@@ -180,12 +174,11 @@ impl OpacityShadows {
         )?);
         let guard = vec![GUARD_PATTERN; GUARD_WORDS as usize];
         map.upload(ctx, words * 4, bytemuck::cast_slice(&guard))?;
-        let job_capacity = setup
-            .settings
-            .band_jobs
-            .unwrap_or(JOB_CAPACITY)
-            .clamp(1, crate::passes::bands::max_jobs(ctx));
-        let jobs = ctx.guard(jobs_buffer(ctx, job_capacity)?);
+        let jobs = ctx.guard(JobList::new(
+            ctx,
+            "osm band jobs",
+            setup.settings.band_jobs.unwrap_or(JOB_CAPACITY),
+        )?);
         let counters = crate::passes::bands::counters_buffer(ctx, "osm counters", COUNTER_BYTES)?;
         let o = OpacityShadows {
             light,
@@ -195,7 +188,6 @@ impl OpacityShadows {
             z_max,
             opacity_map: map.keep(),
             jobs: jobs.keep(),
-            job_capacity,
             counters,
             raster: raster.keep(),
             args: args.keep(),
@@ -207,7 +199,7 @@ impl OpacityShadows {
 
     /// Entries of the band job list (grown where a frame asked more).
     pub fn job_capacity(&self) -> u32 {
-        self.job_capacity
+        self.jobs.capacity()
     }
 
     fn centres<'a>(setup: &'a ShadowSetup) -> impl Iterator<Item = ([f32; 3], f32)> + 'a {
@@ -278,12 +270,7 @@ impl ShadowTechnique for OpacityShadows {
         if full[0] == 0 {
             return Ok(FrameCheck::Done);
         }
-        let most = crate::passes::bands::max_jobs(ctx);
-        let grown = crate::passes::bands::grown_jobs(self.job_capacity, most, "opacity maps")?;
-        ctx.wait_idle();
-        let mut old = std::mem::replace(&mut self.jobs, jobs_buffer(ctx, grown)?);
-        old.destroy(ctx);
-        self.job_capacity = grown;
+        self.jobs.grow(ctx, "opacity maps")?;
         Ok(FrameCheck::Retry)
     }
 
@@ -303,7 +290,7 @@ impl ShadowTechnique for OpacityShadows {
             let push = RasterPush {
                 sphere_count: self.sphere_count,
                 big_area: BIG_AREA,
-                job_capacity: self.job_capacity,
+                job_capacity: self.jobs.capacity(),
                 tau_fixed: tau,
                 slices: self.slices,
                 z_min: self.z_min,
@@ -313,7 +300,7 @@ impl ShadowTechnique for OpacityShadows {
             let mut bindings = vec![
                 ("GlobalsBlock", f.globals),
                 ("Opacity", &self.opacity_map),
-                ("Jobs", &self.jobs),
+                ("Jobs", &self.jobs.buf),
                 ("Counters", &self.counters),
             ];
             bindings.extend(f.scene.geometry());
@@ -327,10 +314,7 @@ impl ShadowTechnique for OpacityShadows {
                     sphere_count: self.sphere_count,
                     indirect: None,
                     counters: &self.counters,
-                    layout: &BandCounters {
-                        job_capacity: self.job_capacity,
-                        ..RASTER_COUNTERS
-                    },
+                    layout: &self.jobs.layout(RASTER_COUNTERS),
                 },
             );
             Ok(())
@@ -375,7 +359,7 @@ impl ShadowTechnique for OpacityShadows {
     fn memory(&self) -> Vec<(&'static str, u64)> {
         vec![(
             "osm",
-            self.opacity_map.size + self.jobs.size + self.counters.size,
+            self.opacity_map.size + self.jobs.buf.size + self.counters.size,
         )]
     }
 
