@@ -333,6 +333,31 @@ fn osm_band_jobs_past_a_large_footprint_grow_and_match() {
     assert_no_validation_messages(&ctx);
 }
 
+/// The same through the viewer's pipelined frames: the opacity maps' band
+/// flag is read from the finished frame's slot.
+#[test]
+fn osm_pipelined_frames_past_the_band_jobs_grow_them() {
+    let ctx = validated_context();
+    let scene = scene_of(screen_filling_spheres(), "screen-filling spheres");
+    let mut s = settings(camera(&scene, 128, 96, None), ShadowMode::Osm);
+    s.opacity = 0.5;
+    s.opaque_view = true;
+    let mut tight = s.clone();
+    tight.band_jobs = Some(64);
+    let a = render(&ctx, &scene, s);
+    let mut r = Renderer::new(&ctx, &scene, tight).expect("renderer");
+    for _ in 0..4 {
+        r.render_frame_pipelined().expect("frame");
+    }
+    r.wait_idle().expect("idle");
+    assert_eq!(r.inspect().opacity_shadows().unwrap().job_capacity(), 256);
+    assert!(
+        r.inspect().read_shadow().unwrap() == a.shadow,
+        "the shadows differ"
+    );
+    assert_no_validation_messages(&ctx);
+}
+
 #[test]
 fn osm_transmittance_vs_exact_and_deep_1tii() {
     let ctx = validated_context();

@@ -337,6 +337,33 @@ fn band_jobs_past_the_list_are_drawn_again_longer() {
     assert_no_validation_messages(&ctx);
 }
 
+/// The viewer's pipelined frames (`render_frame_pipelined`, which waits for
+/// no frame it just submitted) read each finished frame's band flag from
+/// its slot: the list grows and the frames after are whole.
+#[test]
+fn pipelined_frames_past_the_band_jobs_grow_them() {
+    let ctx = validated_context();
+    let s = scene_of(screen_filling_spheres(), "screen-filling spheres");
+    let st = settings(screen_filling_camera(), ShadowMode::None);
+    let mut tight = st.clone();
+    tight.band_jobs = Some(64);
+    let mut a = Renderer::new(&ctx, &s, st).expect("renderer");
+    a.render_frame().expect("frame");
+    let mut b = Renderer::new(&ctx, &s, tight).expect("renderer");
+    for _ in 0..4 {
+        b.render_frame_pipelined().expect("frame");
+    }
+    b.wait_idle().expect("idle");
+    assert_eq!(b.inspect().band_job_capacity(), 256);
+    let (va, vb) = (
+        a.inspect().read_vis().unwrap(),
+        b.inspect().read_vis().unwrap(),
+    );
+    let differ = va.iter().zip(&vb).filter(|(x, y)| x != y).count();
+    assert_eq!(differ, 0, "{differ} pixels differ");
+    assert_no_validation_messages(&ctx);
+}
+
 #[test]
 fn timestamps_report_every_pass() {
     let ctx = validated_context();

@@ -11,12 +11,35 @@ use crate::vk::{Buffer, Context, Profiler};
 use ash::vk;
 use gpu_allocator::MemoryLocation;
 
+/// The layout of a frame slot's readback words (u32): what the host
+/// checks after each frame.
+pub mod readback {
+    use crate::gpu::consts::{LOD_VIEWS, LOD_WORDS};
+    /// The raster's band-overflow flag (R_BANDS_FULL, camera and light).
+    pub const RASTER_BANDS: usize = 0;
+    /// The shadow technique's words (`ShadowTechnique::readback`: the deep
+    /// lists' counters, the opacity maps' band flag), else 0.
+    pub const LIGHT: usize = 1;
+    pub const LIGHT_COUNT: usize = 32;
+    /// The see-through fragments' counters, when the frame drew them.
+    pub const SEE_THROUGH: usize = LIGHT + LIGHT_COUNT;
+    pub const SEE_THROUGH_COUNT: usize = 32;
+    /// The LOD lists' counters (LOD_VIEWS x LOD_WORDS) when the frame drew
+    /// them, else 0.
+    pub const LOD: usize = SEE_THROUGH + SEE_THROUGH_COUNT;
+    pub const LOD_COUNT: usize = (LOD_VIEWS * LOD_WORDS) as usize;
+    pub const WORDS: usize = LOD + LOD_COUNT;
+}
+
 pub struct FrameSlot {
     pub cmd: vk::CommandBuffer,
     /// Signalled when the frame that last used this slot finished.
     pub fence: vk::Fence,
     pub profiler: Profiler,
     pub globals: Buffer,
+    /// The words the host checks after the frame ([`readback`]), copied
+    /// there at its end: read when the fence signals, no round trip.
+    pub readback: Buffer,
     /// Descriptor sets of this slot's frame (reset when its fence signalled).
     pub arena: DescriptorArena,
     /// A frame was submitted with this slot and its results not yet read.
@@ -31,6 +54,13 @@ impl FrameSlot {
             std::mem::size_of::<Globals>() as u64,
             vk::BufferUsageFlags::UNIFORM_BUFFER,
             MemoryLocation::CpuToGpu,
+        )?);
+        let readback = ctx.guard(Buffer::new(
+            ctx,
+            &format!("readback {i}"),
+            readback::WORDS as u64 * 4,
+            vk::BufferUsageFlags::TRANSFER_DST,
+            MemoryLocation::GpuToCpu,
         )?);
         let profiler = ctx.guard(Profiler::new(ctx, 32)?);
         let cmd = ctx.command_buffer(&format!("frame {i}"))?;
@@ -50,9 +80,32 @@ impl FrameSlot {
             fence,
             profiler: profiler.keep(),
             globals: globals.keep(),
+            readback: readback.keep(),
             arena: DescriptorArena::default(),
             pending: false,
         })
+    }
+
+    /// The words of this slot's last frame (after its fence).
+    pub fn readback(&self) -> Result<[u32; readback::WORDS]> {
+        let m = self
+            .readback
+            .mapped()
+            .ok_or_else(|| crate::Error::Internal("readback buffer not mapped".into()))?;
+        let mut w = [0u32; readback::WORDS];
+        bytemuck::cast_slice_mut::<u32, u8>(&mut w).copy_from_slice(&m[..readback::WORDS * 4]);
+        Ok(w)
+    }
+
+    /// Zeroes the words before a frame (a word no pass copies reads 0), or
+    /// after they were acted on.
+    pub fn clear_readback(&mut self) -> Result<()> {
+        let m = self
+            .readback
+            .mapped_mut()
+            .ok_or_else(|| crate::Error::Internal("readback buffer not mapped".into()))?;
+        m.fill(0);
+        Ok(())
     }
 
     /// Waits until the GPU finished this slot's last frame.
@@ -74,6 +127,7 @@ impl FrameSlot {
         self.fence = vk::Fence::null();
         self.profiler.destroy(ctx);
         self.globals.destroy(ctx);
+        self.readback.destroy(ctx);
         self.arena.destroy(ctx);
     }
 }

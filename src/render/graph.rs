@@ -117,6 +117,10 @@ pub const PASSES: &[(&str, &str)] = &[
         "shade",
         "full resolution, covered pixels: surface from (pixel ray, sphere id); key-light lookup compiled in per technique (ISSM: exact light-ray tests against the spheres of the 3x3 patch (t = 1) or (2t+1)², soft `(1 - s'/s_eff)^x`; deep: exact transmittance walk of the texel's list; sm-pcf: biased PCF; osm: interpolated optical depth; none+SSDO: screen-space march); the pixel's SSDO result (per block: upsampled from the 4 nearest blocks, bilinear × depth, normal and region agreement; per sphere: its directions' cosine-lobe sum at the pixel's normal, 9 spherical-harmonic terms over the same with every weight 1); key (5 % of its diffuse kept in full shadow), sky light × ambient visibility, occluded fill and rim, half the bounce, a filmic curve on the luminance (hue kept) into the colour buffer; the shadow and ao AOVs (unorm16) only when asked for",
     ),
+    (
+        "readback",
+        "the words the host checks after a frame (the raster's band-job overflow flag; the deep lists', see-through fragments' and LOD lists' counters; the opacity maps' band flag) copied into the frame slot's host-visible buffer: read once its fence signals, with no transfer of its own, so the viewer's pipelined frames are checked too",
+    ),
 ];
 
 /// The pass names, in [`PASSES`] order.
@@ -202,6 +206,7 @@ impl Resources {
         settings: &RenderSettings,
         params: &super::FrameParams,
         globals: &Buffer,
+        readback: &Buffer,
         rec: &mut Recorder,
     ) -> Result<()> {
         let t = &self.targets;
@@ -344,6 +349,24 @@ impl Resources {
             &t.shade,
             &params.shade,
             size,
-        )
+        )?;
+
+        rec.pass("readback", |p| {
+            use super::frame::readback as w;
+            let (buf, at) = self.stages.raster.compute.bands_flag();
+            p.copy_to_host(buf, at, readback, w::RASTER_BANDS as u64 * 4, 4);
+            if let Some((buf, at, words)) = self.stages.shadows.readback() {
+                let n = words.min(w::LIGHT_COUNT as u64) * 4;
+                p.copy_to_host(buf, at, readback, w::LIGHT as u64 * 4, n);
+            }
+            if let Some((buf, words)) = see.map(|s| s.readback()) {
+                let n = words.min(w::SEE_THROUGH_COUNT as u64) * 4;
+                p.copy_to_host(buf, 0, readback, w::SEE_THROUGH as u64 * 4, n);
+            }
+            if let Some(buf) = self.stages.raster.lod_counters() {
+                p.copy_to_host(buf, 0, readback, w::LOD as u64 * 4, w::LOD_COUNT as u64 * 4);
+            }
+            Ok(())
+        })
     }
 }

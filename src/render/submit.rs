@@ -69,7 +69,7 @@ impl Renderer<'_> {
             let times = self
                 .finish_slot(slot)?
                 .ok_or_else(|| Error::Internal("frame results missing".into()))?;
-            if self.after_frame()? == FrameCheck::Done {
+            if self.after_frame(slot)? == FrameCheck::Done {
                 return Ok(times);
             }
         }
@@ -81,20 +81,29 @@ impl Renderer<'_> {
     }
 
     /// The deep lists, the see-through fragments, the LOD lists and the
-    /// band jobs check their pools; a frame any of them overflowed is
-    /// rendered again.
-    fn after_frame(&mut self) -> Result<FrameCheck> {
-        let shadows = self.res.stages.shadows.after_frame(self.ctx)?;
-        let see = self.res.see_through(&self.settings);
-        let grown = match &mut self.res.stages.see_through {
-            Some(s) if see => s.after_frame(self.ctx)?,
-            _ => false,
-        };
-        let lod = self
+    /// band jobs check their pools (from `slot`'s frame, finished, the GPU
+    /// idle); a frame any of them overflowed is rendered again.
+    fn after_frame(&mut self, slot: usize) -> Result<FrameCheck> {
+        use super::frame::readback as w;
+        let words = self.slots[slot].readback()?;
+        let shadows = self
             .res
             .stages
-            .raster
-            .after_frame(self.ctx, &mut self.res.scene)?;
+            .shadows
+            .after_frame(self.ctx, &words[w::LIGHT..][..w::LIGHT_COUNT])?;
+        let see = self.res.see_through(&self.settings);
+        let grown = match &mut self.res.stages.see_through {
+            Some(s) if see => {
+                s.after_frame(self.ctx, &words[w::SEE_THROUGH..][..w::SEE_THROUGH_COUNT])?
+            }
+            _ => false,
+        };
+        let lod = self.res.stages.raster.after_frame(
+            self.ctx,
+            &mut self.res.scene,
+            words[w::RASTER_BANDS] != 0,
+            &words[w::LOD..],
+        )?;
         Ok(if grown || lod {
             FrameCheck::Retry
         } else {
@@ -113,15 +122,37 @@ impl Renderer<'_> {
     /// the per-pass times of the frame that used this slot before (already
     /// finished, or waited for: at most one other frame stays in flight).
     /// A technique that checks each frame (deep lists) makes this wait like
-    /// `render_frame`.
+    /// `render_frame`. The finished frame's band flags are read from its
+    /// slot: if its bands did not fit (a sphere's own invocation drew them,
+    /// and on lavapipe a footprint past 65,535 pixels loses rows), the jobs
+    /// grow and this frame is drawn and checked like `render_frame` (the
+    /// frames already in flight, at most two, show what they drew).
     pub fn render_frame_pipelined(&mut self) -> Result<Option<PassTimes>> {
         if self.checks_frames() {
             return self.render_frame().map(Some);
         }
         let slot = self.next_slot;
         let previous = self.finish_slot(slot)?;
+        if previous.is_some() && self.bands_overflowed(slot)? {
+            self.wait_idle()?;
+            self.after_frame(slot)?;
+            // (the frames in flight saw the same flags: acted on once)
+            for s in &mut self.slots {
+                s.clear_readback()?;
+            }
+            return self.render_frame().map(Some);
+        }
         self.submit()?;
         Ok(previous)
+    }
+
+    /// Whether `slot`'s finished frame flagged band jobs past a list (a
+    /// technique that does not check every frame copies only such flags).
+    fn bands_overflowed(&self, slot: usize) -> Result<bool> {
+        use super::frame::readback as w;
+        let words = self.slots[slot].readback()?;
+        Ok(words[w::RASTER_BANDS] != 0
+            || words[w::LIGHT..][..w::LIGHT_COUNT].iter().any(|&x| x != 0))
     }
 
     /// Waits for every frame in flight.
@@ -183,8 +214,10 @@ impl Renderer<'_> {
                 .globals
                 .upload(ctx, 0, bytemuck::bytes_of(&res.globals))?,
         }
-        // This slot's previous frame finished: its descriptor sets are free.
+        // This slot's previous frame finished: its descriptor sets are free,
+        // its readback words read.
         fs.arena.reset(ctx)?;
+        fs.clear_readback()?;
         let cmd = fs.cmd;
         // SAFETY: the slot's previous submission finished (its fence).
         unsafe {
@@ -205,7 +238,7 @@ impl Renderer<'_> {
         let recorded = {
             let mut rec = Recorder::new(ctx, cmd, &mut fs.arena, Some(&mut fs.profiler));
             rec.restrict_to(graph::pass_names());
-            res.record_frame(settings, &params, &fs.globals, &mut rec)
+            res.record_frame(settings, &params, &fs.globals, &fs.readback, &mut rec)
         };
         // SAFETY: cmd is in the recording state.
         unsafe { dev.end_command_buffer(cmd) }.map_err(|result| Error::Vk {
@@ -256,8 +289,13 @@ impl Renderer<'_> {
                 let mut rec = Recorder::new(ctx, cmd, &mut arena, None);
                 rec.restrict_to(graph::pass_names());
                 rec.keep_log();
-                self.res
-                    .record_frame(&self.settings, &params, &self.slots[0].globals, &mut rec)?;
+                self.res.record_frame(
+                    &self.settings,
+                    &params,
+                    &self.slots[0].globals,
+                    &self.slots[0].readback,
+                    &mut rec,
+                )?;
                 Ok(rec.take_log())
             });
         // SAFETY: the object is not used by any pending GPU work (waited for above / by the owner).

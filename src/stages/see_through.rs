@@ -420,10 +420,18 @@ impl SeeThrough {
         self.counters.download_pod(ctx, 0, COUNTER_WORDS)
     }
 
-    /// Reads the frame's counters; on overflow grows the pool to what the
-    /// frame needs (plus 1/8) so it can be rendered again.
-    pub fn after_frame(&mut self, ctx: &Context) -> Result<bool> {
-        let c = self.read_counters(ctx)?;
+    /// The counters the host reads after each frame (buffer, words).
+    pub fn readback(&self) -> (&Buffer, u64) {
+        (&self.counters, COUNTER_WORDS)
+    }
+
+    /// From the frame's copy of its counters ([`Self::readback`]): on
+    /// overflow grows the pool to what the frame needs (plus 1/8) so it
+    /// can be rendered again.
+    pub fn after_frame(&mut self, ctx: &Context, c: &[u32]) -> Result<bool> {
+        if c.len() < COUNTER_WORDS as usize {
+            return Err(Error::Internal("see-through counters missing".into()));
+        }
         // (first: a visit the loop limit cut may also have filled outside
         // its run)
         if c[F_BANDS_FULL as usize] != 0 {

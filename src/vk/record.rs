@@ -35,6 +35,13 @@ enum Step<'b> {
         size: u64,
         value: u32,
     },
+    Copy {
+        src: &'b Buffer,
+        src_offset: u64,
+        dst: &'b Buffer,
+        dst_offset: u64,
+        size: u64,
+    },
     Dispatch {
         pipe: &'b ComputePipeline,
         bindings: Vec<(&'static str, &'b Buffer)>,
@@ -66,6 +73,26 @@ impl<'b> PassBuilder<'b> {
             offset,
             size,
             value,
+        });
+    }
+
+    /// Copies `size` bytes of `src` at `src_offset` to `dst` at
+    /// `dst_offset`, made visible to the host once the submission's fence
+    /// signals (`dst` is a host-visible readback buffer).
+    pub fn copy_to_host(
+        &mut self,
+        src: &'b Buffer,
+        src_offset: u64,
+        dst: &'b Buffer,
+        dst_offset: u64,
+        size: u64,
+    ) {
+        self.steps.push(Step::Copy {
+            src,
+            src_offset,
+            dst,
+            dst_offset,
+            size,
         });
     }
 
@@ -233,6 +260,23 @@ impl<'a> Recorder<'a> {
                     write: true,
                 }],
             ),
+            Step::Copy { src, dst, .. } => (
+                format!("copy {} to {}", src.name, dst.name),
+                vec![
+                    Use {
+                        buffer: src.raw,
+                        stage: Stage::Transfer,
+                        read: true,
+                        write: false,
+                    },
+                    Use {
+                        buffer: dst.raw,
+                        stage: Stage::Transfer,
+                        read: false,
+                        write: true,
+                    },
+                ],
+            ),
             Step::Dispatch {
                 pipe,
                 bindings,
@@ -275,6 +319,37 @@ impl<'a> Recorder<'a> {
                     ctx.device
                         .cmd_fill_buffer(cmd, buffer.raw, offset, size, value)
                 };
+                Ok(())
+            }
+            Step::Copy {
+                src,
+                src_offset,
+                dst,
+                dst_offset,
+                size,
+            } => {
+                if src_offset + size > src.size || dst_offset + size > dst.size {
+                    return Err(Error::Internal(format!(
+                        "copy of '{}' to '{}' past an end",
+                        src.name, dst.name
+                    )));
+                }
+                let region = [vk::BufferCopy {
+                    src_offset,
+                    dst_offset,
+                    size,
+                }];
+                // SAFETY: recording; both ranges lie inside live buffers
+                // (checked above).
+                unsafe { ctx.device.cmd_copy_buffer(cmd, src.raw, dst.raw, &region) };
+                // The host reads it after the fence.
+                Barrier {
+                    src_stage: vk::PipelineStageFlags2::TRANSFER,
+                    src_access: vk::AccessFlags2::TRANSFER_WRITE,
+                    dst_stage: vk::PipelineStageFlags2::HOST,
+                    dst_access: vk::AccessFlags2::HOST_READ,
+                }
+                .record(&ctx.device, cmd);
                 Ok(())
             }
             Step::Dispatch {

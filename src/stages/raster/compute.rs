@@ -379,15 +379,21 @@ impl RasterPass {
     /// the job list (R_BANDS_FULL); the list is then twice as long
     /// and the frame must be drawn again (its own invocation drew that
     /// sphere, and on lavapipe a footprint past 65,535 pixels loses rows).
-    pub fn after_frame(&mut self, ctx: &Context) -> Result<bool> {
-        let at = R_BANDS_FULL as u64;
-        let full: Vec<u32> = self.counters.download_pod(ctx, at, 1)?;
-        if full[0] == 0 {
+    /// `full`: the frame's copy of that word ([`Self::bands_flag`]).
+    pub fn after_frame(&mut self, ctx: &Context, full: bool) -> Result<bool> {
+        if !full {
             return Ok(false);
         }
+        let at = R_BANDS_FULL as u64;
         self.counters.upload(ctx, at * 4, &0u32.to_le_bytes())?;
         self.jobs.grow(ctx, "the raster")?;
         Ok(true)
+    }
+
+    /// The band-overflow word (R_BANDS_FULL: buffer, byte offset) the
+    /// host reads after each frame.
+    pub fn bands_flag(&self) -> (&Buffer, u64) {
+        (&self.counters, R_BANDS_FULL as u64 * 4)
     }
 
     /// Entries of the band job list.

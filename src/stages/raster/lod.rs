@@ -909,6 +909,11 @@ impl LodCull {
         Ok(both.into_iter().step_by(2).collect())
     }
 
+    /// The counters (LOD_VIEWS x LOD_WORDS words from the start).
+    pub fn counters(&self) -> &Buffer {
+        &self.counters
+    }
+
     /// The last frame's counters (after the frame): `word(list, k)` reads
     /// counter word `k` of list `list`.
     fn counter_words(&self, ctx: &Context) -> Result<impl Fn(usize, u32) -> u32> {
@@ -963,16 +968,23 @@ impl LodCull {
     /// most the full-detail batches): one level finer has up to 4x the
     /// batches, and an orthographic view switches every instance of a type
     /// in the same frame (meso 10^8 fly-in: 272 k -> 752 k batches in one
-    /// notch). Returns whether the frame overflowed and must
-    /// be drawn again. The GPU must be idle.
-    pub fn grow_lists(&mut self, ctx: &Context, lod: &mut LodBuffers) -> Result<bool> {
-        let asked = {
-            let word = self.counter_words(ctx)?;
-            (0..LOD_VIEWS as usize)
-                .map(|list| word(list, LOD_BATCHES))
-                .max()
-                .unwrap_or(0)
-        };
+    /// notch). `words`: the frame's copy of the counters. Returns whether
+    /// the frame overflowed and must be drawn again. The GPU must be idle.
+    pub fn grow_lists(
+        &mut self,
+        ctx: &Context,
+        lod: &mut LodBuffers,
+        words: &[u32],
+    ) -> Result<bool> {
+        let asked = (0..LOD_VIEWS as usize)
+            .map(|list| {
+                words
+                    .get(list * LOD_WORDS as usize + LOD_BATCHES as usize)
+                    .copied()
+                    .unwrap_or(0)
+            })
+            .max()
+            .unwrap_or(0);
         let overflow = asked > self.capacity;
         let capacity = asked
             .saturating_mul(crate::scene::instanced::lod::LOD_MAX_STRIDE)

@@ -159,10 +159,20 @@ impl RasterStage {
     /// After a frame: whether it must be drawn again because a LOD list
     /// (the lists, `scene`'s) or the band job list overflowed (grown). The
     /// GPU must be idle.
-    pub fn after_frame(&mut self, ctx: &Context, scene: &mut SceneBuffers) -> Result<bool> {
-        let jobs = self.compute.after_frame(ctx)?;
+    /// `bands_full`: the frame's band flag; `lod_words`: its copy of the
+    /// LOD counters ([`Self::lod_counters`]).
+    pub fn after_frame(
+        &mut self,
+        ctx: &Context,
+        scene: &mut SceneBuffers,
+        bands_full: bool,
+        lod_words: &[u32],
+    ) -> Result<bool> {
+        let jobs = self.compute.after_frame(ctx, bands_full)?;
         let lists = match (&mut self.lod, &mut scene.lod) {
-            (Some(l), Some(buffers)) if self.lod_used.get() => l.grow_lists(ctx, buffers)?,
+            (Some(l), Some(buffers)) if self.lod_used.get() => {
+                l.grow_lists(ctx, buffers, lod_words)?
+            }
             _ => false,
         };
         Ok(jobs || lists)
@@ -278,6 +288,12 @@ impl RasterStage {
     /// counters and levels then hold).
     pub fn last_cull(&self) -> Option<&LodCull> {
         self.lod.as_ref().filter(|_| self.lod_used.get())
+    }
+
+    /// The LOD cull's counters (LOD_VIEWS x LOD_WORDS words), when the
+    /// frame recorded ran it: the host reads them after the frame.
+    pub fn lod_counters(&self) -> Option<&Buffer> {
+        self.last_cull().map(|l| l.counters())
     }
 
     /// A frame is recorded without the LOD cull.

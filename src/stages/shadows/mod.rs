@@ -253,8 +253,17 @@ pub trait ShadowTechnique {
     /// Device memory by class (bytes), for `gpu_memory`.
     fn memory(&self) -> Vec<(&'static str, u64)>;
     /// Called after each frame finished; `Retry` renders it again.
-    fn after_frame(&mut self, _ctx: &Context) -> Result<FrameCheck> {
+    /// `words`: the frame's copy of [`Self::readback`]'s words (zeros past
+    /// them).
+    fn after_frame(&mut self, _ctx: &Context, _words: &[u32]) -> Result<FrameCheck> {
         Ok(FrameCheck::Done)
+    }
+    /// Words (buffer, byte offset, count: at most 32) copied at the end
+    /// of every frame for [`Self::after_frame`], with no round trip. A
+    /// technique that does not check every frame (pipelined frames are read
+    /// later) copies only flags whose non-zero value asks for a check.
+    fn readback(&self) -> Option<(&Buffer, u64, u64)> {
+        None
     }
     /// Whether the frame must be checked before the next one is recorded
     /// (so a pipelined viewer waits for it).

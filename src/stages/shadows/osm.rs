@@ -265,13 +265,16 @@ impl ShadowTechnique for OpacityShadows {
     /// A sphere's bands did not fit and its own invocation visited more
     /// than BAND_INLINE_SAFE texels (R_BANDS_FULL): twice the jobs,
     /// the frame drawn again.
-    fn after_frame(&mut self, ctx: &Context) -> Result<FrameCheck> {
-        let full: Vec<u32> = self.counters.download_pod(ctx, R_BANDS_FULL as u64, 1)?;
-        if full[0] == 0 {
+    fn after_frame(&mut self, ctx: &Context, words: &[u32]) -> Result<FrameCheck> {
+        if words.first().is_none_or(|&w| w == 0) {
             return Ok(FrameCheck::Done);
         }
         self.jobs.grow(ctx, "opacity maps")?;
         Ok(FrameCheck::Retry)
+    }
+
+    fn readback(&self) -> Option<(&Buffer, u64, u64)> {
+        Some((&self.counters, R_BANDS_FULL as u64 * 4, 1))
     }
 
     fn light(&self) -> &Camera {

@@ -9,7 +9,7 @@ use crate::camera::Camera;
 use crate::error::Result;
 use crate::settings::ShadowMode;
 use crate::vk::guard::Destroy;
-use crate::vk::{Context, Recorder};
+use crate::vk::{Buffer, Context, Recorder};
 
 /// A technique made once and kept; `stale` after the light or the spheres
 /// changed while another technique was active.
@@ -160,15 +160,20 @@ impl ShadowStage {
 
     /// After a frame finished: `Retry` when the technique grew a structure
     /// that overflowed (rebuilt in the frame rendered again).
-    pub fn after_frame(&mut self, ctx: &Context) -> Result<FrameCheck> {
+    pub fn after_frame(&mut self, ctx: &Context, words: &[u32]) -> Result<FrameCheck> {
         let check = match self.active {
-            Some(i) => self.techniques[i].technique.after_frame(ctx)?,
+            Some(i) => self.techniques[i].technique.after_frame(ctx, words)?,
             None => FrameCheck::Done,
         };
         if check == FrameCheck::Retry {
             self.cached = false;
         }
         Ok(check)
+    }
+
+    /// The active technique's words read after each frame.
+    pub fn readback(&self) -> Option<(&Buffer, u64, u64)> {
+        self.active().and_then(|t| t.readback())
     }
 
     /// Whether each frame must be checked before the next is recorded.

@@ -707,8 +707,8 @@ impl ShadowTechnique for DeepShadows {
 
     /// Reads the frame's counters; on overflow grows the pool so the frame
     /// can be rendered again (the renderer gives up after a few tries).
-    fn after_frame(&mut self, ctx: &Context) -> Result<FrameCheck> {
-        let c = self.read_counters(ctx)?;
+    fn after_frame(&mut self, ctx: &Context, words: &[u32]) -> Result<FrameCheck> {
+        let c = DeepCounters::of_words(words)?;
         // (first: a visit the loop limit cut may also have filled outside
         // its run)
         if c.bands_full {
@@ -734,6 +734,10 @@ impl ShadowTechnique for DeepShadows {
         self.grow(ctx, stats.chunks_used)?;
         self.stats = Some(stats);
         Ok(FrameCheck::Retry)
+    }
+
+    fn readback(&self) -> Option<(&Buffer, u64, u64)> {
+        Some((&self.counters, 0, COUNTER_WORDS))
     }
 
     fn checks_frames(&self) -> bool {

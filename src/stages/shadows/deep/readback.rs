@@ -70,10 +70,15 @@ pub struct DeepCounters {
     pub bands_full: bool,
 }
 
-impl DeepShadows {
-    /// The counters of the last frame.
-    pub fn read_counters(&self, ctx: &Context) -> Result<DeepCounters> {
-        let c: Vec<u32> = self.counters.download_pod(ctx, 0, COUNTER_WORDS)?;
+impl DeepCounters {
+    /// From the counter words (COUNTER_WORDS from the start).
+    pub fn of_words(c: &[u32]) -> Result<Self> {
+        if c.len() < COUNTER_WORDS as usize {
+            return Err(crate::Error::Internal(format!(
+                "{} deep-list counter words, {COUNTER_WORDS} expected",
+                c.len()
+            )));
+        }
         Ok(DeepCounters {
             chunks_requested: c[counter::CHUNKS],
             overflowed: c[counter::OVERFLOW] != 0,
@@ -88,6 +93,13 @@ impl DeepShadows {
             band_jobs: c[counter::BANDS_RUN],
             bands_full: c[counter::BANDS_FULL] != 0,
         })
+    }
+}
+
+impl DeepShadows {
+    /// The counters of the last frame.
+    pub fn read_counters(&self, ctx: &Context) -> Result<DeepCounters> {
+        DeepCounters::of_words(&self.counters.download_pod(ctx, 0, COUNTER_WORDS)?)
     }
 
     pub fn read_stats(&self, ctx: &Context) -> Result<DeepStats> {
