@@ -107,6 +107,17 @@ impl Barrier {
         unsafe { device.cmd_pipeline_barrier2(cmd, &dep) };
     }
 
+    /// Transfers (a copy into a readback buffer) made visible to the host
+    /// read after the submission's fence.
+    pub fn transfer_to_host() -> Barrier {
+        Barrier {
+            src_stage: vk::PipelineStageFlags2::TRANSFER,
+            src_access: vk::AccessFlags2::TRANSFER_WRITE,
+            dst_stage: vk::PipelineStageFlags2::HOST,
+            dst_access: vk::AccessFlags2::HOST_READ,
+        }
+    }
+
     /// Everything an earlier submission on the queue may have written,
     /// made visible to everything this one does: frames and one-shot
     /// recordings start with it (queue order alone orders no memory).

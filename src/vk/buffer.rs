@@ -359,13 +359,7 @@ impl Buffer {
                         .cmd_copy_buffer(cmd, self.raw, staging.raw, &region)
                 };
                 // Make the copy visible to the host read after the fence.
-                super::barrier::Barrier {
-                    src_stage: vk::PipelineStageFlags2::TRANSFER,
-                    src_access: vk::AccessFlags2::TRANSFER_WRITE,
-                    dst_stage: vk::PipelineStageFlags2::HOST,
-                    dst_access: vk::AccessFlags2::HOST_READ,
-                }
-                .record(&ctx.device, cmd);
+                super::barrier::Barrier::transfer_to_host().record(&ctx.device, cmd);
                 Ok(())
             })
             .and_then(|_| {

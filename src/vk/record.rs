@@ -343,13 +343,7 @@ impl<'a> Recorder<'a> {
                 // (checked above).
                 unsafe { ctx.device.cmd_copy_buffer(cmd, src.raw, dst.raw, &region) };
                 // The host reads it after the fence.
-                Barrier {
-                    src_stage: vk::PipelineStageFlags2::TRANSFER,
-                    src_access: vk::AccessFlags2::TRANSFER_WRITE,
-                    dst_stage: vk::PipelineStageFlags2::HOST,
-                    dst_access: vk::AccessFlags2::HOST_READ,
-                }
-                .record(&ctx.device, cmd);
+                Barrier::transfer_to_host().record(&ctx.device, cmd);
                 Ok(())
             }
             Step::Dispatch {
