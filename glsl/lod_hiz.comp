@@ -1,14 +1,17 @@
 #version 460
 // The depth tiles of a view's early raster (pc.view_index: the camera's
 // visibility buffer or the light map) for the late occlusion test
-// (lod_cull.comp): MODE 0, one invocation per fine tile of the window (T x
-// T pixels, T = 2^pc.hiz_shift), the farthest depth word of its pixels (an
-// empty pixel's word is all ones: nothing behind it is hidden); MODE 1,
+// (lod_cull.comp): MODE 0 (the camera) and 3 (the light), one invocation
+// per fine tile of the window (T x T pixels, T = 2^pc.hiz_shift), the
+// farthest depth word of its pixels (an empty pixel's word is all ones:
+// nothing behind it is hidden); MODE 1,
 // one per coarse tile (8T x 8T), the farthest of its 8x8 fine tiles;
 // MODE 2, one per super tile (64T x 64T), of its 8x8 coarse tiles. They
 // lie in that order in `hiz`; the camera's 4-px fine tiles also write
 // their 2-px quadrants after them (pc.micro_base: the per-atom test of
-// its batch raster, glsl/raster.comp `tiles_hide`).
+// its batch raster, glsl/raster.comp `tiles_hide`), the light's are
+// bounded by its receivers. (Each view its own MODE: lavapipe runs both
+// sides of a branch, uniform ones too.)
 #include "shared.glsl"
 
 layout(local_size_x = 64) in;
@@ -37,7 +40,7 @@ void main() {
     uvec2 tf = (uvec2(w, h) + T - 1u) / T;
     uint i = FLAT_ID;
     uint far = 0u;
-    if (MODE == 0u) {
+    if (MODE == 0u || MODE == 3u) {
         if (i >= tf.x * tf.y) return;
         uvec2 o = uvec2(i % tf.x, i / tf.x) * T;
         uint x1 = min(o.x + T, w), y1 = min(o.y + T, h);
@@ -48,11 +51,13 @@ void main() {
             for (uint x = o.x; x < x1; ++x) {
                 uint word = texelFetch(visWordTex, int(2u * (y * w + x) + 1u)).x;
                 far = max(far, word);
-                bool right = x - o.x >= 2u, low = y - o.y >= 2u;
-                q = max(q, uvec4(!low && !right, !low && right, low && !right, low && right) * word);
+                if (MODE == 0u) {
+                    bool right = x - o.x >= 2u, low = y - o.y >= 2u;
+                    q = max(q, uvec4(!low && !right, !low && right, low && !right, low && right) * word);
+                }
             }
         }
-        if (pc.micro_base != 0u) {
+        if (MODE == 0u && pc.micro_base != 0u) {
             uint mw = (w + 1u) / 2u;
             for (uint k = 0u; k < 4u; ++k) {
                 uvec2 m = o / 2u + uvec2(k & 1u, k >> 1u);
@@ -71,7 +76,7 @@ void main() {
         // shadows nothing the camera sees; a tile no such point reads
         // hides everything (meso 10^9 at 2,025 A: the plasma below the
         // deepest points the camera sees between the proteins).
-        if (pc.view_index == 1u) {
+        if (MODE == 3u) {
             // (the texels within the reach, then their receiver tiles)
             ivec2 t = ivec2(i % tf.x, i / tf.x) << pc.hiz_shift;
             int RS = int(pc.receiver_shift);

@@ -230,8 +230,9 @@ pub struct LodCull {
     /// CULL_EARLY, CULL_DEFERRED_INSTANCES, CULL_DEFERRED_BATCHES).
     cull: [[ComputePipeline; 3]; 3],
     args: ComputePipeline,
-    /// The depth tiles (fine, coarse, super: [`hiz_shift`]).
-    hiz: [ComputePipeline; 3],
+    /// The depth tiles (the camera's fine, coarse, super: [`hiz_shift`];
+    /// the light's fine).
+    hiz: [ComputePipeline; 4],
     /// Per instance and view: it passed the occlusion test, in two arrays
     /// (last frame's, this frame's: `parity`).
     visible: Buffer,
@@ -394,6 +395,7 @@ impl LodCull {
         let hiz_fine = ctx.guard(hiz("lod depth tiles", 0)?);
         let hiz_coarse = ctx.guard(hiz("lod coarse depth tiles", 1)?);
         let hiz_super = ctx.guard(hiz("lod super depth tiles", 2)?);
+        let hiz_light_fine = ctx.guard(hiz("lod light depth tiles", 3)?);
         // (a view lists each instance once, at one level: never more than
         // the full-detail batches)
         let shift = scene >> 8;
@@ -459,7 +461,12 @@ impl LodCull {
             deferred_given: deferred_batches,
             keep_moved_history: params.lod_keep_moved_history,
             args: args.keep(),
-            hiz: [hiz_fine.keep(), hiz_coarse.keep(), hiz_super.keep()],
+            hiz: [
+                hiz_fine.keep(),
+                hiz_coarse.keep(),
+                hiz_super.keep(),
+                hiz_light_fine.keep(),
+            ],
             visible: visible.keep(),
             hiz_tiles: [hiz_camera.keep(), hiz_light.keep()],
             hiz_prev: [prev_camera.keep(), prev_light.keep()],
@@ -730,12 +737,11 @@ impl LodCull {
             },
             pad: [0; 2],
         };
-        p.dispatch(
-            &self.hiz[0],
-            &push,
-            Grid::Invocations(tiles(w, h, 1 << shift)),
-            &hb,
-        );
+        let fine = match view {
+            ViewIndex::Camera => &self.hiz[0],
+            ViewIndex::Light => &self.hiz[3],
+        };
+        p.dispatch(fine, &push, Grid::Invocations(tiles(w, h, 1 << shift)), &hb);
         for (level, side) in [(1, 8), (2, 64)] {
             p.dispatch(
                 &self.hiz[level],
