@@ -9,6 +9,7 @@ pub use crate::gpu::blocks::BandCounters;
 use crate::vk::pipeline::{PipelineDesc, rw};
 use crate::vk::{Buffer, ComputePipeline, Context, Grid, PassBuilder};
 use bytemuck::Pod;
+use std::sync::atomic::{AtomicU32, Ordering};
 
 /// The most band jobs one buffer holds (8 bytes each).
 pub fn max_jobs(ctx: &Context) -> u32 {
@@ -36,29 +37,95 @@ pub fn grown_jobs(capacity: u32, most: u32, what: &str) -> Result<u32> {
 /// the frame is drawn again.
 pub struct JobList {
     pub buf: Buffer,
-    capacity: u32,
+    /// Jobs the buffer holds.
+    entries: u32,
+    /// Jobs a frame may queue: `entries`, unless a test lowered it
+    /// ([`JobList::set_limit`]; atomic: set through a shared reference).
+    limit: AtomicU32,
     name: &'static str,
+    /// Guard words after the jobs and their pattern (the deep lists'
+    /// buffers all carry them), or none.
+    guard: Option<(u64, u32)>,
 }
 
 impl JobList {
     /// `first` jobs (at least 1, at most one buffer's).
     pub fn new(ctx: &Context, name: &'static str, first: u32) -> Result<Self> {
-        let capacity = first.clamp(1, max_jobs(ctx));
+        Self::make(ctx, name, first, None)
+    }
+
+    /// The same, with `words` guard words of `pattern` after the jobs.
+    pub fn guarded(
+        ctx: &Context,
+        name: &'static str,
+        first: u32,
+        (words, pattern): (u64, u32),
+    ) -> Result<Self> {
+        Self::make(ctx, name, first, Some((words, pattern)))
+    }
+
+    fn make(
+        ctx: &Context,
+        name: &'static str,
+        first: u32,
+        guard: Option<(u64, u32)>,
+    ) -> Result<Self> {
+        let entries = first.clamp(1, Self::most(ctx, guard));
         Ok(JobList {
-            buf: Buffer::storage(ctx, name, capacity as u64 * 8)?,
-            capacity,
+            buf: Self::buffer(ctx, name, entries, guard)?,
+            entries,
+            limit: AtomicU32::new(entries),
             name,
+            guard,
         })
     }
 
+    /// The most jobs one buffer holds (with its guard words).
+    fn most(ctx: &Context, guard: Option<(u64, u32)>) -> u32 {
+        let words = guard.map_or(0, |g| g.0);
+        max_jobs(ctx).saturating_sub(words.min(u32::MAX as u64) as u32)
+    }
+
+    fn buffer(
+        ctx: &Context,
+        name: &str,
+        entries: u32,
+        guard: Option<(u64, u32)>,
+    ) -> Result<Buffer> {
+        match guard {
+            None => Buffer::storage(ctx, name, entries as u64 * 8),
+            Some((words, pattern)) => Buffer::guarded(
+                ctx,
+                name,
+                entries as u64 * 2,
+                words,
+                pattern,
+                ash::vk::BufferUsageFlags::STORAGE_BUFFER,
+            ),
+        }
+    }
+
+    /// The jobs a frame may queue.
     pub fn capacity(&self) -> u32 {
-        self.capacity
+        self.limit.load(Ordering::Relaxed)
+    }
+
+    /// The jobs the buffer holds (its guard words follow them: word
+    /// `2 x entries`).
+    pub fn entries(&self) -> u32 {
+        self.entries
+    }
+
+    /// Test hook: at most `jobs` a frame (0 to the buffer's), so that a
+    /// small scene exercises the full-list path; from the next frame.
+    pub fn set_limit(&self, jobs: u32) {
+        self.limit.store(jobs.min(self.entries), Ordering::Relaxed);
     }
 
     /// `base` (the pass's counter words) with this list's length.
     pub fn layout(&self, base: BandCounters) -> BandCounters {
         BandCounters {
-            job_capacity: self.capacity,
+            job_capacity: self.capacity(),
             ..base
         }
     }
@@ -66,16 +133,17 @@ impl JobList {
     /// After a frame whose spheres did not fit: a list [`grown_jobs`]
     /// long (`what` names the pass in the error past one buffer's most).
     pub fn grow(&mut self, ctx: &Context, what: &str) -> Result<()> {
-        let grown = grown_jobs(self.capacity, max_jobs(ctx), what)?;
-        ctx.wait_idle();
-        let buf = Buffer::storage(ctx, self.name, grown as u64 * 8)?;
-        let mut old = std::mem::replace(&mut self.buf, buf);
-        old.destroy(ctx);
-        log::info!(
-            "{what}: band jobs {} -> {grown} (a frame asked more)",
-            self.capacity
-        );
-        self.capacity = grown;
+        let limit = self.capacity();
+        let grown = grown_jobs(limit, Self::most(ctx, self.guard), what)?;
+        if grown > self.entries {
+            ctx.wait_idle();
+            let buf = Self::buffer(ctx, self.name, grown, self.guard)?;
+            let mut old = std::mem::replace(&mut self.buf, buf);
+            old.destroy(ctx);
+            self.entries = grown;
+        }
+        log::info!("{what}: band jobs {limit} -> {grown} (a frame asked more)");
+        self.limit.store(grown, Ordering::Relaxed);
         Ok(())
     }
 

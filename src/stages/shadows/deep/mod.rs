@@ -52,7 +52,7 @@ use crate::camera::Camera;
 use crate::error::{Error, Result};
 use crate::gpu::blocks::{AllocPush, SortPush, SplatPush};
 use crate::gpu::consts;
-use crate::passes::bands::{BandArgs, BandCounters, BandJob, BandPipelines};
+use crate::passes::bands::{BandArgs, BandCounters, BandJob, BandPipelines, JobList};
 use crate::passes::scene::{SCENE_ATTRIBUTES, SCENE_GEOMETRY};
 use crate::passes::{LOCAL_SIZE, spirv};
 use crate::settings::ShadowMode;
@@ -63,7 +63,6 @@ use ash::vk;
 use bytemuck::{Pod, Zeroable};
 use serde::{Deserialize, Serialize};
 use std::any::Any;
-use std::sync::atomic::{AtomicU32, Ordering};
 
 mod lists;
 mod readback;
@@ -170,14 +169,11 @@ pub struct DeepShadows {
     pub light: Camera,
     sphere_count: u32,
     capacity: u32,
-    /// Band jobs allowed per frame (JOB_CAPACITY unless a test lowers it).
-    job_limit: AtomicU32,
     texels: Buffer,
     tiles: Buffer,
     counters: Buffer,
-    jobs: Buffer,
-    /// Entries `jobs` holds (`job_limit` at most).
-    jobs_entries: u32,
+    /// Band jobs (guarded; JOB_CAPACITY unless a test lowers the limit).
+    jobs: JobList,
     inline_bits: Buffer,
     lists: Lists,
     /// The splat shader in count mode and in fill mode (specialization
@@ -271,6 +267,12 @@ impl DeepShadows {
         // Build everything, releasing what was made if a later step fails.
         let mut bufs = ctx.guard(Vec::new());
         let args = ctx.guard(BandArgs::new(ctx, "deep band args")?);
+        let jobs = ctx.guard(JobList::guarded(
+            ctx,
+            "deep band jobs",
+            JOB_CAPACITY,
+            (GUARD_WORDS, GUARD_PATTERN),
+        )?);
         bufs.push(guarded(ctx, "deep texels", texel_count * 4, lookup)?);
         bufs.push(guarded(ctx, "deep tiles", tile_count(&light) * 4, lookup)?);
         bufs.push(guarded(
@@ -278,12 +280,6 @@ impl DeepShadows {
             "deep counters",
             COUNTER_WORDS,
             storage | vk::BufferUsageFlags::INDIRECT_BUFFER,
-        )?);
-        bufs.push(guarded(
-            ctx,
-            "deep band jobs",
-            JOB_CAPACITY as u64 * 2,
-            storage,
         )?);
         bufs.push(guarded(
             ctx,
@@ -360,17 +356,15 @@ impl DeepShadows {
         let lists = Lists::new(ctx, capacity)?;
         let mut b = bufs.keep().into_iter();
         let mut nb = || b.next().expect("buffers");
-        let (texels, tiles, counters, jobs, inline_bits) = (nb(), nb(), nb(), nb(), nb());
+        let (texels, tiles, counters, inline_bits) = (nb(), nb(), nb(), nb());
         Ok(DeepShadows {
             light,
             sphere_count,
             capacity,
-            job_limit: AtomicU32::new(JOB_CAPACITY),
             texels,
             tiles,
             counters,
-            jobs,
-            jobs_entries: JOB_CAPACITY,
+            jobs: jobs.keep(),
             inline_bits,
             lists,
             count: count.keep(),
@@ -415,35 +409,12 @@ impl DeepShadows {
     /// sphere's own invocation looping over its footprint) can be exercised
     /// on small scenes. Takes effect from the next recorded frame.
     pub fn set_job_limit(&self, jobs: u32) {
-        self.job_limit
-            .store(jobs.min(self.jobs_entries), Ordering::Relaxed);
+        self.jobs.set_limit(jobs);
     }
 
     /// The band jobs a frame may queue.
     pub fn job_limit(&self) -> u32 {
-        self.job_limit.load(Ordering::Relaxed)
-    }
-
-    /// After a frame a sphere's bands did not fit: twice the jobs
-    /// (a new list where the old holds fewer), the GPU idle.
-    fn grow_jobs(&mut self, ctx: &Context) -> Result<()> {
-        // (the guard words share the buffer's range)
-        let most = crate::passes::bands::max_jobs(ctx).saturating_sub(GUARD_WORDS as u32);
-        let grown = crate::passes::bands::grown_jobs(self.job_limit(), most, "deep lists")?;
-        if grown > self.jobs_entries {
-            ctx.wait_idle();
-            let jobs = lists::guarded(
-                ctx,
-                "deep band jobs",
-                grown as u64 * 2,
-                vk::BufferUsageFlags::STORAGE_BUFFER,
-            )?;
-            let mut old = std::mem::replace(&mut self.jobs, jobs);
-            old.destroy(ctx);
-            self.jobs_entries = grown;
-        }
-        self.job_limit.store(grown, Ordering::Relaxed);
-        Ok(())
+        self.jobs.capacity()
     }
 
     pub fn tiles_xy(&self) -> (u32, u32) {
@@ -479,12 +450,12 @@ impl DeepShadows {
             ("Alpha", &l.alpha),
             ("Ids", &l.ids),
             ("Counters", &self.counters),
-            ("Jobs", &self.jobs),
+            ("Jobs", &self.jobs.buf),
             ("Inline", &self.inline_bits),
         ];
         splat_bufs.extend(f.scene.geometry());
         splat_bufs.extend(f.scene.attributes());
-        let job_capacity = self.job_limit.load(Ordering::Relaxed);
+        let job_capacity = self.jobs.capacity();
         let splat = SplatPush {
             sphere_count: self.sphere_count,
             big_area: BIG_AREA,
@@ -646,11 +617,11 @@ impl DeepShadows {
             &mut self.texels,
             &mut self.tiles,
             &mut self.counters,
-            &mut self.jobs,
             &mut self.inline_bits,
         ] {
             b.destroy(ctx);
         }
+        self.jobs.destroy(ctx);
         self.lists.destroy(ctx);
     }
 }
@@ -712,7 +683,7 @@ impl ShadowTechnique for DeepShadows {
         // (first: a visit the loop limit cut may also have filled outside
         // its run)
         if c.bands_full {
-            self.grow_jobs(ctx)?;
+            self.jobs.grow(ctx, "deep lists")?;
             return Ok(FrameCheck::Retry);
         }
         if c.sort_cut > 0 {

@@ -183,7 +183,7 @@ impl DeepShadows {
             (&self.texels, self.texel_count() * 4),
             (&self.tiles, tile_count(&self.light) * 4),
             (&self.counters, COUNTER_WORDS),
-            (&self.jobs, self.jobs_entries as u64 * 2),
+            (&self.jobs.buf, self.jobs.entries() as u64 * 2),
             (
                 &self.inline_bits,
                 (self.sphere_count as u64).div_ceil(32).max(1),
