@@ -327,14 +327,7 @@ fn osm_band_jobs_past_a_large_footprint_grow_and_match() {
     // from each finished frame's slot)
     for pipelined in [false, true] {
         let mut r = Renderer::new(&ctx, &scene, tight.clone()).expect("renderer");
-        if pipelined {
-            for _ in 0..4 {
-                r.render_frame_pipelined().expect("frame");
-            }
-            r.wait_idle().expect("idle");
-        } else {
-            r.render_frame().expect("frame");
-        }
+        checked_or_pipelined(&mut r, pipelined);
         let o = r.inspect().opacity_shadows().unwrap().job_capacity();
         assert_eq!(o, 256, "pipelined {pipelined}");
         assert!(

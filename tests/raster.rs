@@ -330,14 +330,7 @@ fn band_jobs_past_the_list_are_drawn_again_longer() {
     let va = a.inspect().read_vis().unwrap();
     for pipelined in [false, true] {
         let mut b = Renderer::new(&ctx, &s, tight.clone()).expect("renderer");
-        if pipelined {
-            for _ in 0..4 {
-                b.render_frame_pipelined().expect("frame");
-            }
-            b.wait_idle().expect("idle");
-        } else {
-            b.render_frame().expect("frame");
-        }
+        checked_or_pipelined(&mut b, pipelined);
         let vb = b.inspect().read_vis().unwrap();
         let differ = va.iter().zip(&vb).filter(|(x, y)| x != y).count();
         assert_eq!(differ, 0, "pipelined {pipelined}: {differ} pixels differ");

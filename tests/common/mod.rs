@@ -77,6 +77,20 @@ pub fn screen_filling_spheres() -> Vec<Sphere> {
     ]
 }
 
+/// One checked frame (`render_frame`), or four through the viewer's path
+/// (`render_frame_pipelined`: a finished frame's checks read from its
+/// slot, two frames in flight), waited for.
+pub fn checked_or_pipelined(r: &mut sphereshade::render::Renderer, pipelined: bool) {
+    if pipelined {
+        for _ in 0..4 {
+            r.render_frame_pipelined().expect("frame");
+        }
+        r.wait_idle().expect("idle");
+    } else {
+        r.render_frame().expect("frame");
+    }
+}
+
 /// A 512x384 orthographic camera 60 units high on the origin, looking
 /// down -z: [`screen_filling_spheres`] each cover its image (48 bands).
 pub fn screen_filling_camera() -> Camera {
