@@ -29,6 +29,12 @@ pub mod readback {
     pub const LOD: usize = SEE_THROUGH + SEE_THROUGH_COUNT;
     pub const LOD_COUNT: usize = (LOD_VIEWS * LOD_WORDS) as usize;
     pub const WORDS: usize = LOD + LOD_COUNT;
+
+    // (a section shorter than the counters it copies would cut them)
+    const _: () = assert!(
+        crate::stages::shadows::deep::COUNTER_WORDS as usize <= LIGHT_COUNT
+            && crate::stages::see_through::COUNTER_WORDS as usize <= SEE_THROUGH_COUNT
+    );
 }
 
 pub struct FrameSlot {

@@ -40,7 +40,7 @@ use serde::{Deserialize, Serialize};
 pub const GUARD_WORDS: u64 = 64;
 pub const GUARD_PATTERN: u32 = 0x0175_EE00;
 /// Counter words (stats 0..15, band jobs 16..23).
-const COUNTER_WORDS: u64 = 32;
+pub(crate) const COUNTER_WORDS: u64 = 32;
 /// Footprints above this many pixels go to band jobs (the rasterizer's
 /// CPU threshold: the lists are a camera raster too).
 const BIG_AREA: u32 = 1024;
