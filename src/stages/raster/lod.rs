@@ -300,6 +300,14 @@ pub struct LodCull {
     per: u32,
 }
 
+/// Counter word `k` of list `list` in the LOD counters `w` (LOD_VIEWS x
+/// LOD_WORDS words, downloaded or the frame's readback copy); 0 past them.
+fn lod_word(w: &[u32], list: usize, k: u32) -> u32 {
+    w.get(list * LOD_WORDS as usize + k as usize)
+        .copied()
+        .unwrap_or(0)
+}
+
 impl LodCull {
     pub const NAME: &'static str = "lod_cull";
     pub const OCCLUSION: &'static str = "lod_occlusion";
@@ -926,7 +934,7 @@ impl LodCull {
         let w: Vec<u32> = self
             .counters
             .download_pod(ctx, 0, (LOD_VIEWS * LOD_WORDS) as u64)?;
-        Ok(move |list: usize, k: u32| w[list * LOD_WORDS as usize + k as usize])
+        Ok(move |list: usize, k: u32| lod_word(&w, list, k))
     }
 
     /// What the last frame's cull kept (after the frame).
@@ -983,12 +991,7 @@ impl LodCull {
         words: &[u32],
     ) -> Result<bool> {
         let asked = (0..LOD_VIEWS as usize)
-            .map(|list| {
-                words
-                    .get(list * LOD_WORDS as usize + LOD_BATCHES as usize)
-                    .copied()
-                    .unwrap_or(0)
-            })
+            .map(|list| lod_word(words, list, LOD_BATCHES))
             .max()
             .unwrap_or(0);
         let overflow = asked > self.capacity;
