@@ -79,6 +79,14 @@ impl GlslField for bool {
         ("bool", String::new())
     }
 }
+/// A view (glsl/shared.glsl `View`, which every shader including a push
+/// block has already included): a push block's field only.
+struct GpuView;
+impl GlslField for GpuView {
+    fn glsl_field() -> (&'static str, String) {
+        ("View", String::new())
+    }
+}
 impl<const N: usize> GlslField for [u32; N] {
     fn glsl_field() -> (&'static str, String) {
         ("uint", format!("[{N}]"))

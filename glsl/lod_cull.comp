@@ -34,10 +34,12 @@
 //     depth of every pixel tile its rectangle touches is hidden (two-phase
 //     occlusion culling, as niagara and Mol* do it: exact, what it drops
 //     could not win a pixel); the instances' results are the next frame's
-//     history. A camera that keeps moving empties its last tiles every
-//     frame, so the early phase cannot hide an instance and each it lists
-//     passes again: after a small move it reads which instances the last
-//     final image showed instead (pc.history).
+//     history. The early tests place the bounds in the view those last
+//     tiles were made in (pc.prev): a view moved a little lists early what
+//     last frame's image showed, and the late phase tests the rest against
+//     this frame's (after a large move the host empties the tiles:
+//     nothing hidden); after a small move the camera's early phase reads
+//     which instances the last final image showed (pc.history).
 // What is visible in the final image is drawn in one phase or the other:
 // exact, whatever the last frame was (a camera that moved only moves work
 // to the late phase). Where the deferral buffer is full, the instance is
@@ -198,6 +200,20 @@ void place_batch(View v, bool persp, uint k, uint at, float stretch, float grow,
     rc = sphere_rect(v, bv, br, persp);
 }
 
+// An instance's level bounds (sphere radius r, centred at view
+// coordinates cv; the box's turned half-axes ax) in view v: the box's
+// half-extent along the view ez (its half-axes' projections on the view's
+// axes, grown by slack for the rounding of that difference, never past
+// the sphere) and the window rectangle.
+void place_bounds(View v, bool persp, vec3 cv, mat3 ax, float r, float slack,
+                  out float ez, out ivec4 rc) {
+    mat3 axes = transpose(mat3(v.right.xyz, v.up.xyz, v.dir.xyz));
+    vec3 ext = min(abs(axes * ax[0]) + abs(axes * ax[1]) + abs(axes * ax[2]) + slack, vec3(r));
+    ez = ext.z;
+    rc = persp ? sphere_rect(v, cv, r, true)
+               : plane_rect(v, cv.x + vec2(-ext.x, ext.x), cv.y + vec2(-ext.y, ext.y));
+}
+
 // A batch sphere's radius placed with instance k (p: its molecule's
 // centre c placed) is times the transform's largest stretch: 1 for a
 // rigid one; an affine one's bounded by Gershgorin's circles of A^T A,
@@ -334,18 +350,22 @@ void main() {
     // The level's bounds (same centre).
     float r = texelFetch(lodBoundTex, int(2u * (base + level))).w;
     vec3 be = texelFetch(lodBoundTex, int(2u * (base + level) + 1u)).xyz;
-    // The box's half-extents along the view's axes: its turned half-axes'
-    // projections (the transform applied to the box's face centres, so an
-    // affine instance's too), grown for the rounding of that difference,
-    // and never past the sphere.
+    // The box's turned half-axes (the transform applied to the box's
+    // face centres, so an affine instance's too).
     mat3 ax = mat3(instance_apply(k, bs.xyz + vec3(be.x, 0.0, 0.0)) - p,
                    instance_apply(k, bs.xyz + vec3(0.0, be.y, 0.0)) - p,
                    instance_apply(k, bs.xyz + vec3(0.0, 0.0, be.z)) - p);
-    mat3 axes = transpose(mat3(v.right.xyz, v.up.xyz, v.dir.xyz));
     float slack = 1e-3 * r + 1e-6 * coord_max(p);
-    vec3 ext = min(abs(axes * ax[0]) + abs(axes * ax[1]) + abs(axes * ax[2]) + slack, vec3(r));
-    ivec4 rc = persp ? sphere_rect(v, cv, r, true)
-                     : plane_rect(v, cv.x + vec2(-ext.x, ext.x), cv.y + vec2(-ext.y, ext.y));
+    float ez;
+    ivec4 rc;
+    place_bounds(v, persp, cv, ax, r, slack, ez, rc);
+    // (the same in the view last frame's final tiles were made in: the
+    // early test asks whether last frame's image hid it, wherever the
+    // view is now)
+    vec3 cvp = view_space(pc.prev, p, persp);
+    float ezp;
+    ivec4 rcp;
+    place_bounds(pc.prev, persp, cvp, ax, r, slack, ezp, rcp);
     // (a light view: only what can shadow a point the camera sees)
     bool inside = over_region(cam, rc);
     uint h = 2u * k + view;
@@ -355,9 +375,9 @@ void main() {
     // the last final image does not hide whole; the late phase recomputes
     // the same test on the same tiles)
     bool listed_early = inside && (visible[last_at] & pc.history) != 0u
-                        && !hidden(true, v, cv, r, ext.z, rc, persp);
+                        && !hidden(true, pc.prev, cvp, r, ezp, rcp, persp);
     if (late) {
-        bool seen = inside && !hidden(false, v, cv, r, ext.z, rc, persp);
+        bool seen = inside && !hidden(false, v, cv, r, ez, rc, persp);
         visible[now_at] = seen ? VISIBLE_PASSED : 0u;
         if (!seen) return;
     } else if (!listed_early) {
@@ -385,8 +405,11 @@ void main() {
         float br;
         ivec4 brc;
         place_batch(v, persp, k, first + j, stretch, grow, bv, br, brc);
+        vec3 bvp;
+        ivec4 brcp;
+        place_batch(pc.prev, persp, k, first + j, stretch, grow, bvp, br, brcp);
         bool in_window = over_region(cam, brc);
-        bool early = listed_early && in_window && !hidden(true, v, bv, br, br, brc, persp);
+        bool early = listed_early && in_window && !hidden(true, pc.prev, bvp, br, br, brcp, persp);
         bool keep = late ? !early && in_window && !hidden(false, v, bv, br, br, brc, persp)
                          : early;
         if (keep) {

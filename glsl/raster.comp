@@ -143,6 +143,46 @@ bool tiles_hide(bool prev, View v, ivec4 rc, uint near) {
     return max(max(w.x, w.y), max(w.z, w.w)) < near;
 }
 
+// Instance placement p0 (its linear map's images of the axes ax) into
+// view v's pixel coordinates (plane_rect's: x ppu + W/2 - 1/2, H/2 - 1/2 -
+// y ppu; a pixel's centre at integer coordinates) and depth: an atom at a
+// (the molecule's frame) is at o + (rx . a, ry . a), depth oz + rz . a.
+// (`precise`: the camera's early and recheck pipelines must compute alike
+// bits, whatever each one's contraction into fused multiply-adds; an atom
+// both found hidden behind last frame's tiles would be lost)
+struct AtomMap {
+    vec3 rx, ry, rz;
+    vec2 o;
+    float oz;
+    // the rounding of the placed centres and of this map: far above
+    // either, in world units
+    float slack;
+};
+
+AtomMap atom_map(View v, vec3 p0, mat3 ax) {
+    float ppu = v.center.w;
+    precise vec3 rx = (v.right.xyz * ax) * ppu, ry = -(v.up.xyz * ax) * ppu, rz = v.dir.xyz * ax;
+    precise vec3 q = p0 - v.center.xyz;
+    precise vec2 o = vec2(dot(q, v.right.xyz) * ppu + 0.5 * v.right.w - 0.5,
+                  0.5 * v.up.w - 0.5 - dot(q, v.up.xyz) * ppu);
+    precise float oz = dot(q, v.dir.xyz);
+    precise float slack = 1e-5 * (coord_max(p0) + coord_max(v.center.xyz)) + 1e-3;
+    return AtomMap(rx, ry, rz, o, oz, slack);
+}
+
+// Atom a's pixel rectangle in view v (mapped by m), grown, and its nearest
+// depth key, less the cull's margin for the keys' f32 rounding
+// (glsl/lod_cull.comp `hidden`) and the map's.
+void atom_rect(View v, AtomMap m, vec4 a, out ivec4 rc, out uint near) {
+    precise vec2 t = m.o + vec2(dot(m.rx, a.xyz), dot(m.ry, a.xyz));
+    precise float r = a.w * v.center.w + (m.slack * v.center.w + 1e-3);
+    ivec2 lo = ivec2(v.dims.zw), hi = min(lo + ivec2(v.dims.xy), ivec2(int(v.right.w), int(v.up.w))) - 1;
+    rc = ivec4(max(ivec2(ceil(t - r)), lo), min(ivec2(floor(t + r)), hi));
+    precise float z = m.oz + dot(m.rz, a.xyz);
+    precise float zmin = z - a.w + v.depth.x - (1e-4 * (abs(z) + abs(v.depth.x) + a.w) + 1e-3 + m.slack);
+    near = floatBitsToUint(max(zmin, 0.0));
+}
+
 void batch_part() {
     const uint PARTS = batch_parts(1u << BATCH_SHIFT);
     uint e = FLAT_ID / PARTS;
@@ -152,49 +192,32 @@ void batch_part() {
     uint from = (FLAT_ID % PARTS) * BATCH_PART_SLOTS;
     uint count = min(b.w & 0xFFu, from + BATCH_PART_SLOTS);
     View v = LIGHT_BATCHES ? g.light : g.cam;
-    float ppu = v.center.w;
-    // The instance's map into pixel coordinates (plane_rect's: x ppu + W/2
-    // - 1/2, H/2 - 1/2 - y ppu; a pixel's centre at integer coordinates)
-    // and depth: its origin's image and its axes' images.
     vec3 p0 = instance_apply(b.x, vec3(0.0));
     mat3 ax = mat3(instance_linear(b.x, vec3(1.0, 0.0, 0.0)),
                    instance_linear(b.x, vec3(0.0, 1.0, 0.0)),
                    instance_linear(b.x, vec3(0.0, 0.0, 1.0)));
-    // (`precise`: the camera's early and recheck pipelines must compute
-    // alike bits, whatever each one's contraction into fused
-    // multiply-adds; an atom both found hidden behind last frame's tiles
-    // would be lost)
-    precise vec3 rx = (v.right.xyz * ax) * ppu, ry = -(v.up.xyz * ax) * ppu, rz = v.dir.xyz * ax;
-    precise vec3 q = p0 - v.center.xyz;
-    precise vec2 o = vec2(dot(q, v.right.xyz) * ppu + 0.5 * v.right.w - 0.5,
-                  0.5 * v.up.w - 0.5 - dot(q, v.up.xyz) * ppu);
-    precise float oz = dot(q, v.dir.xyz);
-    // (the rounding of the placed centres and of this map: far above
-    // either, in world units)
-    precise float slack = 1e-5 * (coord_max(p0) + coord_max(v.center.xyz)) + 1e-3;
-    precise float margin = slack * ppu + 1e-3;
-    ivec2 lo = ivec2(v.dims.zw), hi = min(lo + ivec2(v.dims.xy), ivec2(int(v.right.w), int(v.up.w))) - 1;
+    AtomMap m = atom_map(v, p0, ax);
+    // (the camera's early and recheck tests ask whether last frame's tiles
+    // hid the atom where last frame's view saw it: pc.prev)
+    AtomMap mp = atom_map(pc.prev, p0, ax);
     uint cand = 0u;
     for (uint j = from; j < count; ++j) {
         vec4 a = texelFetch(sphereTex, int(b.y + j));
-        precise vec2 t = o + vec2(dot(rx, a.xyz), dot(ry, a.xyz));
-        precise float r = a.w * ppu + margin;
         bool draw;
         if (LIGHT_BATCHES) {
             // The atoms whose disc may hold a texel centre: the nearest
             // centre within the radius, or a radius that may reach past it.
+            precise vec2 t = m.o + vec2(dot(m.rx, a.xyz), dot(m.ry, a.xyz));
+            precise float r = a.w * v.center.w + (m.slack * v.center.w + 1e-3);
             vec2 d = t - round(t);
             draw = r >= 0.5 || dot(d, d) <= r * r;
         } else {
-            // The atom's pixel rectangle, grown, and its nearest depth
-            // key, less the cull's margin for the keys' f32 rounding
-            // (glsl/lod_cull.comp `hidden`) and this map's.
-            ivec4 rc = ivec4(max(ivec2(ceil(t - r)), lo), min(ivec2(floor(t + r)), hi));
-            precise float z = oz + dot(rz, a.xyz);
-            precise float zmin = z - a.w + v.depth.x - (1e-4 * (abs(z) + abs(v.depth.x) + a.w) + 1e-3 + slack);
-            uint near = floatBitsToUint(max(zmin, 0.0));
+            ivec4 rc, rcp;
+            uint near, nearp;
+            atom_rect(v, m, a, rc, near);
+            atom_rect(pc.prev, mp, a, rcp, nearp);
             bool some = rc.x <= rc.z && rc.y <= rc.w;
-            bool hid_prev = CAM_BATCHES != CAM_LATE && tiles_hide(true, v, rc, near);
+            bool hid_prev = CAM_BATCHES != CAM_LATE && tiles_hide(true, pc.prev, rcp, nearp);
             bool hid_now = CAM_BATCHES != CAM_EARLY && tiles_hide(false, v, rc, near);
             draw = some && (CAM_BATCHES == CAM_EARLY ? !hid_prev
                            : CAM_BATCHES == CAM_RECHECK ? hid_prev && !hid_now : !hid_now);

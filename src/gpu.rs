@@ -189,5 +189,9 @@ macro_rules! gpu_spec {
 
 /// Push-constant blocks and specialization constants shared with GLSL.
 pub mod blocks {
+    use super::GpuView;
     include!("gpu_blocks.rs");
+
+    // (the largest block: within the 128 bytes every device allows)
+    const _: () = assert!(std::mem::size_of::<LodCullPush>() <= 128);
 }

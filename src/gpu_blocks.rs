@@ -6,7 +6,8 @@
 // (`#include "push/NAME.glsl"`, `#include "spec/NAME.glsl"`), so that the
 // order, types and size of a block cannot drift between the two sides. A
 // doc comment travels to both. Field types: `u32`, `i32`, `f32`, `bool`
-// (spec only), `[u32; N]` (push padding) and a `gpu_knobs!` struct (a
+// (spec only), `[u32; N]` (push padding), `GpuView` (push only: the
+// shader has shared.glsl's `View`) and a `gpu_knobs!` struct (a
 // GLSL struct of scalars, `#include "knobs/NAME.glsl"`: knob structs are
 // also clap arguments, so a knob is written once). A spec include also defines
 // SPEC_NEXT_ID, the id after its last constant (a tiled shader's
@@ -113,6 +114,9 @@ gpu_push! {
         /// none; src/stages/raster/lod.rs `micro_base`).
         micro_base: u32,
         pad: u32,
+        /// The view the camera's last final tiles were made in, where its
+        /// early and recheck tests place each atom (LodCullPush.prev).
+        prev: GpuView,
     }
 
     /// `lod_cull` (glsl/lod_cull.comp): one invocation per instance.
@@ -141,6 +145,11 @@ gpu_push! {
         /// lists instances by: VISIBLE_PASSED, or after a camera's small
         /// move VISIBLE_SHOWN (src/stages/raster/lod.rs `small_move`).
         history: u32,
+        /// The view last frame's final depth tiles (`hizPrevTex`) were
+        /// made in: the early phase places what it tests there (a moved
+        /// view tests what last frame's image hid, not where it is now).
+        /// 128 bytes in all, Vulkan's least maxPushConstantsSize.
+        prev: GpuView,
     }
 
     /// `lod_shown` (glsl/lod_shown.comp).

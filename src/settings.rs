@@ -609,11 +609,6 @@ pub struct LodParams {
     /// CAM_BATCHES; tests compare the two).
     #[arg(skip)]
     pub lod_camera_per_slot: bool,
-    /// Keep a moved view's last depth tiles (else emptied) and test the
-    /// camera's atoms against them: the early phase then hides atoms the
-    /// late one must recheck (tests; glsl/raster.comp CAM_RECHECK).
-    #[arg(skip)]
-    pub lod_keep_moved_history: bool,
 }
 
 default_from_args!(LodParams);

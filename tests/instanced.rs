@@ -869,10 +869,10 @@ fn the_light_per_batch_draws_the_per_slot_map() {
 /// atoms, the recheck is skipped: the tiles are the last frame's) over the
 /// whole scene, zoomed in and close (atoms past 2x2 fine tiles: coarse
 /// ones; footprints past 128 pixels in bands), a molecule far from the
-/// origin, and a panning one whose
-/// last tiles are kept (`lod_keep_moved_history`: the early test hides
-/// atoms now in view, which the recheck must draw). (A recheck that draws
-/// nothing, or an early test without the recheck's, fails it.)
+/// origin, and a panning one (its early test places each atom where last
+/// frame's view saw it: atoms hidden there and now in view are the
+/// recheck's). (A recheck that draws nothing, or an early test without
+/// the recheck's, fails it.)
 #[test]
 fn the_camera_per_batch_draws_the_per_slot_frame() {
     let ctx = validated_context();
@@ -914,17 +914,16 @@ fn the_camera_per_batch_draws_the_per_slot_frame() {
     };
     let mut far_cam = camera(&far, 160, 120, None);
     far_cam.view_height /= 3.0;
-    for (what, scene, cams, lod_pixels, keep) in [
-        ("whole", &s, still(whole), 2.0, false),
-        ("zoomed", &s, still(zoomed), 2.0, false),
-        ("close, full detail", &s, still(closer), 0.0, false),
-        ("panning, last tiles kept", &s, pans, 2.0, true),
-        ("far from the origin", &far, still(far_cam), 0.0, false),
+    for (what, scene, cams, lod_pixels) in [
+        ("whole", &s, still(whole), 2.0),
+        ("zoomed", &s, still(zoomed), 2.0),
+        ("close, full detail", &s, still(closer), 0.0),
+        ("panning", &s, pans, 2.0),
+        ("far from the origin", &far, still(far_cam), 0.0),
     ] {
         let s = scene;
         let mut st = settings(cams[0], ShadowMode::IssmSoft);
         st.lod.lod_pixels = lod_pixels;
-        st.lod.lod_keep_moved_history = keep;
         let mut slots = st.clone();
         slots.lod.lod_camera_per_slot = true;
         let mut a = Renderer::new(&ctx, s, st).expect("renderer");

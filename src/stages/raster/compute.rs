@@ -2,6 +2,7 @@
 //! visibility buffer (camera view or key-light view, same code).
 
 use crate::error::Result;
+use crate::gpu::GpuView;
 use crate::gpu::blocks::RasterPush;
 use crate::gpu::consts::{
     CAM_EARLY, CAM_LATE, CAM_PER_SLOT, CAM_RECHECK, LOD_ARGS, LOD_BATCH_ARGS, LOD_RECHECK_ARGS,
@@ -99,6 +100,8 @@ pub struct TileTest<'b> {
     pub mode: u32,
     pub now: &'b Buffer,
     pub prev: &'b Buffer,
+    /// The view `prev` was made in.
+    pub prev_view: GpuView,
     pub shift: u32,
     pub micro_base: u32,
 }
@@ -500,6 +503,7 @@ impl RasterPass {
             hiz_shift: tested.map_or(0, |t| t.shift),
             micro_base: tested.map_or(0, |t| t.micro_base),
             pad: 0,
+            prev: tested.map_or(GpuView::default(), |t| t.prev_view),
         };
         let pipes = match (&self.see_through, see_through) {
             (Some(p), true) => p,

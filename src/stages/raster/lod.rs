@@ -25,7 +25,7 @@ use crate::gpu::consts::{
     BATCH_EMPTY, CULL_DEFERRED_BATCHES, CULL_DEFERRED_INSTANCES, CULL_EARLY, HIZ_FINE_TILES,
     HIZ_MIN_SHIFT, LOD_ARGS, LOD_BATCHES, LOD_DEFER_BATCH_ARGS, LOD_DEFER_BATCHES,
     LOD_DEFER_INSTANCE_ARGS, LOD_DEFER_INSTANCES, LOD_LIST_TAIL, LOD_RECEIVERS_AT, LOD_SPHERES,
-    LOD_VIEWS, LOD_WORDS, NO_LEVEL_YET, VISIBLE_PASSED, VISIBLE_SHOWN,
+    LOD_TILES_CHANGED, LOD_VIEWS, LOD_WORDS, NO_LEVEL_YET, VISIBLE_PASSED, VISIBLE_SHOWN,
 };
 use crate::passes::scene::{LodBuffers, MAX_SLOTS, SCENE_GEOMETRY, SceneBuffers};
 use crate::passes::{LOCAL_SIZE, spirv};
@@ -207,7 +207,10 @@ pub struct LodCounts {
 /// lists more (meso 10^9 at 2,025 A, frame ms with the passed flags ->
 /// the shown ones: `bench --orbit 1` 1,221 -> 977, 5: 1,347 -> 1,122, 10:
 /// 1,342 -> 1,331, 20: 1,215 -> 1,296; bench's orbit of 72 degrees a
-/// frame, every fourth zoomed 4x: 1,513 -> 1,732).
+/// frame, every fourth zoomed 4x: 1,513 -> 1,732). Only then are the
+/// last final tiles read, where the last view saw each instance, batch and
+/// atom (`LodCullPush::prev`, `RasterPush::prev`); after a larger move they
+/// are emptied.
 pub fn small_move(a: &GpuView, b: &GpuView) -> bool {
     let v = |x: [f32; 4]| glam::DVec3::new(x[0] as f64, x[1] as f64, x[2] as f64);
     let turn = v(a.dir).dot(v(b.dir)).clamp(-1.0, 1.0).acos().to_degrees();
@@ -222,6 +225,15 @@ pub fn small_move(a: &GpuView, b: &GpuView) -> bool {
         && zoom(a.center[3], b.center[3]) <= 1.5
         && (a.dir[3] == b.dir[3] || zoom(a.dir[3], b.dir[3]) <= 1.5)
         && pan <= 0.5 * a.up[3] as f64
+}
+
+/// Which image of a view its depth tiles are made of ([`LodCull::tiles_of`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Image {
+    /// This frame's early image: the late phase tests against it.
+    Early,
+    /// The final image: the next frame's early phase tests against it.
+    Final,
 }
 
 pub struct LodCull {
@@ -256,16 +268,21 @@ pub struct LodCull {
     /// more than three quarters of them).
     pending: Option<u32>,
     /// Per view: its GPU view of the last frame recorded, and whether this
-    /// frame's differs (its last depth tiles are then emptied before the
-    /// early phase: tiles seen from elsewhere would send most batches to
-    /// the late phase, behind a sparse early image; an orbiting bench at
-    /// 506 A on 10^9 drew 2.3x as much late).
+    /// frame's differs.
     last_views: std::cell::RefCell<[Option<GpuView>; 2]>,
     moved: [std::cell::Cell<bool>; 2],
-    /// Keep a moved view's last tiles and test the camera's atoms against
-    /// them (tests: the recheck then has work; the knob
-    /// `LodParams::lod_keep_moved_history`).
-    keep_moved_history: bool,
+    /// Per view: the view its last final tiles were made in, where this
+    /// frame's early phase places what it tests against them
+    /// (`LodCullPush::prev`; tested where the view is now, a moved view's
+    /// last tiles sent most batches to the late phase behind a sparse
+    /// early image: an orbiting bench at 506 A on 10^9 drew 2.3x as much
+    /// late), and whether those tiles are emptied first (after a large
+    /// move: nothing hidden, every batch of the history's instances drawn
+    /// early, untested).
+    prev_views: std::cell::Cell<[GpuView; 2]>,
+    empty_prev: [std::cell::Cell<bool>; 2],
+    /// Per view: `prev_views` holds last frame's view (not this one's).
+    placed: [std::cell::Cell<bool>; 2],
     /// `visible` holds a frame's result (cleared before the first).
     history: std::cell::Cell<bool>,
     /// The instances a moved camera's final image shows, flagged
@@ -467,7 +484,6 @@ impl LodCull {
             cull: [ortho.keep(), persp.keep(), light.keep()],
             deferral: deferral.keep(),
             deferred_given: deferred_batches,
-            keep_moved_history: params.lod_keep_moved_history,
             args: args.keep(),
             hiz: [
                 hiz_fine.keep(),
@@ -485,6 +501,9 @@ impl LodCull {
             history_flag: std::cell::Cell::new(VISIBLE_PASSED),
             shown_written: std::cell::Cell::new(false),
             moved: [std::cell::Cell::new(true), std::cell::Cell::new(true)],
+            prev_views: std::cell::Cell::new([GpuView::default(); 2]),
+            empty_prev: [std::cell::Cell::new(false), std::cell::Cell::new(false)],
+            placed: [std::cell::Cell::new(false), std::cell::Cell::new(false)],
             history: std::cell::Cell::new(false),
             shown: shown.keep(),
             region: region.keep(),
@@ -585,6 +604,7 @@ impl LodCull {
                 ViewIndex::Camera => self.history_flag.get(),
                 ViewIndex::Light => VISIBLE_PASSED,
             },
+            prev: self.prev_views.get()[view as usize],
         };
         let cull = &self.cull[pipes];
         if list < LATE {
@@ -664,6 +684,12 @@ impl LodCull {
     ) -> Result<()> {
         if view == ViewIndex::Camera {
             p.fill(&self.counters, self.counters.size, 0);
+            // (a moved camera's atoms hidden behind last frame's tiles
+            // where it saw them are rechecked whatever the tiles: the
+            // word says the tiles changed)
+            if self.camera_moved() {
+                p.fill_at(&self.counters, LOD_TILES_CHANGED as u64 * 4, 4, 1);
+            }
             if !self.history.replace(true) {
                 p.fill(&self.visible, self.visible.size, 0);
                 p.fill(&self.levels, self.levels.size, NO_LEVEL_YET);
@@ -697,9 +723,9 @@ impl LodCull {
             );
         }
         // (the early phase reads the last final image's tiles, emptied
-        // when the view moved: nothing hidden, every batch of the
+        // where they cannot be placed: nothing hidden, every batch of the
         // instances last frame's flags name drawn early: `history_flag`)
-        if self.moved[view as usize].get() && !self.keep_moved_history {
+        if self.empty_prev[view as usize].get() {
             let b = &self.hiz_prev[view as usize];
             p.fill(b, b.size, u32::MAX);
         }
@@ -774,29 +800,34 @@ impl LodCull {
         perspective: bool,
         size: (u32, u32),
     ) -> Result<()> {
-        let shift = hiz_shift(view, size.0, size.1);
-        let buf = &self.hiz_tiles[view as usize];
-        // (the camera's early tiles are compared with last frame's)
-        let compare = view == ViewIndex::Camera;
-        self.tiles_steps(p, globals, vis, (buf, compare), view, size, shift);
+        let shift = self.tiles_of(p, globals, vis, (view, Image::Early), size);
         let list = LATE + view as usize;
         self.cull_into(p, globals, scene, list, view, perspective, shift)
     }
 
-    /// After `view`'s late raster: the depth tiles of its final image
-    /// `vis` (`size`), the next frame's early phase tests batches against.
-    pub fn history_steps<'b>(
+    /// The depth tiles of `view`'s image `vis` (`size`): of its early
+    /// image, the late phase's test (the camera's compared with last
+    /// frame's), or of its final image, the next frame's early phase's.
+    /// Returns their shift.
+    pub fn tiles_of<'b>(
         &'b self,
         p: &mut PassBuilder<'b>,
         globals: &'b Buffer,
         vis: &'b Buffer,
-        view: ViewIndex,
+        (view, image): (ViewIndex, Image),
         size: (u32, u32),
-    ) {
+    ) -> u32 {
         let shift = hiz_shift(view, size.0, size.1);
-        self.prev_shift[view as usize].set(shift);
-        let buf = &self.hiz_prev[view as usize];
-        self.tiles_steps(p, globals, vis, (buf, false), view, size, shift);
+        let v = view as usize;
+        let (buf, compare) = match image {
+            Image::Early => (&self.hiz_tiles[v], view == ViewIndex::Camera),
+            Image::Final => {
+                self.prev_shift[v].set(shift);
+                (&self.hiz_prev[v], false)
+            }
+        };
+        self.tiles_steps(p, globals, vis, (buf, compare), view, size, shift);
+        shift
     }
 
     /// After a moved camera's late raster: the instances its final image
@@ -845,11 +876,22 @@ impl LodCull {
         self.parity.set(1 - self.parity.get());
         let mut last = self.last_views.borrow_mut();
         let small = last[0].is_some_and(|l| small_move(&l, views[0]));
+        let mut prev = [GpuView::default(); 2];
         for (i, v) in views.into_iter().enumerate() {
             let moved = last[i].is_none_or(|l| bytemuck::bytes_of(&l) != bytemuck::bytes_of(v));
             self.moved[i].set(moved);
+            // (after a small move only: the last tiles placed in the last
+            // view send to the late phase what they hid, and the last
+            // image seen from far elsewhere hides little of the new one's
+            // late work; also the same projection and size, so the tiles
+            // read alike)
+            let placed = last[i].filter(|l| small_move(l, v));
+            self.empty_prev[i].set(last[i].is_some() && placed.is_none());
+            self.placed[i].set(placed.is_some());
+            prev[i] = placed.unwrap_or(*v);
             last[i] = Some(*v);
         }
+        self.prev_views.set(prev);
         // (last frame's shown flags where it wrote them and the camera
         // moved a little since; a still camera's early phase tests the
         // instances that passed against last frame's tiles, valid again)
@@ -864,10 +906,16 @@ impl LodCull {
         (&self.hiz_tiles[0], &self.hiz_prev[0])
     }
 
-    /// Whether the camera moved since the last frame (its last tiles are
-    /// emptied before this frame's early phase).
+    /// Whether the camera moved since the last frame.
     pub fn camera_moved(&self) -> bool {
-        self.moved[0].get() && !self.keep_moved_history
+        self.moved[0].get()
+    }
+
+    /// The view the camera's last final tiles were made in, where its
+    /// atoms are placed to be tested against them: None where there are
+    /// none yet or they were emptied (after a large move).
+    pub fn camera_prev_view(&self) -> Option<GpuView> {
+        self.placed[0].get().then(|| self.prev_views.get()[0])
     }
 
     /// The shift of the camera's last final tiles (28: none yet).

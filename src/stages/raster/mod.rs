@@ -18,7 +18,7 @@ use crate::vk::{Buffer, Context, Recorder};
 use compute::{PerBatch, RasterIo, RasterPass, TileTest, ViewIndex};
 use coverage::CoveragePass;
 use graphics::GraphicsRasterPass;
-use lod::{LightReads, LodCull, LodView};
+use lod::{Image, LightReads, LodCull, LodView};
 
 /// The stage's screen targets: the visibility buffer (8 B/px + guard
 /// words) and the tile lists (4 B per 256 pixels).
@@ -223,7 +223,34 @@ impl RasterStage {
         let Some(l) = &self.lod else {
             return Ok(());
         };
+        // The early list again where its atoms were tested against last
+        // frame's tiles: those they hid that this frame's early image does
+        // not (what the early image hides could not win a pixel; so every
+        // atom that shows is drawn, whatever last frame was).
+        let mut again = camera_io(io, t, Some(l.view(ViewIndex::Camera)), false);
+        again.tested = self.tile_test(io, CAM_EARLY).map(|t| TileTest {
+            mode: CAM_RECHECK,
+            ..t
+        });
+        // A moved camera's recheck comes before the late test, and the
+        // early tiles are made again after it: its early image lacks the
+        // atoms whose pixels changed hands (a 1/1000 degree turn at 2,025 A
+        // leaves holes along silhouettes), and a hole in a tile lets every
+        // batch over it through to the late list (3.4 M spheres against
+        // 0.1 M at 640x360).
+        let recheck_first = again.tested.is_some() && l.camera_moved();
         rec.pass(LodCull::OCCLUSION, |p| {
+            if recheck_first {
+                l.tiles_of(
+                    p,
+                    io.globals,
+                    &t.vis,
+                    (ViewIndex::Camera, Image::Early),
+                    io.size,
+                );
+                self.compute
+                    .steps(p, &again, ViewIndex::Camera, io.perspective, false)?;
+            }
             l.occlusion_steps(
                 p,
                 io.globals,
@@ -234,26 +261,23 @@ impl RasterStage {
                 io.size,
             )
         })?;
-        // The early list again where its atoms were tested against last
-        // frame's tiles: those they hid that this frame's early image does
-        // not (what the early image hides could not win a pixel; so every
-        // atom that shows is drawn, whatever last frame was).
-        let mut again = camera_io(io, t, Some(l.view(ViewIndex::Camera)), false);
-        again.tested = self.tile_test(io, CAM_EARLY).map(|t| TileTest {
-            mode: CAM_RECHECK,
-            ..t
-        });
         let mut target = camera_io(io, t, Some(l.late(ViewIndex::Camera)), false);
         target.tested = self.tile_test(io, CAM_LATE);
         rec.pass(LodCull::LATE, |p| {
-            if again.tested.is_some() {
+            if again.tested.is_some() && !recheck_first {
                 self.compute
                     .steps(p, &again, ViewIndex::Camera, io.perspective, false)?;
             }
             self.compute
                 .steps(p, &target, ViewIndex::Camera, io.perspective, false)?;
             // (the final image's depth tiles: next frame's early batches)
-            l.history_steps(p, io.globals, &t.vis, ViewIndex::Camera, io.size);
+            l.tiles_of(
+                p,
+                io.globals,
+                &t.vis,
+                (ViewIndex::Camera, Image::Final),
+                io.size,
+            );
             l.shown_steps(p, io.globals, &t.vis, io.scene, io.size)?;
             Ok(())
         })
@@ -315,9 +339,9 @@ impl RasterStage {
     /// How the camera's LOD list of this phase (CAM_EARLY, CAM_LATE; the
     /// recheck is the early one's) is tested per atom: None where it is drawn per slot
     /// (perspective, see-through spheres, a window too tall, atoms large on
-    /// screen, per-batch drawing off) and, before the late phase, where last frame's tiles
-    /// cannot hide anything (the view moved: emptied) or are of another
-    /// size.
+    /// screen, per-batch drawing off) and, before the late phase, where there are no last
+    /// tiles to read (none yet, another projection or size; a moved
+    /// camera's are read where it saw each atom).
     fn tile_test(&self, io: &RasterInputs, mode: u32) -> Option<TileTest<'_>> {
         let l = self.lod.as_ref()?;
         let (w, h) = io.size;
@@ -332,13 +356,15 @@ impl RasterStage {
         }
         let shift = lod::hiz_shift(ViewIndex::Camera, w, h);
         let (now, prev) = l.camera_tiles();
-        if mode != CAM_LATE && (l.camera_moved() || l.camera_prev_shift() != shift) {
+        let prev_view = l.camera_prev_view();
+        if mode != CAM_LATE && (prev_view.is_none() || l.camera_prev_shift() != shift) {
             return None;
         }
         Some(TileTest {
             mode,
             now,
             prev,
+            prev_view: prev_view.unwrap_or_default(),
             shift,
             micro_base: lod::micro_base(w, h).unwrap_or(0),
         })

@@ -55,7 +55,7 @@ impl<'a> ShadowInputs<'a> {
         (w, h): (u32, u32),
     ) -> Result<()> {
         use crate::stages::raster::compute::{RasterIo, ViewIndex};
-        use crate::stages::raster::lod::LodCull;
+        use crate::stages::raster::lod::{Image, LodCull};
         let io = |lod, clear| RasterIo {
             globals: self.globals,
             scene: self.scene,
@@ -78,7 +78,7 @@ impl<'a> ShadowInputs<'a> {
             self.raster
                 .steps(p, &io(Some(l.late(light)), false), light, false, false)?;
             // (the final map's depth tiles: next frame's early batches)
-            l.history_steps(p, self.globals, map, light, (w, h));
+            l.tiles_of(p, self.globals, map, (light, Image::Final), (w, h));
             Ok(())
         })
     }
