@@ -192,6 +192,8 @@ pub mod blocks {
     use super::GpuView;
     include!("gpu_blocks.rs");
 
-    // (the largest block: within the 128 bytes every device allows)
+    // (the blocks that carry a view: within the 128 bytes every device
+    // allows)
     const _: () = assert!(std::mem::size_of::<LodCullPush>() <= 128);
+    const _: () = assert!(std::mem::size_of::<RasterPush>() <= 128);
 }
