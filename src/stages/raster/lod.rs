@@ -276,13 +276,10 @@ pub struct LodCull {
     /// (`LodCullPush::prev`; tested where the view is now, a moved view's
     /// last tiles sent most batches to the late phase behind a sparse
     /// early image: an orbiting bench at 506 A on 10^9 drew 2.3x as much
-    /// late), and whether those tiles are emptied first (after a large
-    /// move: nothing hidden, every batch of the history's instances drawn
-    /// early, untested).
-    prev_views: std::cell::Cell<[GpuView; 2]>,
-    empty_prev: [std::cell::Cell<bool>; 2],
-    /// Per view: `prev_views` holds last frame's view (not this one's).
-    placed: [std::cell::Cell<bool>; 2],
+    /// late); None: those tiles are emptied first (no last frame, or a
+    /// large move: nothing hidden, every batch of the history's instances
+    /// drawn early, untested).
+    prev_views: std::cell::Cell<[Option<GpuView>; 2]>,
     /// `visible` holds a frame's result (cleared before the first).
     history: std::cell::Cell<bool>,
     /// The instances a moved camera's final image shows, flagged
@@ -501,9 +498,7 @@ impl LodCull {
             history_flag: std::cell::Cell::new(VISIBLE_PASSED),
             shown_written: std::cell::Cell::new(false),
             moved: [std::cell::Cell::new(true), std::cell::Cell::new(true)],
-            prev_views: std::cell::Cell::new([GpuView::default(); 2]),
-            empty_prev: [std::cell::Cell::new(false), std::cell::Cell::new(false)],
-            placed: [std::cell::Cell::new(false), std::cell::Cell::new(false)],
+            prev_views: std::cell::Cell::new([None; 2]),
             history: std::cell::Cell::new(false),
             shown: shown.keep(),
             region: region.keep(),
@@ -604,7 +599,11 @@ impl LodCull {
                 ViewIndex::Camera => self.history_flag.get(),
                 ViewIndex::Light => VISIBLE_PASSED,
             },
-            prev: self.prev_views.get()[view as usize],
+            // (emptied tiles hide nothing wherever it is placed: the
+            // view itself)
+            prev: self.prev_views.get()[view as usize]
+                .or(self.last_views.borrow()[view as usize])
+                .unwrap_or_default(),
         };
         let cull = &self.cull[pipes];
         if list < LATE {
@@ -725,7 +724,7 @@ impl LodCull {
         // (the early phase reads the last final image's tiles, emptied
         // where they cannot be placed: nothing hidden, every batch of the
         // instances last frame's flags name drawn early: `history_flag`)
-        if self.empty_prev[view as usize].get() {
+        if self.prev_views.get()[view as usize].is_none() {
             let b = &self.hiz_prev[view as usize];
             p.fill(b, b.size, u32::MAX);
         }
@@ -876,7 +875,7 @@ impl LodCull {
         self.parity.set(1 - self.parity.get());
         let mut last = self.last_views.borrow_mut();
         let small = last[0].is_some_and(|l| small_move(&l, views[0]));
-        let mut prev = [GpuView::default(); 2];
+        let mut prev = [None; 2];
         for (i, v) in views.into_iter().enumerate() {
             let moved = last[i].is_none_or(|l| bytemuck::bytes_of(&l) != bytemuck::bytes_of(v));
             self.moved[i].set(moved);
@@ -885,10 +884,7 @@ impl LodCull {
             // image seen from far elsewhere hides little of the new one's
             // late work; also the same projection and size, so the tiles
             // read alike)
-            let placed = last[i].filter(|l| small_move(l, v));
-            self.empty_prev[i].set(last[i].is_some() && placed.is_none());
-            self.placed[i].set(placed.is_some());
-            prev[i] = placed.unwrap_or(*v);
+            prev[i] = last[i].filter(|l| small_move(l, v));
             last[i] = Some(*v);
         }
         self.prev_views.set(prev);
@@ -915,7 +911,7 @@ impl LodCull {
     /// atoms are placed to be tested against them: None where there are
     /// none yet or they were emptied (after a large move).
     pub fn camera_prev_view(&self) -> Option<GpuView> {
-        self.placed[0].get().then(|| self.prev_views.get()[0])
+        self.prev_views.get()[0]
     }
 
     /// The shift of the camera's last final tiles (28: none yet).
