@@ -317,8 +317,15 @@ pub fn load_scene_with_progress(
         scene = s;
         for (rule, n) in paint.rules.iter().zip(&applied.selected) {
             if *n == 0 {
+                // (what a `molecule` or `node` rule could have named)
+                let hint = match &scene.instancing {
+                    Some(i) if rule.sel.per_instance() => {
+                        format!(" ({})", crate::output::printable(&i.names_hint(8)))
+                    }
+                    _ => String::new(),
+                };
                 eprintln!(
-                    "note: {} '{}' selects no sphere",
+                    "note: {} '{}' selects no sphere{hint}",
                     rule.flag,
                     crate::output::printable(&rule.text)
                 );

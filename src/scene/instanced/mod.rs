@@ -222,6 +222,32 @@ impl Instancing {
             .map_or(block, |n| block * n.placements.len() as u64)
     }
 
+    /// The labels a `molecule` or `node` selection may name, for a note
+    /// when one names none: up to `most` of each, then how many in all
+    /// (as read: the caller makes it printable).
+    pub fn names_hint(&self, most: usize) -> String {
+        fn list<'a>(labels: impl Iterator<Item = &'a str>, most: usize) -> String {
+            let mut seen: Vec<&str> = Vec::new();
+            for l in labels {
+                if !seen.contains(&l) {
+                    seen.push(l);
+                }
+            }
+            let shown: Vec<&str> = seen.iter().take(most).copied().collect();
+            let rest = if seen.len() > most {
+                format!(", ... ({} in all)", seen.len())
+            } else {
+                String::new()
+            };
+            format!("{}{rest}", shown.join(", "))
+        }
+        format!(
+            "molecule types: {}; nodes: {}",
+            list(self.molecules.iter().map(|m| m.label.as_str()), most),
+            list(self.nodes.iter().map(|n| n.label.as_str()), most)
+        )
+    }
+
     /// The number of tree levels among `levels` (they come first).
     pub fn tree_levels(&self) -> u32 {
         self.levels

@@ -171,3 +171,28 @@ fn far_instances_are_refused() {
     let e = b.finish("nan").unwrap_err().to_string();
     assert!(e.contains("sphere 1 lands"), "{e}");
 }
+
+#[test]
+fn a_selection_that_names_nothing_is_told_the_names() {
+    let s = two_molecules().finish("t").unwrap();
+    let inst = s.instancing.as_ref().unwrap();
+    let labels: Vec<&str> = inst.molecules.iter().map(|m| m.label.as_str()).collect();
+    let all = inst.names_hint(100);
+    // every molecule type, and no count when all are shown
+    assert!(
+        all.starts_with(&format!("molecule types: {};", labels.join(", "))),
+        "{all}"
+    );
+    assert!(!all.contains("in all"), "{all}");
+    // past `most`: the first ones, then how many there are
+    let one = inst.names_hint(1);
+    assert!(
+        one.starts_with(&format!(
+            "molecule types: {}, ... ({} in all);",
+            labels[0],
+            labels.len()
+        )),
+        "{one}"
+    );
+    assert!(one.contains("in all)"), "{one}");
+}
