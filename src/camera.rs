@@ -51,7 +51,7 @@ impl Camera {
             && !(f > 0.0 && f < 179.0)
         {
             return Err(Error::Input(
-                "--fov must be between 0 and 179 degrees".into(),
+                "--fov must be above 0 and below 179 degrees".into(),
             ));
         }
         if width == 0 || height == 0 || width > 16384 || height > 16384 {

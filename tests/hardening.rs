@@ -314,7 +314,7 @@ fn cases(d: &Path) -> Vec<Case> {
         c(
             "--fov -40",
             render(procedural.clone(), &["--fov", "-40"]),
-            "--fov must be between 0 and 179",
+            "--fov must be above 0 and below 179",
         ),
         c(
             "--issm-size -1",
