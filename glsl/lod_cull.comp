@@ -38,8 +38,10 @@
 //     tiles were made in (pc.prev): a view moved a little lists early what
 //     last frame's image showed, and the late phase tests the rest against
 //     this frame's (after a large move the host empties the tiles:
-//     nothing hidden); after a small move the camera's early phase reads
-//     which instances the last final image showed (pc.history).
+//     nothing hidden, and the camera's history names only the front
+//     instances, lod_front.comp); after a small move the camera's early
+//     phase reads which instances the last final image showed
+//     (pc.history).
 // What is visible in the final image is drawn in one phase or the other:
 // exact, whatever the last frame was (a camera that moved only moves work
 // to the late phase). Where the deferral buffer is full, the instance is

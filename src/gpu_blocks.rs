@@ -152,6 +152,17 @@ gpu_push! {
         prev: GpuView,
     }
 
+    /// `lod_front` (glsl/lod_front.comp).
+    LodFrontPush "lod_front" {
+        instances: u32,
+        /// LodCullPush.parity (the early phase reads this array's flags).
+        parity: u32,
+        /// Cells of 2^cell_shift pixels a side.
+        cell_shift: u32,
+        /// The history flag the early phase reads (LodCullPush.history).
+        flag: u32,
+    }
+
     /// `lod_shown` (glsl/lod_shown.comp).
     LodShownPush "lod_shown" {
         /// Slots per LOD batch: 2^batch_shift.

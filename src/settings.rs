@@ -609,6 +609,13 @@ pub struct LodParams {
     /// CAM_BATCHES; tests compare the two).
     #[arg(skip)]
     pub lod_camera_per_slot: bool,
+    /// Leave the camera's history as it is where its early phase has no
+    /// tiles to test against (the first frame, a large move) instead of
+    /// seeding it with the front instances (glsl/lod_front.comp): such a
+    /// first frame draws every instance in the window, the reference the
+    /// tests cull against.
+    #[arg(skip)]
+    pub lod_no_front: bool,
 }
 
 default_from_args!(LodParams);

@@ -990,7 +990,8 @@ fn meso_pan(s: &Scene) -> impl Fn(f64) -> sphereshade::camera::Camera {
 /// (type, level) has its own bounds) never drops a visible sphere: on one
 /// renderer panning over the meso scene (orthographic, so every frame
 /// keeps the same levels), each frame's ids, depths, colours and shadows equal a
-/// fresh renderer's first frame at that camera, which draws every
+/// fresh renderer's first frame at that camera, which (its history not
+/// seeded with the front instances, `lod_no_front`) draws every
 /// instance in the window (no history, nothing yet to hide behind); from
 /// the third frame on (the first's history is everything in the window)
 /// the history and the depth tiles cull.
@@ -1007,7 +1008,9 @@ fn culled_coarse_levels_are_never_visible() {
         let cam = pan(shift);
         rd.update(|x| x.camera = cam).expect("camera");
         rd.render_frame().expect("frame");
-        let mut fresh = Renderer::new(&ctx, &s, settings(cam, ShadowMode::IssmSoft)).unwrap();
+        let mut unseeded = settings(cam, ShadowMode::IssmSoft);
+        unseeded.lod.lod_no_front = true;
+        let mut fresh = Renderer::new(&ctx, &s, unseeded).unwrap();
         fresh.render_frame().unwrap();
         let (a, b) = (rd.inspect(), fresh.inspect());
         let levels = a.lod_levels().unwrap().unwrap();
@@ -1033,6 +1036,49 @@ fn culled_coarse_levels_are_never_visible() {
         assert_no_validation_messages(&ctx);
     }
     assert!(coarse > 0, "no instance drew a coarse level");
+}
+
+/// Where the camera's early phase has no tiles to test against (a first
+/// frame, a large move) its history is seeded with the front instances,
+/// the nearest per cell of about a typical instance's radius
+/// (glsl/lod_front.comp): the early image covers the window and the late
+/// phase hides what lies behind. On the meso scene, a first frame and a
+/// 2x zoom in and back out (large moves, as the bench orbit's 4x zooms)
+/// equal an unseeded renderer's frames bit for bit (ids, depths, colours,
+/// shadows) and draw fewer spheres, the seeds early and some late.
+#[test]
+fn front_instances_seed_a_camera_without_history() {
+    let ctx = validated_context();
+    let s = sphereshade::scene::meso::meso(10_000_000, 1).unwrap();
+    let whole = camera(&s, 320, 240, None);
+    let mut zoomed = whole;
+    zoomed.view_height /= 4.0;
+    let mut middle = whole;
+    middle.view_height /= 2.0;
+    let st = settings(middle, ShadowMode::IssmSoft);
+    let mut unseeded = st.clone();
+    unseeded.lod.lod_no_front = true;
+    let mut a = Renderer::new(&ctx, &s, st).expect("renderer");
+    let mut b = Renderer::new(&ctx, &s, unseeded).expect("renderer");
+    for (f, cam) in [middle, zoomed, middle].into_iter().enumerate() {
+        a.update(|x| x.camera = cam).expect("camera");
+        b.update(|x| x.camera = cam).expect("camera");
+        a.render_frame().expect("frame");
+        b.render_frame().expect("frame");
+        let (ia, ib) = (a.inspect(), b.inspect());
+        let (x, y) = (
+            ia.lod_counts().unwrap().expect("the cull ran"),
+            ib.lod_counts().unwrap().expect("the cull ran"),
+        );
+        let what = format!("frame {f}: seeded {x:?}, not {y:?}");
+        assert_same_frame(&ia, &ib, &what);
+        // (320x240: 167 k / 123 k / 178 k spheres unseeded, 139 k / 100 k
+        // / 149 k seeded; the 2x zoom in is a large move too)
+        assert!(x.camera_spheres < y.camera_spheres, "{what}");
+        let early = x.camera_spheres - x.late_spheres;
+        assert!(early > 0 && x.late_spheres > 0, "{what}");
+        assert_no_validation_messages(&ctx);
+    }
 }
 
 /// A camera that keeps moving empties its last depth tiles every frame, so

@@ -110,6 +110,9 @@ pub struct LodBuffers {
     /// ([`cull_chunks`]: `chunk_count` pairs of words).
     pub cull_order: Buffer,
     pub instance_count: u32,
+    /// The median of the instances' bounding radii (full detail, world
+    /// units): the size the cull's front cells follow.
+    pub instance_radius: f32,
     pub chunk_count: u32,
     /// Level-0 batches (saturated at u32::MAX): the most a view lists (an
     /// instance draws one level).
@@ -120,6 +123,31 @@ pub struct LodBuffers {
     pub lists: Buffer,
     /// Entries `lists` holds (4 lists and their tails).
     pub list_entries: u32,
+}
+
+/// The median over instances of their molecule type's `radius` (0 for none).
+fn median_radius(instance_molecule: &[u32], radius: impl Fn(u32) -> f32) -> f32 {
+    let mut per_type: Vec<(f32, u64)> = Vec::new();
+    for &m in instance_molecule {
+        let m = m as usize;
+        if per_type.len() <= m {
+            per_type.resize(m + 1, (0.0, 0));
+        }
+        per_type[m].1 += 1;
+    }
+    for (m, t) in per_type.iter_mut().enumerate() {
+        t.0 = radius(m as u32);
+    }
+    per_type.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let half = instance_molecule.len() as u64 / 2;
+    let mut seen = 0;
+    for (r, n) in per_type {
+        seen += n;
+        if seen > half {
+            return r;
+        }
+    }
+    0.0
 }
 
 /// The order the LOD cull visits instances in: by molecule type, and
@@ -395,6 +423,9 @@ impl SceneBuffers {
                 batch_bounds: bb.keep(),
                 cull_order: order.keep(),
                 instance_count: inst.instances() as u32,
+                instance_radius: median_radius(&inst.instance_molecule, |m| {
+                    bounds[2 * m as usize * MAX_LOD_LEVELS as usize][3]
+                }),
                 chunk_count: chunks.len() as u32,
                 base_batches: base_batches.min(u32::MAX as u64) as u32,
                 lists,
@@ -1237,6 +1268,16 @@ mod tests {
     use crate::scene::Sphere;
     use crate::scene::instanced::InstancedBuilder;
     use crate::scene::instanced::lod::morton3;
+
+    /// The median radius weighs each molecule type by its instances.
+    #[test]
+    fn the_median_radius_counts_instances() {
+        let radius = |m: u32| [10.0, 1.0, 5.0][m as usize];
+        assert_eq!(median_radius(&[0, 1, 1, 1, 2], radius), 1.0);
+        assert_eq!(median_radius(&[0, 0, 0, 1, 2], radius), 10.0);
+        assert_eq!(median_radius(&[2, 0, 1], radius), 5.0);
+        assert_eq!(median_radius(&[], radius), 0.0);
+    }
 
     /// The cull's order visits every instance once, by molecule type, and
     /// within a type along the Morton curve of their places (x bits below

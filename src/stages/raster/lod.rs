@@ -20,7 +20,9 @@
 
 use crate::error::Result;
 use crate::gpu::GpuView;
-use crate::gpu::blocks::{LodArgsPush, LodBoundsPush, LodCullPush, LodHizPush, LodShownPush};
+use crate::gpu::blocks::{
+    LodArgsPush, LodBoundsPush, LodCullPush, LodFrontPush, LodHizPush, LodShownPush,
+};
 use crate::gpu::consts::{
     BATCH_EMPTY, CULL_DEFERRED_BATCHES, CULL_DEFERRED_INSTANCES, CULL_EARLY, HIZ_FINE_TILES,
     HIZ_MIN_SHIFT, LOD_ARGS, LOD_BATCHES, LOD_DEFER_BATCH_ARGS, LOD_DEFER_BATCHES,
@@ -57,6 +59,32 @@ const SHOWN_BINDINGS: [Binding; 4] = [
     texel("batchTex", Format::R32G32_UINT),
     rw("Visible"),
 ];
+
+const FRONT_BINDINGS: [Binding; 4] = [
+    uniform("GlobalsBlock"),
+    texel("lodBoundTex", Format::R32G32B32A32_SFLOAT),
+    rw("Visible"),
+    rw("Front"),
+];
+
+/// The most cells glsl/lod_front.comp keeps a nearest depth for (their
+/// side: the least power of two from 16 pixels that fits).
+const FRONT_CELLS: u32 = 1 << 18;
+
+/// The front cells' shift for a `w` x `h` window where a typical
+/// instance is `r` pixels in radius: cells about as wide as that radius
+/// (the largest power of two within it, from 2 to 64 pixels), or wider
+/// where they would not fit FRONT_CELLS.
+fn front_shift(w: u32, h: u32, r: f32) -> u32 {
+    let want = if r >= 2.0 {
+        (r.min(64.0) as u32).ilog2()
+    } else {
+        1
+    };
+    (want..28)
+        .find(|&s| tiles(w, h, 1 << s) <= FRONT_CELLS as u64)
+        .unwrap_or(28)
+}
 
 /// Pixels one invocation of glsl/lod_shown.comp reads (its SHOWN_RUN).
 const SHOWN_RUN: u64 = 16;
@@ -278,7 +306,8 @@ pub struct LodCull {
     /// early image: an orbiting bench at 506 A on 10^9 drew 2.3x as much
     /// late); None: those tiles are emptied first (no last frame, or a
     /// large move: nothing hidden, every batch of the history's instances
-    /// drawn early, untested).
+    /// drawn early, untested; the camera's history then names the front
+    /// instances, [`LodCull::front_steps`]).
     prev_views: std::cell::Cell<[Option<GpuView>; 2]>,
     /// `visible` holds a frame's result (cleared before the first).
     history: std::cell::Cell<bool>,
@@ -288,6 +317,13 @@ pub struct LodCull {
     /// (LodCullPush.history).
     shown: ComputePipeline,
     shown_written: std::cell::Cell<bool>,
+    /// The front instances seeding the camera's history where it has
+    /// none to use (glsl/lod_front.comp; nearest, seed x orthographic,
+    /// perspective) and the cells' nearest depths.
+    front: [ComputePipeline; 4],
+    front_cells: Buffer,
+    /// Whether the front instances seed it (`LodParams::lod_no_front`).
+    front_seeding: bool,
     history_flag: std::cell::Cell<u32>,
     /// The light texels of the camera's visible points (x0, y0, x1, y1).
     region: Buffer,
@@ -469,6 +505,30 @@ impl LodCull {
                 scene: 0,
             },
         )?);
+        let front_bindings = [&FRONT_BINDINGS[..], &SCENE_GEOMETRY].concat();
+        let front = |name: &str, persp: u32, mode: u32| {
+            ComputePipeline::new(
+                ctx,
+                &PipelineDesc {
+                    name,
+                    shader: spirv::LOD_FRONT_COMP,
+                    bindings: &front_bindings,
+                    push_size: std::mem::size_of::<LodFrontPush>() as u32,
+                    local_size: 64,
+                    constants: &[persp, mode],
+                    scene,
+                },
+            )
+        };
+        let front_near = ctx.guard(front("lod front nearest", 0, 0)?);
+        let front_near_p = ctx.guard(front("lod front nearest perspective", 1, 0)?);
+        let front_seed = ctx.guard(front("lod front seed", 0, 1)?);
+        let front_seed_p = ctx.guard(front("lod front seed perspective", 1, 1)?);
+        let front_cells = ctx.guard(Buffer::storage(
+            ctx,
+            "LOD front cells",
+            FRONT_CELLS as u64 * 4,
+        )?);
         let bounds_o = ctx.guard(bounds("lod light region", 0)?);
         let bounds_p = ctx.guard(bounds("lod light region perspective", 1)?);
         let levels = ctx.guard(Buffer::storage(ctx, "LOD levels", instances)?);
@@ -501,6 +561,14 @@ impl LodCull {
             prev_views: std::cell::Cell::new([None; 2]),
             history: std::cell::Cell::new(false),
             shown: shown.keep(),
+            front: [
+                front_near.keep(),
+                front_near_p.keep(),
+                front_seed.keep(),
+                front_seed_p.keep(),
+            ],
+            front_cells: front_cells.keep(),
+            front_seeding: !params.lod_no_front,
             region: region.keep(),
             bounds: [bounds_o.keep(), bounds_p.keep()],
             counters: counters.keep(),
@@ -727,9 +795,56 @@ impl LodCull {
         if self.prev_views.get()[view as usize].is_none() {
             let b = &self.hiz_prev[view as usize];
             p.fill(b, b.size, u32::MAX);
+            if view == ViewIndex::Camera && self.front_seeding {
+                self.front_steps(p, globals, scene, perspective)?;
+            }
         }
         let shift = self.prev_shift[view as usize].get();
         self.cull_into(p, globals, scene, view as usize, view, perspective, shift)
+    }
+
+    /// Where the camera's early phase has no tiles to test against (no
+    /// last frame, or a large move): its history flags set for the front
+    /// instances only, the nearest per cell of the window
+    /// (glsl/lod_front.comp), so that the early image covers the window
+    /// and the late phase's tests hide what lies behind.
+    fn front_steps<'b>(
+        &'b self,
+        p: &mut PassBuilder<'b>,
+        globals: &'b Buffer,
+        scene: &'b SceneBuffers,
+        perspective: bool,
+    ) -> Result<()> {
+        let lod = scene.lod.as_ref().ok_or_else(|| {
+            crate::error::Error::Internal("the scene has no levels of detail".into())
+        })?;
+        // (this frame's camera: note_views keeps it)
+        let (w, h, ppu) = self.last_views.borrow()[0]
+            .map_or((1, 1, 0.0), |v| (v.dims[0], v.dims[1], v.center[3]));
+        let shift = front_shift(w, h, lod.instance_radius * ppu);
+        let push = LodFrontPush {
+            instances: self.instances,
+            parity: self.parity.get(),
+            cell_shift: shift,
+            flag: self.history_flag.get(),
+        };
+        p.fill(&self.front_cells, self.front_cells.size, u32::MAX);
+        let mut bindings = vec![
+            ("GlobalsBlock", globals),
+            ("lodBoundTex", &lod.bounds),
+            ("Visible", &self.visible),
+            ("Front", &self.front_cells),
+        ];
+        bindings.extend(scene.geometry());
+        for pipe in [perspective as usize, 2 + perspective as usize] {
+            p.dispatch(
+                &self.front[pipe],
+                &push,
+                Grid::Invocations(self.instances as u64),
+                &bindings,
+            );
+        }
+        Ok(())
     }
 
     /// Dispatches that build the depth tiles of `view`'s image `vis` (`w`
@@ -1106,6 +1221,10 @@ impl LodCull {
         }
         self.visible.destroy(ctx);
         self.shown.destroy(ctx);
+        for f in &mut self.front {
+            f.destroy(ctx);
+        }
+        self.front_cells.destroy(ctx);
         self.deferral.destroy(ctx);
         self.region.destroy(ctx);
         for p in &mut self.bounds {
@@ -1124,6 +1243,20 @@ crate::impl_destroy!(LodCull);
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Front cells about a typical instance's radius wide (a power of two
+    /// from 2 to 64 pixels), wider where they would be too many.
+    #[test]
+    fn front_cells_follow_the_instances_size() {
+        assert_eq!(front_shift(1920, 1080, 25.4), 4);
+        assert_eq!(front_shift(1920, 1080, 6.4), 2);
+        assert_eq!(front_shift(1920, 1080, 101.7), 6);
+        assert_eq!(front_shift(1920, 1080, 1000.0), 6);
+        // (2-px cells: 518,400 of them, past FRONT_CELLS)
+        assert_eq!(front_shift(1920, 1080, 0.3), 2);
+        assert_eq!(front_shift(640, 480, 0.3), 1);
+        assert!(tiles(16384, 16384, 1 << front_shift(16384, 16384, 0.0)) <= FRONT_CELLS as u64);
+    }
 
     /// A small move: a turn up to 8 degrees, a zoom up to 1.5x, a pan up
     /// to half the image height, the same window; not past any of those.
