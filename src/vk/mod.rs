@@ -296,8 +296,22 @@ fn describe(instance: &ash::Instance, pd: vk::PhysicalDevice, index: usize) -> D
     }
 }
 
+/// Held while a context is made or destroyed: instances and devices made
+/// and destroyed on several threads at once (tests in parallel, each with
+/// its own validated context) go through the loader's and the validation
+/// layer's process-wide state. (A fresh-clone CI run once crashed with
+/// SIGSEGV as a test binary's first contexts were made; not reproduced in
+/// seven runs since: serialized here, a cost of nothing.)
+static LIFECYCLE: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+fn lifecycle() -> std::sync::MutexGuard<'static, ()> {
+    // (nothing it guards is left half-made by a panic elsewhere)
+    LIFECYCLE.lock().unwrap_or_else(|e| e.into_inner())
+}
+
 impl Context {
     pub fn new(opts: &ContextOptions) -> Result<Self> {
+        let _made = lifecycle();
         let entry = load_entry()?;
         let (instance, debug_utils) = create_instance(&entry, opts)?;
         // From here on, failures must destroy the instance.
@@ -623,13 +637,17 @@ impl Context {
     /// Tears the device down and returns every validation warning/error
     /// counted, including leak reports made at device destruction.
     pub fn finish(mut self) -> (u32, Vec<String>) {
-        self.destroy_device();
+        {
+            let _made = lifecycle();
+            self.destroy_device();
+        }
         (self.messages.count(), self.messages.messages())
     }
 }
 
 impl Drop for Context {
     fn drop(&mut self) {
+        let _made = lifecycle();
         self.destroy_device();
         // SAFETY: the object is not used by any pending GPU work (waited for above / by the owner).
         unsafe {

@@ -350,6 +350,15 @@ pub struct LodCull {
     per: u32,
 }
 
+/// The scene's level-of-detail buffers (a cull is made only for a scene
+/// that has them).
+fn lod_buffers(scene: &SceneBuffers) -> Result<&LodBuffers> {
+    scene
+        .lod
+        .as_ref()
+        .ok_or_else(|| crate::error::Error::Internal("the scene has no levels of detail".into()))
+}
+
 /// Counter word `k` of list `list` in the LOD counters `w` (LOD_VIEWS x
 /// LOD_WORDS words, downloaded or the frame's readback copy); 0 past them.
 fn lod_word(w: &[u32], list: usize, k: u32) -> u32 {
@@ -638,9 +647,7 @@ impl LodCull {
         perspective: bool,
         hiz_shift: u32,
     ) -> Result<()> {
-        let lod = scene.lod.as_ref().ok_or_else(|| {
-            crate::error::Error::Internal("the scene has no levels of detail".into())
-        })?;
+        let lod = lod_buffers(scene)?;
         // (only this list: the others' entries name spheres drawn already)
         let entries = (self.capacity + LOD_LIST_TAIL) as u64;
         p.fill_at(
@@ -815,9 +822,7 @@ impl LodCull {
         scene: &'b SceneBuffers,
         perspective: bool,
     ) -> Result<()> {
-        let lod = scene.lod.as_ref().ok_or_else(|| {
-            crate::error::Error::Internal("the scene has no levels of detail".into())
-        })?;
+        let lod = lod_buffers(scene)?;
         // (this frame's camera: note_views keeps it)
         let (w, h, ppu) = self.last_views.borrow()[0]
             .map_or((1, 1, 0.0), |v| (v.dims[0], v.dims[1], v.center[3]));
@@ -960,9 +965,7 @@ impl LodCull {
         if !self.camera_moved() {
             return Ok(());
         }
-        let lod = scene.lod.as_ref().ok_or_else(|| {
-            crate::error::Error::Internal("the scene has no levels of detail".into())
-        })?;
+        let lod = lod_buffers(scene)?;
         self.shown_written.set(true);
         p.dispatch(
             &self.shown,
