@@ -48,8 +48,9 @@ void main() {
     vec3 cv = view_space(v, instance_apply(k, bs.xyz), PERSP);
     ivec4 rc = sphere_rect(v, cv, bs.w, PERSP);
     bool inside = rc.x <= rc.z && rc.y <= rc.w;
-    // (its rectangle's centre, within the window as the rectangle is)
-    ivec2 c = max((rc.xy + rc.zw) / 2 - ivec2(v.dims.zw), ivec2(0));
+    // (its rectangle's centre, within the window as the rectangle is
+    // where it is inside; clamped for the others, which read a cell too)
+    ivec2 c = clamp((rc.xy + rc.zw) / 2 - ivec2(v.dims.zw), ivec2(0), ivec2(v.dims.xy) - 1);
     uint cells_x = (v.dims.x + (1u << pc.cell_shift) - 1u) >> pc.cell_shift;
     uint cell = (uint(c.y) >> pc.cell_shift) * cells_x + (uint(c.x) >> pc.cell_shift);
     float near = max(PERSP ? length(cv) - bs.w : cv.z + v.depth.x - bs.w, 0.0);

@@ -67,8 +67,8 @@ const FRONT_BINDINGS: [Binding; 4] = [
     rw("Front"),
 ];
 
-/// The most cells glsl/lod_front.comp keeps a nearest depth for (their
-/// side: the least power of two from 16 pixels that fits).
+/// The most cells glsl/lod_front.comp keeps a nearest depth for (1 MB;
+/// past them the cells grow wider than `front_shift` would have them).
 const FRONT_CELLS: u32 = 1 << 18;
 
 /// The front cells' shift for a `w` x `h` window where a typical
@@ -1202,7 +1202,8 @@ impl LodCull {
         self.pending.is_some()
     }
 
-    /// Device memory: counters, levels, history and depth tiles (the
+    /// Device memory: counters, levels, history, depth tiles and front
+    /// cells (the
     /// lists are the scene's; the light region's words are the light
     /// map's, [`LodCull::region_bytes`]).
     pub fn memory_bytes(&self) -> u64 {
@@ -1212,6 +1213,7 @@ impl LodCull {
             + self.deferral.size
             + self.hiz_tiles.iter().map(|b| b.size).sum::<u64>()
             + self.hiz_prev.iter().map(|b| b.size).sum::<u64>()
+            + self.front_cells.size
     }
 
     pub fn destroy(&mut self, ctx: &Context) {
