@@ -67,9 +67,11 @@ const FRONT_BINDINGS: [Binding; 4] = [
     rw("Front"),
 ];
 
-/// The most cells glsl/lod_front.comp keeps a nearest depth for (1 MB;
-/// past them the cells grow wider than `front_shift` would have them).
-const FRONT_CELLS: u32 = 1 << 18;
+/// The most cells glsl/lod_front.comp keeps a nearest depth for, in the
+/// camera's early depth tiles' buffer (not yet built in the frame when it
+/// runs: [`LodCull::front_steps`]); past them the cells grow wider than
+/// `front_shift` would have them.
+const FRONT_CELLS: u32 = HIZ_FINE_TILES;
 
 /// The front cells' shift for a `w` x `h` window where a typical
 /// instance is `r` pixels in radius: cells about as wide as that radius
@@ -319,9 +321,8 @@ pub struct LodCull {
     shown_written: std::cell::Cell<bool>,
     /// The front instances seeding the camera's history where it has
     /// none to use (glsl/lod_front.comp; nearest, seed x orthographic,
-    /// perspective) and the cells' nearest depths.
+    /// perspective).
     front: [ComputePipeline; 4],
-    front_cells: Buffer,
     /// Whether the front instances seed it (`LodParams::lod_no_front`).
     front_seeding: bool,
     history_flag: std::cell::Cell<u32>,
@@ -533,11 +534,6 @@ impl LodCull {
         let front_near_p = ctx.guard(front("lod front nearest perspective", 1, 0)?);
         let front_seed = ctx.guard(front("lod front seed", 0, 1)?);
         let front_seed_p = ctx.guard(front("lod front seed perspective", 1, 1)?);
-        let front_cells = ctx.guard(Buffer::storage(
-            ctx,
-            "LOD front cells",
-            FRONT_CELLS as u64 * 4,
-        )?);
         let bounds_o = ctx.guard(bounds("lod light region", 0)?);
         let bounds_p = ctx.guard(bounds("lod light region perspective", 1)?);
         let levels = ctx.guard(Buffer::storage(ctx, "LOD levels", instances)?);
@@ -576,7 +572,6 @@ impl LodCull {
                 front_seed.keep(),
                 front_seed_p.keep(),
             ],
-            front_cells: front_cells.keep(),
             front_seeding: !params.lod_no_front,
             region: region.keep(),
             bounds: [bounds_o.keep(), bounds_p.keep()],
@@ -833,12 +828,16 @@ impl LodCull {
             cell_shift: shift,
             flag: self.history_flag.get(),
         };
-        p.fill(&self.front_cells, self.front_cells.size, u32::MAX);
+        // (the cells lie in the camera's early depth tiles' buffer: this
+        // frame's are built after the early raster, and nothing reads last
+        // frame's, whose final tiles are `hiz_prev`)
+        let cells = &self.hiz_tiles[0];
+        p.fill(cells, tiles(w, h, 1 << shift) * 4, u32::MAX);
         let mut bindings = vec![
             ("GlobalsBlock", globals),
             ("lodBoundTex", &lod.bounds),
             ("Visible", &self.visible),
-            ("Front", &self.front_cells),
+            ("Front", cells),
         ];
         bindings.extend(scene.geometry());
         for pipe in [perspective as usize, 2 + perspective as usize] {
@@ -1202,8 +1201,7 @@ impl LodCull {
         self.pending.is_some()
     }
 
-    /// Device memory: counters, levels, history, depth tiles and front
-    /// cells (the
+    /// Device memory: counters, levels, history and depth tiles (the
     /// lists are the scene's; the light region's words are the light
     /// map's, [`LodCull::region_bytes`]).
     pub fn memory_bytes(&self) -> u64 {
@@ -1213,7 +1211,6 @@ impl LodCull {
             + self.deferral.size
             + self.hiz_tiles.iter().map(|b| b.size).sum::<u64>()
             + self.hiz_prev.iter().map(|b| b.size).sum::<u64>()
-            + self.front_cells.size
     }
 
     pub fn destroy(&mut self, ctx: &Context) {
@@ -1229,7 +1226,6 @@ impl LodCull {
         for f in &mut self.front {
             f.destroy(ctx);
         }
-        self.front_cells.destroy(ctx);
         self.deferral.destroy(ctx);
         self.region.destroy(ctx);
         for p in &mut self.bounds {
@@ -1257,9 +1253,9 @@ mod tests {
         assert_eq!(front_shift(1920, 1080, 6.4), 2);
         assert_eq!(front_shift(1920, 1080, 101.7), 6);
         assert_eq!(front_shift(1920, 1080, 1000.0), 6);
-        // (2-px cells: 518,400 of them, past FRONT_CELLS)
-        assert_eq!(front_shift(1920, 1080, 0.3), 2);
-        assert_eq!(front_shift(640, 480, 0.3), 1);
+        assert_eq!(front_shift(1920, 1080, 0.3), 1);
+        // (2-px cells at 4K: 2,073,600 of them, past FRONT_CELLS)
+        assert_eq!(front_shift(3840, 2160, 0.3), 2);
         assert!(tiles(16384, 16384, 1 << front_shift(16384, 16384, 0.0)) <= FRONT_CELLS as u64);
     }
 
