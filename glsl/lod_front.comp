@@ -14,10 +14,13 @@
 //   MODE 1: the history flag pc.flag set in last frame's array
 //           (pc.parity) for the instance whose nearest depth is its
 //           cell's, and cleared for the others.
-// Cells of 16 px at 1080p (src/stages/raster/lod.rs `front_shift`); meso
-// 10^9 at 2,025 A, the bench's orbit: 8 px cells listed 31 M spheres
+// Cells about as wide as a typical instance's radius on screen
+// (src/stages/raster/lod.rs `front_shift`; they lie in the camera's early
+// depth tiles' buffer, built later in the frame); meso 10^9 at 2,025 A
+// (instances ~25 px), the bench's orbit: 8 px cells listed 31 M spheres
 // early, 16 px 13.6 M, 32 px 2.3 M, and the early image's holes sent 26,
-// 13 and 46 M late. A cell's nearest by the nearest point of each bounding
+// 13 and 46 M late; at the overview (~6 px) 16 px cells gained nothing,
+// 4 px 19.9 -> 11.1 M in a first frame. A cell's nearest by the nearest point of each bounding
 // sphere over every cell under it (not only its centre's) lets a few
 // large molecules take every cell: 2.5 M early, 48 M late.
 // A heuristic only: whatever the early phase lists, the late phase lists
