@@ -170,12 +170,22 @@ AtomMap atom_map(View v, vec3 p0, mat3 ax) {
     return AtomMap(rx, ry, rz, o, oz, slack);
 }
 
+// Atom a's disc in view v's pixels (mapped by m): its centre t and its
+// radius r, grown for the map's rounding.
+void atom_disc(View v, AtomMap m, vec4 a, out vec2 t, out float r) {
+    precise vec2 tp = m.o + vec2(dot(m.rx, a.xyz), dot(m.ry, a.xyz));
+    precise float rp = a.w * v.center.w + (m.slack * v.center.w + 1e-3);
+    t = tp;
+    r = rp;
+}
+
 // Atom a's pixel rectangle in view v (mapped by m), grown, and its nearest
 // depth key, less the cull's margin for the keys' f32 rounding
 // (glsl/lod_cull.comp `hidden`) and the map's.
 void atom_rect(View v, AtomMap m, vec4 a, out ivec4 rc, out uint near) {
-    precise vec2 t = m.o + vec2(dot(m.rx, a.xyz), dot(m.ry, a.xyz));
-    precise float r = a.w * v.center.w + (m.slack * v.center.w + 1e-3);
+    vec2 t;
+    float r;
+    atom_disc(v, m, a, t, r);
     ivec2 lo = ivec2(v.dims.zw), hi = min(lo + ivec2(v.dims.xy), ivec2(int(v.right.w), int(v.up.w))) - 1;
     rc = ivec4(max(ivec2(ceil(t - r)), lo), min(ivec2(floor(t + r)), hi));
     precise float z = m.oz + dot(m.rz, a.xyz);
@@ -207,8 +217,9 @@ void batch_part() {
         if (LIGHT_BATCHES) {
             // The atoms whose disc may hold a texel centre: the nearest
             // centre within the radius, or a radius that may reach past it.
-            precise vec2 t = m.o + vec2(dot(m.rx, a.xyz), dot(m.ry, a.xyz));
-            precise float r = a.w * v.center.w + (m.slack * v.center.w + 1e-3);
+            vec2 t;
+            float r;
+            atom_disc(v, m, a, t, r);
             vec2 d = t - round(t);
             draw = r >= 0.5 || dot(d, d) <= r * r;
         } else {
