@@ -11,9 +11,11 @@
 //   MODE 0: the nearest depth of any instance whose centre falls in a
 //           cell (2^pc.cell_shift pixels a side) kept per cell (atomicMin
 //           on the depth's bits: non-negative floats order as uints);
-//   MODE 1: the history flag pc.flag set in last frame's array
+//   MODE 1: the history flag VISIBLE_PASSED set in last frame's array
 //           (pc.parity) for the instance whose nearest depth is its
-//           cell's, and cleared for the others.
+//           cell's, and cleared for the others (the flag the early phase
+//           reads without last tiles: only after a small move does it
+//           read VISIBLE_SHOWN).
 // Cells about as wide as a typical instance's radius on screen
 // (src/stages/raster/lod.rs `front_shift`; they lie in the camera's early
 // depth tiles' buffer, built later in the frame); meso 10^9 at 2,025 A
@@ -64,5 +66,5 @@ void main() {
     uint at = pc.parity * 2u * pc.instances + 2u * k;
     bool seed = inside && near <= uintBitsToFloat(front[cell]);
     uint old = visible[at];
-    visible[at] = seed ? old | pc.flag : old & ~pc.flag;
+    visible[at] = seed ? old | VISIBLE_PASSED : old & ~VISIBLE_PASSED;
 }

@@ -159,8 +159,7 @@ gpu_push! {
         parity: u32,
         /// Cells of 2^cell_shift pixels a side.
         cell_shift: u32,
-        /// The history flag the early phase reads (LodCullPush.history).
-        flag: u32,
+        pad: u32,
     }
 
     /// `lod_shown` (glsl/lod_shown.comp).

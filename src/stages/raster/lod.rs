@@ -822,11 +822,13 @@ impl LodCull {
         let (w, h, ppu) = self.last_views.borrow()[0]
             .map_or((1, 1, 0.0), |v| (v.dims[0], v.dims[1], v.center[3]));
         let shift = front_shift(w, h, lod.instance_radius * ppu);
+        // (the flag it sets is VISIBLE_PASSED: without last tiles to read
+        // the camera's early phase reads no other, `note_views`)
         let push = LodFrontPush {
             instances: self.instances,
             parity: self.parity.get(),
             cell_shift: shift,
-            flag: self.history_flag.get(),
+            pad: 0,
         };
         // (the cells lie in the camera's early depth tiles' buffer: this
         // frame's are built after the early raster, and nothing reads last
