@@ -35,8 +35,11 @@ layout(set = 0, binding = 8) buffer Inline { uint inline_bits[]; };
 layout(set = 0, binding = 9) uniform usamplerBuffer orderTex;
 #define SCENE_ATTRIBUTES
 #include "scene.glsl"
+// (a frame that draws the LOD lists visits the camera's, early and late
+// lists each in a dispatch of its own: pc.list_base, as raster.comp)
 #define SPHERE_AT(i) (scene_instanced() \
-    ? (texelFetch(orderTex, int((i) >> BATCH_SHIFT)).x << BATCH_SHIFT) | scene_lane(i) \
+    ? (pc.list_base != RASTER_ORDER ? (pc.list_base << BATCH_SHIFT) + (i) \
+       : (texelFetch(orderTex, int((i) >> BATCH_SHIFT)).x << BATCH_SHIFT) | scene_lane(i)) \
     : texelFetch(orderTex, int(i)).x)
 #include "push/oit_splat.glsl"
 

@@ -249,6 +249,9 @@ gpu_push! {
         job_capacity: u32,
         /// Fragments the pool holds.
         capacity: u32,
+        /// The LOD list visited (its first entry), or RASTER_ORDER: every
+        /// sphere in the camera's order.
+        list_base: u32,
     }
 
     /// `oit_alloc` (glsl/oit_alloc.comp).

@@ -749,6 +749,64 @@ fn culled_instances_are_never_visible() {
     }
 }
 
+/// See-through spheres on an instanced scene draw through the LOD lists:
+/// their fragments visit the camera's early and late lists (the opaque
+/// raster skips them in both phases), so culling still works, and with
+/// every instance at full detail (`--lod-pixels 0`) the frames equal the
+/// expanded scene's (no cull, every sphere in the camera's order) bit for
+/// bit: colours, ids, depths and shadows, over frames with history (the
+/// same camera, a pan, the whole model).
+#[test]
+fn see_through_instances_draw_through_the_lod_lists() {
+    let ctx = validated_context();
+    let file = data_file("meso/flagellarmotor_2-no_bonds.bcif");
+    let plain = load_with_rules(&file, &[], false);
+    let inst = plain.instancing.as_ref().expect("instanced");
+    let node = &inst.nodes[inst.molecules[2].node as usize];
+    let rule = format!("not node {}=0.4", label_glob(&node.label));
+    let s = load_with_rules(&file, &[("alpha", rule.as_str())], false);
+    assert!(s.has_translucent() && s.instancing.is_some(), "{rule}");
+    let e = s.expand().unwrap();
+    let whole = camera(&s, 96, 72, None);
+    let (_, r) = s.bounding_sphere();
+    let corner = |shift: f64| {
+        let mut cam = whole;
+        cam.view_height = whole.view_height / 3.0;
+        cam.center = whole.center + whole.right * (r as f64 * (0.3 + shift));
+        cam
+    };
+    let all = s.represented();
+    let mut st = settings(whole, ShadowMode::IssmSoft);
+    st.ssdo = SsdoMode::Semantic;
+    st.lod.lod_pixels = 0.0;
+    let mut rd = Renderer::new(&ctx, &s, st.clone()).expect("renderer");
+    let mut fragments = 0;
+    for (f, cam) in [corner(0.0), corner(0.0), corner(0.05), whole]
+        .into_iter()
+        .enumerate()
+    {
+        rd.update(|x| x.camera = cam).expect("camera");
+        rd.render_frame().expect("frame");
+        let what = format!("frame {f}");
+        let counts = rd.inspect().lod_counts().unwrap().expect("the cull ran");
+        if f < 3 {
+            assert!(
+                (counts.camera_spheres as u64) < all * 3 / 4 && counts.camera_spheres > 0,
+                "{what}: the camera drew {} of {all} spheres",
+                counts.camera_spheres
+            );
+        }
+        let stats = rd.inspect().see_through_stats().expect("see-through ran");
+        fragments += stats.fragments;
+        let mut se = st.clone();
+        se.camera = cam;
+        let b = frame(&ctx, &e, se);
+        assert_frame_is(&rd.inspect(), &b, &what);
+        assert_no_validation_messages(&ctx);
+    }
+    assert!(fragments > 1000, "{fragments} see-through fragments");
+}
+
 /// The key light draws only what may shadow a point the camera sees: the
 /// instances and batches over the light texels the visible points' lookups
 /// read (each point's texel, grown by the lookup's reach: ISSM t, PCF

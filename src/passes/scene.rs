@@ -17,7 +17,7 @@ use crate::gpu::consts::{
 use crate::gpu::{GpuBatch, GpuSphere, SphereAttr};
 use crate::scene::Scene;
 use crate::scene::instanced::extremes::Extremes;
-use crate::scene::instanced::lod::{LodFit, MoleculeLod, morton_cells, on_every_core};
+use crate::scene::instanced::lod::{LodFit, MoleculeLod, level_alpha, morton_cells, on_every_core};
 use crate::scene::instanced::{LevelKind, Transforms};
 use crate::vk::pipeline::{Binding, texel};
 use crate::vk::{Buffer, Context};
@@ -90,8 +90,9 @@ pub struct SceneBuffers {
     /// Atoms of the scene's own (`Scene::spheres`); the colour buffer holds
     /// them, then the coarse copies (`coarse_source`).
     base_atoms: u32,
-    /// Per coarse stored atom: the stored atom it copies.
-    coarse_source: Vec<u32>,
+    /// Per coarse stored atom: the stored atom it copies and its level's
+    /// alpha exponent ([`MoleculeLod::alpha_exponent`]).
+    coarse_source: Vec<(u32, f32)>,
 }
 
 /// The tables of the LOD cull (glsl/lod_cull.comp) and its lists.
@@ -292,7 +293,7 @@ impl SceneBuffers {
         let coarse: Vec<u32> = self
             .coarse_source
             .iter()
-            .map(|&i| out[i as usize])
+            .map(|&(i, e)| level_alpha(out[i as usize], e))
             .collect();
         out.extend(coarse);
         Ok(out)
@@ -574,7 +575,7 @@ struct Built {
     chains: Vec<u32>,
     colors: Vec<u32>,
     origins: Vec<u32>,
-    coarse_source: Vec<u32>,
+    coarse_source: Vec<(u32, f32)>,
     tables: BatchTables,
     /// Per instance its first batch in the static table (+ the total).
     batch_first: Vec<u64>,
@@ -621,7 +622,7 @@ fn build_instanced(
     };
     // The coarse levels' atoms after the scene's own.
     let mut origins: Vec<u32> = Vec::new();
-    let mut coarse_source: Vec<u32> = Vec::new();
+    let mut coarse_source: Vec<(u32, f32)> = Vec::new();
     let mut lod_tables = None;
     if let Some(lod) = &lod {
         origins = vec![0; geom.len()];
@@ -653,12 +654,15 @@ fn build_instanced(
                 }
                 let spheres = ml.level_spheres(&geom[own.clone()], l);
                 geom.extend(spheres);
+                // (a see-through atom's copy is as opaque as the atoms it
+                // stands for along a ray)
+                let e = ml.alpha_exponent(l);
                 for &a in &ml.order[..ml.counts[l] as usize] {
                     let src = mol.first + a;
                     chains.push(chains[src as usize]);
-                    colors.push(colors[src as usize]);
+                    colors.push(level_alpha(colors[src as usize], e));
                     origins.push(origin(a));
-                    coarse_source.push(src);
+                    coarse_source.push((src, e));
                 }
             }
         }

@@ -258,6 +258,7 @@ impl Resources {
                         reach: lookup.reach(),
                         slack: lookup.depth_slack(),
                         map,
+                        anywhere: see.is_some(),
                     },
                 )?;
             }
@@ -273,6 +274,11 @@ impl Resources {
                         vis: &t.raster.vis,
                         order: self.stages.raster.compute.order(ViewIndex::Camera),
                         perspective: cam.fov_deg.is_some(),
+                        lod: if lod {
+                            self.stages.raster.camera_lists()
+                        } else {
+                            None
+                        },
                     },
                     size,
                 )?;

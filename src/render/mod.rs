@@ -174,8 +174,12 @@ impl Resources {
             settings.check_see_through(self.translucent)?;
             self.stages.raster.enable_see_through(ctx)?;
             if self.stages.see_through.is_none() {
-                let mut st =
-                    SeeThrough::new(ctx, self.scene.spec, self.scene.slots, settings.band_jobs)?;
+                let mut st = SeeThrough::new(
+                    ctx,
+                    self.scene.spec,
+                    self.scene.frame_slots(),
+                    settings.band_jobs,
+                )?;
                 // (made by an image's first frame: a tile when tiled)
                 st.set_tiled(settings.window.is_some(), true);
                 self.stages.see_through = Some(st);
@@ -186,6 +190,7 @@ impl Resources {
                     self.targets.pixels,
                     settings.deep.see_through_fragments,
                 )?;
+                s.ensure_ids(ctx, self.scene.frame_slots())?;
             }
         }
         let p = self.ssdo_params(settings);
@@ -234,13 +239,12 @@ impl Resources {
 
     /// Whether the views draw the LOD cull's lists this frame: an
     /// instanced scene with levels of detail, where every pass that draws
-    /// the spheres can take them (the compute rasterizer's views; the deep
-    /// lists, opacity maps and see-through fragments draw every atom, in
-    /// the views' orders).
+    /// the spheres can take them (the compute rasterizer's views and the
+    /// see-through fragments, which visit the camera's lists; the deep
+    /// lists and opacity maps draw every atom, in the views' orders).
     pub(crate) fn lod_lists(&self, settings: &RenderSettings) -> bool {
         self.scene.lod.is_some()
             && settings.raster == RasterMode::Compute
-            && !self.see_through(settings)
             && !matches!(settings.shadows, ShadowMode::Deep | ShadowMode::Osm)
     }
 }

@@ -26,13 +26,14 @@ use crate::error::{Error, Result};
 use crate::gpu::blocks::{OitAllocPush, OitSplatPush};
 use crate::gpu::consts::{
     F_ARGS, F_BANDS_FULL, F_BANDS_REQ, F_BANDS_RUN, F_COMPOSITE_CUT, F_FILL_ERRORS, F_MAX,
-    F_OVERFLOW, F_PIXELS, F_TOTAL,
+    F_OVERFLOW, F_PIXELS, F_TOTAL, RASTER_ORDER,
 };
 use crate::passes::bands::{BandArgs, BandCounters, BandJob, BandPipelines, JobList};
 use crate::passes::scene::{SCENE_ATTRIBUTES, SCENE_GEOMETRY, SceneBuffers};
 use crate::passes::{LOCAL_SIZE, spirv};
+use crate::stages::raster::compute::LodView;
 use crate::vk::pipeline::{PipelineDesc, ro, rw, texel, uniform, wo};
-use crate::vk::{Buffer, ComputePipeline, Context, Grid, Recorder};
+use crate::vk::{Buffer, ComputePipeline, Context, Grid, PassBuilder, Recorder};
 use ash::vk;
 use serde::{Deserialize, Serialize};
 
@@ -162,6 +163,11 @@ fn max_capacity(ctx: &Context) -> u64 {
     storage.min((limits.max_texel_buffer_elements as u64).saturating_sub(GUARD_WORDS / 2))
 }
 
+/// Bytes of the inline bits of `ids` ids.
+fn inline_bytes(ids: u32) -> u64 {
+    (ids as u64).div_ceil(32).max(1) * 4
+}
+
 /// The stage: made the first time a frame has see-through spheres.
 pub struct SeeThrough {
     /// The splat shader counting and filling, each for orthographic and
@@ -172,8 +178,10 @@ pub struct SeeThrough {
     alloc: ComputePipeline,
     counters: Buffer,
     jobs: JobList,
+    /// A bit per id a frame may name (`ensure_ids`).
     inline_bits: Buffer,
-    sphere_count: u32,
+    /// Ids `inline_bits` covers.
+    inline_ids: u32,
     lists: Option<Lists>,
     /// The last frame's lists.
     pub stats: Option<SeeThroughStats>,
@@ -193,6 +201,10 @@ pub struct SeeThroughInputs<'a> {
     /// 190 -> 120 ms, fill 470 -> 365 ms against input order).
     pub order: &'a Buffer,
     pub perspective: bool,
+    /// A frame that draws the LOD lists: the camera's early and late
+    /// lists, visited in place of every sphere (the lists name what the
+    /// camera may see, at its level of detail).
+    pub lod: Option<[LodView<'a>; 2]>,
 }
 
 /// What `coverage` and `shade` read of them (and the counters, where
@@ -206,13 +218,10 @@ pub struct SeeThroughOutputs<'a> {
 }
 
 impl SeeThrough {
-    /// `band_jobs`: the band job list's first length (None: 2^18).
-    pub fn new(
-        ctx: &Context,
-        scene: u32,
-        sphere_count: u32,
-        band_jobs: Option<u32>,
-    ) -> Result<Self> {
+    /// `ids`: the sphere ids its inline bits cover at first
+    /// ([`SeeThrough::ensure_ids`]); `band_jobs`: the band job list's
+    /// first length (None: 2^18).
+    pub fn new(ctx: &Context, scene: u32, ids: u32, band_jobs: Option<u32>) -> Result<Self> {
         let splat = |mode: u32, name: &str| -> Result<[BandPipelines; 2]> {
             let bindings = [
                 &[
@@ -279,11 +288,7 @@ impl SeeThrough {
             "oit band jobs",
             band_jobs.unwrap_or(JOB_CAPACITY),
         )?);
-        let inline_bits = Buffer::storage(
-            ctx,
-            "oit inline spheres",
-            (sphere_count as u64).div_ceil(32).max(1) * 4,
-        )?;
+        let inline_bits = Buffer::storage(ctx, "oit inline spheres", inline_bytes(ids))?;
         Ok(SeeThrough {
             count: count.keep(),
             fill: fill.keep(),
@@ -292,7 +297,7 @@ impl SeeThrough {
             counters: counters.keep(),
             jobs: jobs.keep(),
             inline_bits,
-            sphere_count,
+            inline_ids: ids,
             lists: None,
             stats: None,
             tiles: None,
@@ -317,6 +322,20 @@ impl SeeThrough {
         if let Some(mut old) = self.lists.replace(lists) {
             old.destroy(ctx);
         }
+        Ok(())
+    }
+
+    /// Makes the inline bits cover `ids` (a frame's id range: the LOD
+    /// lists' slots where it draws them; they grow with the lists).
+    pub fn ensure_ids(&mut self, ctx: &Context, ids: u32) -> Result<()> {
+        if ids <= self.inline_ids {
+            return Ok(());
+        }
+        ctx.wait_idle();
+        let bits = Buffer::storage(ctx, "oit inline spheres", inline_bytes(ids))?;
+        let mut old = std::mem::replace(&mut self.inline_bits, bits);
+        old.destroy(ctx);
+        self.inline_ids = ids;
         Ok(())
     }
 
@@ -364,32 +383,50 @@ impl SeeThrough {
         bufs.extend(io.scene.geometry());
         bufs.extend(io.scene.attributes());
         let push = OitSplatPush {
-            sphere_count: self.sphere_count,
+            // (the static table's slots now: made by the first frame that
+            // draws every atom)
+            sphere_count: io.scene.slots,
             big_area: BIG_AREA,
             job_capacity: self.jobs.capacity(),
             capacity: l.capacity,
+            list_base: RASTER_ORDER,
         };
+        // What each mode enumerates: every sphere in the camera's order,
+        // or the camera's LOD lists (a dispatch each, indirect; a list's
+        // slots are ids from its first entry, as the raster's)
+        let parts: Vec<(OitSplatPush, Option<(&Buffer, u64)>)> = match (&io.lod, &io.scene.lod) {
+            (None, _) => vec![(push, None)],
+            (Some(views), Some(b)) => views
+                .iter()
+                .map(|v| {
+                    let slots = b.list_entries.saturating_sub(v.base) << (io.scene.spec >> 8);
+                    let push = OitSplatPush {
+                        sphere_count: slots,
+                        list_base: v.base,
+                        ..push
+                    };
+                    (push, Some((v.counters, v.args_offset)))
+                })
+                .collect(),
+            (Some(_), None) => {
+                return Err(Error::Internal(
+                    "see-through LOD lists of a scene without levels".into(),
+                ));
+            }
+        };
+        let ids = io.scene.frame_slots();
+        if self.inline_ids < ids {
+            return Err(Error::Internal("see-through inline bits too short".into()));
+        }
         let view = io.perspective as usize;
         let layout = self.jobs.layout(LAYOUT);
         // count and fill: one enumeration, two modes
-        let job = |spheres, bands| BandJob {
-            spheres,
-            bands,
-            push: &push,
-            bindings: &bufs,
-            sphere_count: self.sphere_count,
-            indirect: None,
-            counters: &self.counters,
-            layout: &layout,
-        };
         rec.pass("oit_count", |p| {
             p.fill(&l.counts, pixels * 4, 0);
             p.fill(&l.cursor, pixels * 4, 0);
             p.fill(&self.counters, COUNTER_WORDS * 4, 0);
-            let words = (self.sphere_count as u64).div_ceil(32).max(1);
-            p.fill(&self.inline_bits, words * 4, 0);
-            self.args
-                .steps(p, &job(&self.count[view].spheres, &self.count[view].bands));
+            p.fill(&self.inline_bits, inline_bytes(ids), 0);
+            self.splat(p, &self.count[view], &parts, &bufs, &layout);
             Ok(())
         })?;
         rec.pass("oit_alloc", |p| {
@@ -409,10 +446,44 @@ impl SeeThrough {
             Ok(())
         })?;
         rec.pass("oit_fill", |p| {
-            self.args
-                .steps(p, &job(&self.fill[view].spheres, &self.fill[view].bands));
+            self.splat(p, &self.fill[view], &parts, &bufs, &layout);
             Ok(())
         })
+    }
+
+    /// One mode's enumeration: every part's spheres, then the bands they
+    /// queued, once.
+    fn splat<'b>(
+        &'b self,
+        p: &mut PassBuilder<'b>,
+        pipes: &'b BandPipelines,
+        parts: &[(OitSplatPush, Option<(&'b Buffer, u64)>)],
+        bindings: &[(&'static str, &'b Buffer)],
+        layout: &BandCounters,
+    ) {
+        let job = |push| BandJob {
+            spheres: &pipes.spheres,
+            bands: &pipes.bands,
+            push,
+            bindings,
+            sphere_count: 0,
+            indirect: None,
+            counters: &self.counters,
+            layout,
+        };
+        for (push, indirect) in parts {
+            self.args.spheres(
+                p,
+                &BandJob {
+                    sphere_count: push.sphere_count,
+                    indirect: *indirect,
+                    ..job(push)
+                },
+            );
+        }
+        if let Some((push, _)) = parts.first() {
+            self.args.bands(p, &job(push));
+        }
     }
 
     /// The frame's counter words.

@@ -249,7 +249,7 @@ impl RasterStage {
                     io.size,
                 );
                 self.compute
-                    .steps(p, &again, ViewIndex::Camera, io.perspective, false)?;
+                    .steps(p, &again, ViewIndex::Camera, io.perspective, io.see_through)?;
             }
             l.occlusion_steps(
                 p,
@@ -266,10 +266,17 @@ impl RasterStage {
         rec.pass(LodCull::LATE, |p| {
             if again.tested.is_some() && !recheck_first {
                 self.compute
-                    .steps(p, &again, ViewIndex::Camera, io.perspective, false)?;
+                    .steps(p, &again, ViewIndex::Camera, io.perspective, io.see_through)?;
             }
-            self.compute
-                .steps(p, &target, ViewIndex::Camera, io.perspective, false)?;
+            // (see-through spheres: skipped here too, the fragments' lists
+            // draw them)
+            self.compute.steps(
+                p,
+                &target,
+                ViewIndex::Camera,
+                io.perspective,
+                io.see_through,
+            )?;
             // (the final image's depth tiles: next frame's early batches)
             l.tiles_of(
                 p,
@@ -328,6 +335,14 @@ impl RasterStage {
     /// `view`'s LOD list, when the scene has levels of detail.
     pub fn lod_view(&self, view: ViewIndex) -> Option<LodView<'_>> {
         self.lod.as_ref().map(|l| l.view(view))
+    }
+
+    /// The camera's early and late LOD lists (what the see-through
+    /// fragments visit in a frame that draws the lists).
+    pub fn camera_lists(&self) -> Option<[LodView<'_>; 2]> {
+        self.lod
+            .as_ref()
+            .map(|l| [l.view(ViewIndex::Camera), l.late(ViewIndex::Camera)])
     }
 
     /// The per-batch raster pipelines (a frame that draws the LOD lists;
