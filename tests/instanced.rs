@@ -1567,8 +1567,18 @@ fn past_2_pow_32_atoms_draw_through_the_lod_lists() {
         // (the same image in tiles, each window drawn through its own lists)
         let (tiled, _) = r.render_image(Some(32)).expect("tiles");
         assert!(tiled.tiles > 1);
+        // (the JSON's spheres_drawn of a tiled image: every tile's, at
+        // least each atom that shows once, more than the last tile's)
+        let tiles_drawn = r.inspect().spheres_drawn().unwrap();
+        let last = r.inspect().lod_counts().unwrap().unwrap().camera_spheres as u64;
         let tiled = decode(sphereshade::run::image_aov(&tiled, Aov::Id));
         assert!(tiled == ids, "the tiled id AOV names other atoms");
+        let shown: std::collections::HashSet<u64> = tiled.iter().flatten().copied().collect();
+        assert!(
+            tiles_drawn >= shown.len() as u64 && tiles_drawn > last,
+            "tiles drew {tiles_drawn} spheres, the last {last}, {} show",
+            shown.len()
+        );
         (color, ids, drawn, vis)
     };
     let (color_b, ids_b, drawn_b, vis_b) = read(&big);

@@ -42,11 +42,14 @@ impl<'r> Inspect<'r, '_> {
     }
 
     /// Spheres the last frame's camera drew: after culling and level of
-    /// detail when its LOD cull ran, else every represented sphere.
+    /// detail when its LOD cull ran (a tiled image: summed over its tiles,
+    /// a margin's spheres in each tile that draws them), else every
+    /// represented sphere.
     pub fn spheres_drawn(&self) -> Result<u64> {
+        let tiled = self.r.settings.window.and(self.r.tiles_drawn);
         Ok(self
             .lod_counts()?
-            .map_or(self.represented(), |c| c.camera_spheres as u64))
+            .map_or(self.represented(), |c| tiled.unwrap_or(c.camera_spheres as u64)))
     }
 
     /// What the last frame's LOD cull kept (None: it did not run).

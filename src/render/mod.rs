@@ -46,6 +46,9 @@ pub struct Renderer<'c> {
     /// The ids the last frame recorded may name (per-id buffers sized by
     /// them are remade when they change: a frame in flight reads them).
     last_ids: u32,
+    /// A tiled image's camera spheres so far (the LOD cull's, summed over
+    /// its tiles from the first: `set_tile`, `render_row`).
+    tiles_drawn: Option<u64>,
     res: Resources,
 }
 
@@ -373,6 +376,7 @@ impl<'c> Renderer<'c> {
             slots: slots.keep(),
             next_slot: 0,
             last_ids: 0,
+            tiles_drawn: None,
             res,
         };
         // From here on `r` owns everything (Drop destroys it on error).
@@ -543,6 +547,9 @@ impl<'c> Renderer<'c> {
         // (a plan's tiles start at the image's corner: its stats start there)
         if let Some(st) = self.res.stages.see_through.as_mut() {
             st.set_tiled(true, kept.x == 0 && kept.y == 0);
+        }
+        if kept.x == 0 && kept.y == 0 {
+            self.tiles_drawn = Some(0);
         }
         let reach = self.res.ssdo_params(&self.settings).blur_reach_px()
             + crate::stages::shading::outline_px(&self.settings)

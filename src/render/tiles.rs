@@ -385,6 +385,9 @@ impl<'a> Renderer<'a> {
             self.set_tile(tile.window, tile.kept)?;
             let t = self.render_frame()?;
             sum.add(&t);
+            if let (Some(c), Some(d)) = (self.inspect().lod_counts()?, self.tiles_drawn.as_mut()) {
+                *d += c.camera_spheres as u64;
+            }
             let color = self.inspect().read_color()?;
             if wide {
                 place::<[u32; 2]>(
