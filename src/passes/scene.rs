@@ -765,8 +765,8 @@ fn static_fits(batch_first: &[u64], shift: u32, source: &str) -> Result<()> {
     if needed > MAX_SLOTS {
         return Err(Error::Input(format!(
             "{source}: drawing every atom needs {needed} sphere ids, more than the {MAX_SLOTS} \
-             sphereshade has: only levels of detail (--lod auto) with the compute rasterizer, \
-             opaque spheres and --shadows issm|sm|pcf|none draw a scene this large"
+             sphereshade has: only levels of detail (--lod auto) with the compute rasterizer \
+             and --shadows issm|sm|pcf|none draw a scene this large"
         )));
     }
     Ok(())

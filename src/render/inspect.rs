@@ -47,9 +47,9 @@ impl<'r> Inspect<'r, '_> {
     /// represented sphere.
     pub fn spheres_drawn(&self) -> Result<u64> {
         let tiled = self.r.settings.window.and(self.r.tiles_drawn);
-        Ok(self
-            .lod_counts()?
-            .map_or(self.represented(), |c| tiled.unwrap_or(c.camera_spheres as u64)))
+        Ok(self.lod_counts()?.map_or(self.represented(), |c| {
+            tiled.unwrap_or(c.camera_spheres as u64)
+        }))
     }
 
     /// What the last frame's LOD cull kept (None: it did not run).

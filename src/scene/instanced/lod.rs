@@ -95,7 +95,8 @@ pub fn level_alpha(word: u32, e: f32) -> u32 {
         return word;
     }
     let t = (1.0 - a as f32 / 255.0).powf(e);
-    let b = crate::scene::paint::alpha_byte(1.0 - t) as u32;
+    // (as paint's alpha_byte rounds a rule's alpha)
+    let b = ((1.0 - t).clamp(0.0, 1.0) * 255.0).round() as u32;
     (word & 0x00FF_FFFF) | (b << 24)
 }
 
@@ -807,10 +808,7 @@ mod coverage {
                 break;
             }
             let e = lod.alpha_exponent(l);
-            let word = level_alpha(
-                0x2680_4020 | (crate::scene::paint::alpha_byte(a) as u32) << 24,
-                e,
-            );
+            let word = level_alpha(0x2680_4020 | ((a * 255.0).round() as u32) << 24, e);
             assert_eq!(word & 0x00FF_FFFF, 0x0080_4020, "colour kept");
             let al = (word >> 24) as f32 / 255.0;
             let spheres = lod.level_spheres(&atoms, l);
