@@ -31,15 +31,14 @@ layout(set = 0, binding = 8) buffer Inline { uint inline_bits[]; };
 
 // The camera raster's order (raster.comp): runs of 64 spheres front to
 // back, neighbours in space visited together (cache locality; a pixel's
-// fragments still arrive in no useful order: shade selects them).
+// fragments still arrive in no useful order: shade selects them). In a
+// frame that draws the LOD lists: the list positions of the camera's
+// listed batches that hold see-through atoms (oit_pick.comp).
 layout(set = 0, binding = 9) uniform usamplerBuffer orderTex;
 #define SCENE_ATTRIBUTES
 #include "scene.glsl"
-// (a frame that draws the LOD lists visits the camera's, early and late
-// lists each in a dispatch of its own: pc.list_base, as raster.comp)
 #define SPHERE_AT(i) (scene_instanced() \
-    ? (pc.list_base != RASTER_ORDER ? (pc.list_base << BATCH_SHIFT) + (i) \
-       : (texelFetch(orderTex, int((i) >> BATCH_SHIFT)).x << BATCH_SHIFT) | scene_lane(i)) \
+    ? (texelFetch(orderTex, int((i) >> BATCH_SHIFT)).x << BATCH_SHIFT) | scene_lane(i) \
     : texelFetch(orderTex, int(i)).x)
 #include "push/oit_splat.glsl"
 
@@ -82,6 +81,7 @@ bool band_queue() { return MODE == 0u; }
 // src/stages/see_through.rs `after_frame`; a smaller one is exact here)
 void band_inline(uint id, uint area) {
     atomicOr(inline_bits[id >> 5], 1u << (id & 31u));
+    atomicOr(counters[F_INLINED], 1u);
     if (area > BAND_INLINE_SAFE) atomicOr(counters[F_BANDS_FULL], 1u);
 }
 bool band_replay(uint id) { return (inline_bits[id >> 5] & (1u << (id & 31u))) != 0u; }

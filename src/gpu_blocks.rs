@@ -249,9 +249,19 @@ gpu_push! {
         job_capacity: u32,
         /// Fragments the pool holds.
         capacity: u32,
-        /// The LOD list visited (its first entry), or RASTER_ORDER: every
-        /// sphere in the camera's order.
+    }
+
+    /// `oit_pick` (glsl/oit_pick.comp): the see-through batches of the
+    /// camera's LOD lists.
+    OitPickPush "oit_pick" {
+        /// MODE 1: the list's first entry; its count's word in the LOD
+        /// counters.
         list_base: u32,
+        list_word: u32,
+        /// MODE 0: stored atoms; MODE 1: the most entries the list holds.
+        capacity: u32,
+        /// Entries the picked list holds.
+        room: u32,
     }
 
     /// `oit_alloc` (glsl/oit_alloc.comp).

@@ -175,7 +175,9 @@ impl Resources {
         let see_through = self.see_through(settings);
         if see_through {
             settings.check_see_through(self.translucent)?;
-            self.stages.raster.enable_see_through(ctx)?;
+            self.stages
+                .raster
+                .enable_see_through(ctx, self.scene.listed.get())?;
             if self.stages.see_through.is_none() {
                 let mut st = SeeThrough::new(
                     ctx,
@@ -194,6 +196,10 @@ impl Resources {
                     settings.deep.see_through_fragments,
                 )?;
                 s.ensure_ids(ctx, self.scene.frame_slots())?;
+                // (the camera's two lists: glsl/oit_pick.comp)
+                if let (true, Some(l)) = (self.scene.listed.get(), &self.stages.raster.lod) {
+                    s.ensure_picks(ctx, 2 * l.capacity(), self.scene.colors.size / 4)?;
+                }
             }
         }
         let p = self.ssdo_params(settings);

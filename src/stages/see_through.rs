@@ -23,10 +23,10 @@
 //! 8 B per fragment of the pool, plus band jobs.
 
 use crate::error::{Error, Result};
-use crate::gpu::blocks::{OitAllocPush, OitSplatPush};
+use crate::gpu::blocks::{OitAllocPush, OitPickPush, OitSplatPush};
 use crate::gpu::consts::{
-    F_ARGS, F_BANDS_FULL, F_BANDS_REQ, F_BANDS_RUN, F_COMPOSITE_CUT, F_FILL_ERRORS, F_MAX,
-    F_OVERFLOW, F_PIXELS, F_TOTAL, RASTER_ORDER,
+    F_ARGS, F_BANDS_FULL, F_BANDS_REQ, F_BANDS_RUN, F_COMPOSITE_CUT, F_FILL_ERRORS, F_INLINED,
+    F_MAX, F_OVERFLOW, F_PICK_ARGS, F_PIXELS, F_TOTAL, LOD_ARGS, LOD_BATCH_ARGS, LOD_BATCHES,
 };
 use crate::passes::bands::{BandArgs, BandCounters, BandJob, BandPipelines, JobList};
 use crate::passes::scene::{SCENE_ATTRIBUTES, SCENE_GEOMETRY, SceneBuffers};
@@ -168,6 +168,15 @@ fn inline_bytes(ids: u32) -> u64 {
     (ids as u64).div_ceil(32).max(1) * 4
 }
 
+/// The picked batches of the camera's LOD lists (their list positions)
+/// and the blocks of stored atoms with see-through ones (a bit each).
+struct Pick {
+    picked: Buffer,
+    blocks: Buffer,
+    /// Entries `picked` holds.
+    room: u32,
+}
+
 /// The stage: made the first time a frame has see-through spheres.
 pub struct SeeThrough {
     /// The splat shader counting and filling, each for orthographic and
@@ -176,12 +185,19 @@ pub struct SeeThrough {
     fill: [BandPipelines; 2],
     args: BandArgs,
     alloc: ComputePipeline,
+    /// glsl/oit_pick.comp's modes 0, 1, 2.
+    pickers: [ComputePipeline; 3],
+    /// Its buffers (frames that draw the LOD lists: `ensure_picks`).
+    picks: Option<Pick>,
     counters: Buffer,
     jobs: JobList,
     /// A bit per id a frame may name (`ensure_ids`).
     inline_bits: Buffer,
     /// Ids `inline_bits` covers.
     inline_ids: u32,
+    /// Whether a bit may be set (a frame's count set some: F_INLINED; a
+    /// new buffer): the next frame clears them first.
+    inline_dirty: std::cell::Cell<bool>,
     lists: Option<Lists>,
     /// The last frame's lists.
     pub stats: Option<SeeThroughStats>,
@@ -273,6 +289,35 @@ impl SeeThrough {
                 scene: 0,
             },
         )?);
+        let picker = |mode: u32| {
+            let bindings = [
+                &[
+                    uniform("GlobalsBlock"),
+                    ro("LodCounters"),
+                    rw("Blocks"),
+                    wo("Picked"),
+                    rw("Counters"),
+                ][..],
+                &SCENE_GEOMETRY,
+                &SCENE_ATTRIBUTES,
+            ]
+            .concat();
+            ComputePipeline::new(
+                ctx,
+                &PipelineDesc {
+                    name: "oit pick",
+                    shader: spirv::OIT_PICK_COMP,
+                    bindings: &bindings,
+                    push_size: std::mem::size_of::<OitPickPush>() as u32,
+                    local_size: LOCAL_SIZE,
+                    constants: &[mode],
+                    scene,
+                },
+            )
+        };
+        let pick0 = ctx.guard(picker(0)?);
+        let pick1 = ctx.guard(picker(1)?);
+        let pick2 = ctx.guard(picker(2)?);
         let args = ctx.guard(BandArgs::new(ctx, "oit band args")?);
         let usage = vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::INDIRECT_BUFFER;
         let counters = ctx.guard(Buffer::guarded(
@@ -294,10 +339,13 @@ impl SeeThrough {
             fill: fill.keep(),
             args: args.keep(),
             alloc: alloc.keep(),
+            pickers: [pick0.keep(), pick1.keep(), pick2.keep()],
+            picks: None,
             counters: counters.keep(),
             jobs: jobs.keep(),
             inline_bits,
             inline_ids: ids,
+            inline_dirty: std::cell::Cell::new(true),
             lists: None,
             stats: None,
             tiles: None,
@@ -336,6 +384,36 @@ impl SeeThrough {
         let mut old = std::mem::replace(&mut self.inline_bits, bits);
         old.destroy(ctx);
         self.inline_ids = ids;
+        self.inline_dirty.set(true);
+        Ok(())
+    }
+
+    /// Makes the pick buffers hold `room` batches and blocks of `stored`
+    /// atoms (a frame that draws the LOD lists; they grow with them).
+    pub fn ensure_picks(&mut self, ctx: &Context, room: u32, stored: u64) -> Result<()> {
+        let words = stored.div_ceil(64 * 32).max(1);
+        if self
+            .picks
+            .as_ref()
+            .is_some_and(|p| p.room >= room && p.blocks.size >= words * 4)
+        {
+            return Ok(());
+        }
+        ctx.wait_idle();
+        let picked = ctx.guard(Buffer::storage(
+            ctx,
+            "oit picked batches",
+            room.max(1) as u64 * 4,
+        )?);
+        let blocks = Buffer::storage(ctx, "oit see-through blocks", words * 4)?;
+        if let Some(mut old) = self.picks.replace(Pick {
+            picked: picked.keep(),
+            blocks,
+            room,
+        }) {
+            old.picked.destroy(ctx);
+            old.blocks.destroy(ctx);
+        }
         Ok(())
     }
 
@@ -378,41 +456,42 @@ impl SeeThrough {
             ("Counters", &self.counters),
             ("Jobs", &self.jobs.buf),
             ("Inline", &self.inline_bits),
-            ("orderTex", io.order),
         ];
+        // What the fragments visit: every sphere in the camera's order, or
+        // in a frame that draws the LOD lists the camera's listed batches
+        // that hold see-through atoms (picked first: a batch's slots are
+        // ids, as the raster's), dispatched indirectly
+        let shift = io.scene.spec >> 8;
+        let (order, sphere_count, indirect, pick) = match (&io.lod, &self.picks) {
+            (None, _) => (io.order, io.scene.slots, None, None),
+            (Some(views), Some(pick)) => {
+                if views.iter().any(|v| 2 * v.capacity > pick.room) {
+                    return Err(Error::Internal("see-through pick list too short".into()));
+                }
+                let args = (&self.counters, F_PICK_ARGS as u64 * 4);
+                (
+                    &pick.picked,
+                    pick.room << shift,
+                    Some(args),
+                    Some((views, pick)),
+                )
+            }
+            (Some(_), None) => {
+                return Err(Error::Internal(
+                    "see-through pick buffers were not made".into(),
+                ));
+            }
+        };
+        bufs.push(("orderTex", order));
         bufs.extend(io.scene.geometry());
         bufs.extend(io.scene.attributes());
         let push = OitSplatPush {
             // (the static table's slots now: made by the first frame that
             // draws every atom)
-            sphere_count: io.scene.slots,
+            sphere_count,
             big_area: BIG_AREA,
             job_capacity: self.jobs.capacity(),
             capacity: l.capacity,
-            list_base: RASTER_ORDER,
-        };
-        // What each mode enumerates: every sphere in the camera's order,
-        // or the camera's LOD lists (a dispatch each, indirect; a list's
-        // slots are ids from its first entry, as the raster's)
-        let parts: Vec<(OitSplatPush, Option<(&Buffer, u64)>)> = match (&io.lod, &io.scene.lod) {
-            (None, _) => vec![(push, None)],
-            (Some(views), Some(b)) => views
-                .iter()
-                .map(|v| {
-                    let slots = b.list_entries.saturating_sub(v.base) << (io.scene.spec >> 8);
-                    let push = OitSplatPush {
-                        sphere_count: slots,
-                        list_base: v.base,
-                        ..push
-                    };
-                    (push, Some((v.counters, v.args_offset)))
-                })
-                .collect(),
-            (Some(_), None) => {
-                return Err(Error::Internal(
-                    "see-through LOD lists of a scene without levels".into(),
-                ));
-            }
         };
         let ids = io.scene.frame_slots();
         if self.inline_ids < ids {
@@ -421,12 +500,28 @@ impl SeeThrough {
         let view = io.perspective as usize;
         let layout = self.jobs.layout(LAYOUT);
         // count and fill: one enumeration, two modes
+        let job = |spheres, bands| BandJob {
+            spheres,
+            bands,
+            push: &push,
+            bindings: &bufs,
+            sphere_count,
+            indirect,
+            counters: &self.counters,
+            layout: &layout,
+        };
         rec.pass("oit_count", |p| {
             p.fill(&l.counts, pixels * 4, 0);
             p.fill(&l.cursor, pixels * 4, 0);
             p.fill(&self.counters, COUNTER_WORDS * 4, 0);
-            p.fill(&self.inline_bits, inline_bytes(ids), 0);
-            self.splat(p, &self.count[view], &parts, &bufs, &layout);
+            if self.inline_dirty.replace(false) {
+                p.fill(&self.inline_bits, inline_bytes(ids), 0);
+            }
+            if let Some((views, pick)) = pick {
+                self.pick_steps(p, io, views, pick);
+            }
+            self.args
+                .steps(p, &job(&self.count[view].spheres, &self.count[view].bands));
             Ok(())
         })?;
         rec.pass("oit_alloc", |p| {
@@ -446,44 +541,62 @@ impl SeeThrough {
             Ok(())
         })?;
         rec.pass("oit_fill", |p| {
-            self.splat(p, &self.fill[view], &parts, &bufs, &layout);
+            self.args
+                .steps(p, &job(&self.fill[view].spheres, &self.fill[view].bands));
             Ok(())
         })
     }
 
-    /// One mode's enumeration: every part's spheres, then the bands they
-    /// queued, once.
-    fn splat<'b>(
+    /// The picks of `oit_count` (glsl/oit_pick.comp): the blocks of stored
+    /// atoms with see-through ones, the camera lists' batches over them,
+    /// the splat's dispatch arguments.
+    fn pick_steps<'b>(
         &'b self,
         p: &mut PassBuilder<'b>,
-        pipes: &'b BandPipelines,
-        parts: &[(OitSplatPush, Option<(&'b Buffer, u64)>)],
-        bindings: &[(&'static str, &'b Buffer)],
-        layout: &BandCounters,
+        io: &SeeThroughInputs<'b>,
+        views: &[LodView<'b>; 2],
+        pick: &'b Pick,
     ) {
-        let job = |push| BandJob {
-            spheres: &pipes.spheres,
-            bands: &pipes.bands,
-            push,
-            bindings,
-            sphere_count: 0,
-            indirect: None,
-            counters: &self.counters,
-            layout,
+        let mut bufs = vec![
+            ("GlobalsBlock", io.globals),
+            ("LodCounters", views[0].counters),
+            ("Blocks", &pick.blocks),
+            ("Picked", &pick.picked),
+            ("Counters", &self.counters),
+        ];
+        bufs.extend(io.scene.geometry());
+        bufs.extend(io.scene.attributes());
+        let stored = (io.scene.colors.size / 4) as u32;
+        let push = OitPickPush {
+            list_base: 0,
+            list_word: 0,
+            capacity: stored,
+            room: pick.room,
         };
-        for (push, indirect) in parts {
-            self.args.spheres(
-                p,
-                &BandJob {
-                    sphere_count: push.sphere_count,
-                    indirect: *indirect,
-                    ..job(push)
-                },
+        p.fill(&pick.blocks, pick.blocks.size, 0);
+        p.dispatch(
+            &self.pickers[0],
+            &push,
+            Grid::Invocations(stored as u64),
+            &bufs,
+        );
+        for v in views {
+            let push = OitPickPush {
+                list_base: v.base,
+                list_word: v.words + LOD_BATCHES,
+                capacity: v.capacity,
+                ..push
+            };
+            // (at least an invocation per listed batch: lod_args.comp)
+            let at = v.args_offset + ((LOD_BATCH_ARGS - LOD_ARGS) * 4) as u64;
+            p.dispatch(
+                &self.pickers[1],
+                &push,
+                Grid::Indirect(v.counters, at),
+                &bufs,
             );
         }
-        if let Some((push, _)) = parts.first() {
-            self.args.bands(p, &job(push));
-        }
+        p.dispatch(&self.pickers[2], &push, Grid::Groups([1, 1, 1]), &bufs);
     }
 
     /// The frame's counter words.
@@ -501,7 +614,11 @@ impl SeeThrough {
     /// can be rendered again.
     pub fn after_frame(&mut self, ctx: &Context, c: &[u32]) -> Result<bool> {
         if c.len() < COUNTER_WORDS as usize {
+            self.inline_dirty.set(true);
             return Err(Error::Internal("see-through counters missing".into()));
+        }
+        if c[F_INLINED as usize] != 0 {
+            self.inline_dirty.set(true);
         }
         // (first: a visit the loop limit cut may also have filled outside
         // its run)
@@ -591,6 +708,10 @@ impl SeeThrough {
             + self.counters.size
             + self.jobs.buf.size
             + self.inline_bits.size
+            + self
+                .picks
+                .as_ref()
+                .map_or(0, |p| p.picked.size + p.blocks.size)
     }
 
     /// Names of the buffers whose guard words a pass overwrote.
@@ -633,6 +754,13 @@ impl SeeThrough {
         }
         self.args.destroy(ctx);
         self.alloc.destroy(ctx);
+        for p in &mut self.pickers {
+            p.destroy(ctx);
+        }
+        if let Some(p) = &mut self.picks {
+            p.picked.destroy(ctx);
+            p.blocks.destroy(ctx);
+        }
         for b in [
             &mut self.counters,
             &mut self.jobs.buf,

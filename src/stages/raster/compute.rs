@@ -65,7 +65,12 @@ pub enum ViewIndex {
 pub struct LodView<'b> {
     /// Its first entry in the lists.
     pub base: u32,
+    /// The most entries it holds (its count may pass them: the frame is
+    /// drawn again with longer lists).
+    pub capacity: u32,
     pub counters: &'b Buffer,
+    /// Its words in `counters` (LOD_BATCHES, LOD_ARGS, ... from it).
+    pub words: u32,
     /// Byte offset of its indirect dispatch arguments in `counters`.
     pub args_offset: u64,
 }
@@ -127,6 +132,10 @@ pub struct RasterPass {
     /// depth tiles (constant 5: CAM_EARLY, CAM_RECHECK, CAM_LATE), made
     /// with the light's.
     cam_batches: Option<[ComputePipeline; 3]>,
+    /// The same with SEE_THROUGH (their atoms' per-slot path skips
+    /// see-through spheres), made the first time a frame that draws the
+    /// lists has see-through spheres.
+    cam_batches_see: Option<[ComputePipeline; 3]>,
     /// Whether this renderer draws the camera's lists per batch.
     cam_per_batch: bool,
     /// Kept to make them.
@@ -333,6 +342,7 @@ impl RasterPass {
             light_batches: None,
             light_per_batch: per_batch.light && scene & 0xFF != SCENE_PLAIN,
             cam_batches: None,
+            cam_batches_see: None,
             cam_per_batch: per_batch.camera && scene & 0xFF != SCENE_PLAIN,
             scene,
             args: args.keep(),
@@ -344,12 +354,26 @@ impl RasterPass {
     }
 
     /// Makes the SEE_THROUGH pipelines (the first frame with see-through
-    /// spheres).
-    pub fn enable_see_through(&mut self, ctx: &Context) -> Result<()> {
+    /// spheres; the per-batch camera's with `batches`: it draws the LOD
+    /// lists).
+    pub fn enable_see_through(&mut self, ctx: &Context, batches: bool) -> Result<()> {
         if self.see_through.is_none() {
             self.see_through = Some(Self::pipelines(ctx, self.scene, true)?);
         }
+        if batches && self.cam_per_batch && self.cam_batches_see.is_none() {
+            self.cam_batches_see = Some(Self::cam_pipelines(ctx, self.scene, true)?);
+        }
         Ok(())
+    }
+
+    /// The camera's per-batch pipelines (CAM_EARLY, CAM_RECHECK, CAM_LATE),
+    /// with SEE_THROUGH or not.
+    fn cam_pipelines(ctx: &Context, scene: u32, see: bool) -> Result<[ComputePipeline; 3]> {
+        let pipe = |mode| Self::sphere_pipeline(ctx, scene, &[0, see as u32, 0, mode]);
+        let early = ctx.guard(pipe(CAM_EARLY)?);
+        let recheck = ctx.guard(pipe(CAM_RECHECK)?);
+        let late = pipe(CAM_LATE)?;
+        Ok([early.keep(), recheck.keep(), late])
     }
 
     /// Makes the per-batch pipelines (the first frame that draws the LOD
@@ -360,22 +384,24 @@ impl RasterPass {
             self.light_batches = Some(Self::sphere_pipeline(ctx, self.scene, &[0, 0, 1])?);
         }
         if self.cam_per_batch && self.cam_batches.is_none() {
-            let pipe = |mode| Self::sphere_pipeline(ctx, self.scene, &[0, 0, 0, mode]);
-            let early = ctx.guard(pipe(CAM_EARLY)?);
-            let recheck = ctx.guard(pipe(CAM_RECHECK)?);
-            let late = pipe(CAM_LATE)?;
-            self.cam_batches = Some([early.keep(), recheck.keep(), late]);
+            self.cam_batches = Some(Self::cam_pipelines(ctx, self.scene, false)?);
         }
         Ok(())
     }
 
     /// Whether the camera's LOD lists may be drawn per batch, tested
     /// against depth tiles, in a window `h` rows high from an orthographic
-    /// (not `perspective`) camera without see-through spheres: the
-    /// pipelines are made, and the window's rows keep an invocation's band
-    /// appends within lavapipe's loop bound (glsl/raster.comp).
+    /// (not `perspective`) camera: the pipelines are made (with
+    /// `see_through` spheres, the SEE_THROUGH ones), and the window's rows
+    /// keep an invocation's band appends within lavapipe's loop bound
+    /// (glsl/raster.comp).
     pub fn cam_batches_fit(&self, perspective: bool, see_through: bool, h: u32) -> bool {
-        self.cam_batches.is_some() && !perspective && !see_through && h <= 8192
+        let made = if see_through {
+            self.cam_batches_see.is_some()
+        } else {
+            self.cam_batches.is_some()
+        };
+        made && !perspective && h <= 8192
     }
 
     /// After a frame, the GPU idle: whether a sphere's bands did not fit
@@ -519,7 +545,12 @@ impl RasterPass {
         let per_batch = match (view, tested) {
             (ViewIndex::Light, _) => self.light_batches.as_ref(),
             (ViewIndex::Camera, Some(t)) if t.mode != CAM_PER_SLOT => {
-                let Some(c) = &self.cam_batches else {
+                let made = if see_through {
+                    &self.cam_batches_see
+                } else {
+                    &self.cam_batches
+                };
+                let Some(c) = made else {
                     return Err(crate::error::Error::Internal(
                         "the camera's per-batch pipelines were not made".into(),
                     ));
@@ -609,6 +640,7 @@ impl RasterPass {
             .light_batches
             .iter_mut()
             .chain(self.cam_batches.iter_mut().flatten())
+            .chain(self.cam_batches_see.iter_mut().flatten())
         {
             p.destroy(ctx);
         }

@@ -1066,7 +1066,9 @@ impl LodCull {
     fn list_view(&self, i: usize) -> LodView<'_> {
         LodView {
             base: i as u32 * (self.capacity + LOD_LIST_TAIL),
+            capacity: self.capacity,
             counters: &self.counters,
+            words: i as u32 * LOD_WORDS,
             args_offset: ((i as u32 * LOD_WORDS + LOD_ARGS) * 4) as u64,
         }
     }

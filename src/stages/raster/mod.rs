@@ -387,8 +387,8 @@ impl RasterStage {
 
     /// Makes the pipelines that leave see-through spheres to the fragment
     /// lists (the first frame that has some).
-    pub fn enable_see_through(&mut self, ctx: &Context) -> Result<()> {
-        self.compute.enable_see_through(ctx)?;
+    pub fn enable_see_through(&mut self, ctx: &Context, batches: bool) -> Result<()> {
+        self.compute.enable_see_through(ctx, batches)?;
         self.coverage.enable_see_through(ctx)
     }
 
