@@ -356,6 +356,59 @@ fn see_through_band_jobs_past_the_list_are_drawn_again_longer() {
     assert_no_validation_messages(&ctx);
 }
 
+/// A frame whose band jobs did not all fit (a smaller limit: spheres of
+/// 1,000-4,000 pixels counted and filled by their own invocations, their
+/// inline bits set, no second draw) leaves bits the next frame must clear
+/// before its count: that frame, with the whole list, queues those
+/// spheres' bands, and a stale bit would have its fill visit them again
+/// (fragments outside their runs). Both frames equal a fresh renderer's.
+#[test]
+fn inline_bits_of_a_frame_are_cleared_for_the_next() {
+    let ctx = validated_context();
+    let mut spheres = Vec::new();
+    for j in 0..7 {
+        for i in 0..9 {
+            let c = [
+                -60.0 + 15.0 * i as f32,
+                -45.0 + 15.0 * j as f32,
+                -100.0 - (i + j) as f32,
+            ];
+            let rgb = [(30 * i) as u8, (40 * j) as u8, 200];
+            spheres.push(ball(c, 6.0, rgb, 128));
+        }
+    }
+    let scene = scene_of(spheres, "a grid of see-through spheres");
+    let cam = screen_filling_camera();
+    let fresh = render(&ctx, &scene, flat(cam));
+    let mut r = Renderer::new(&ctx, &scene, flat(cam)).expect("renderer");
+    let st = r.inspect().see_through().map(|s| s.job_capacity());
+    assert!(st.is_none(), "made with the first frame");
+    for (f, limit) in [(0, 64), (1, 0), (2, 64), (3, 0)] {
+        if let Some(s) = r.inspect().see_through() {
+            s.set_job_limit(limit);
+        }
+        r.render_frame()
+            .unwrap_or_else(|e| panic!("frame {f}: {e}"));
+        let i = r.inspect();
+        let st = i.see_through().expect("see-through spheres");
+        assert_eq!(st.damaged_guards(&ctx).unwrap(), Vec::<String>::new());
+        let inlined = st.read_counters(&ctx).unwrap()[sphereshade::gpu::consts::F_INLINED as usize];
+        // (frame 0 is made with the whole list: the limit applies from
+        // frame 1 on, set before it)
+        assert_eq!(inlined != 0, f == 2, "frame {f}: inline visits {inlined}");
+        let c = rgba16(&i.read_color().unwrap());
+        let differ = fresh.color.iter().zip(&c).filter(|(x, y)| x != y).count();
+        assert_eq!(differ, 0, "frame {f}: {differ} pixels differ");
+        assert_eq!(
+            fresh.stats.as_ref().unwrap().fragments,
+            i.see_through_stats().unwrap().fragments,
+            "frame {f}"
+        );
+    }
+    drop(r);
+    assert_no_validation_messages(&ctx);
+}
+
 /// With deep shadows, translucent spheres are lit with their translucent
 /// shadow and cast 1 - alpha; a fully opaque alpha rule changes nothing.
 #[test]

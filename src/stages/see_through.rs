@@ -681,6 +681,12 @@ impl SeeThrough {
         Ok(true)
     }
 
+    /// Test hook: at most `jobs` band jobs a frame (0: the list's
+    /// length), from the next frame.
+    pub fn set_job_limit(&self, jobs: u32) {
+        self.jobs.set_limit(if jobs == 0 { u32::MAX } else { jobs });
+    }
+
     /// Entries of the band job list (grown where a frame asked more).
     pub fn job_capacity(&self) -> u32 {
         self.jobs.capacity()
