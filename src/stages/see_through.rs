@@ -218,8 +218,9 @@ pub struct SeeThroughInputs<'a> {
     pub order: &'a Buffer,
     pub perspective: bool,
     /// A frame that draws the LOD lists: the camera's early and late
-    /// lists, visited in place of every sphere (the lists name what the
-    /// camera may see, at its level of detail).
+    /// lists, whose batches with see-through atoms are visited in place of
+    /// every sphere (the lists name what the camera may see, at its level
+    /// of detail).
     pub lod: Option<[LodView<'a>; 2]>,
 }
 
@@ -463,6 +464,8 @@ impl SeeThrough {
         // ids, as the raster's), dispatched indirectly
         let shift = io.scene.spec >> 8;
         let (order, sphere_count, indirect, pick) = match (&io.lod, &self.picks) {
+            // (the static table's slots now: made by the first frame that
+            // draws every atom)
             (None, _) => (io.order, io.scene.slots, None, None),
             (Some(views), Some(pick)) => {
                 if views.iter().any(|v| 2 * v.capacity > pick.room) {
@@ -471,7 +474,7 @@ impl SeeThrough {
                 let args = (&self.counters, F_PICK_ARGS as u64 * 4);
                 (
                     &pick.picked,
-                    pick.room << shift,
+                    ((pick.room as u64) << shift).min(u32::MAX as u64) as u32,
                     Some(args),
                     Some((views, pick)),
                 )
@@ -486,8 +489,6 @@ impl SeeThrough {
         bufs.extend(io.scene.geometry());
         bufs.extend(io.scene.attributes());
         let push = OitSplatPush {
-            // (the static table's slots now: made by the first frame that
-            // draws every atom)
             sphere_count,
             big_area: BIG_AREA,
             job_capacity: self.jobs.capacity(),
