@@ -258,23 +258,11 @@ impl BandArgs {
     /// Adds the per-sphere dispatch, the args step and the indirect band
     /// dispatch of `job` to a pass.
     pub fn steps<'b, P: Pod>(&'b self, p: &mut PassBuilder<'b>, job: &BandJob<'_, 'b, P>) {
-        self.spheres(p, job);
-        self.bands(p, job);
-    }
-
-    /// The per-sphere dispatch of `job` alone (a pass that enumerates its
-    /// spheres in parts runs each, then [`BandArgs::bands`] once).
-    pub fn spheres<'b, P: Pod>(&'b self, p: &mut PassBuilder<'b>, job: &BandJob<'_, 'b, P>) {
         let grid = match job.indirect {
             Some((b, offset)) => Grid::Indirect(b, offset),
             None => Grid::Invocations(job.sphere_count as u64),
         };
         p.dispatch(job.spheres, job.push, grid, job.bindings);
-    }
-
-    /// The args step and the indirect band dispatch of `job`: every band
-    /// queued since the counters were cleared.
-    pub fn bands<'b, P: Pod>(&'b self, p: &mut PassBuilder<'b>, job: &BandJob<'_, 'b, P>) {
         self.step(p, job.counters, job.layout);
         p.dispatch(
             job.bands,
