@@ -80,15 +80,15 @@ gpu_constants! {
     F_BANDS_FULL: u32 = 6;
     F_BANDS_RUN: u32 = 17;
     F_ARGS: u32 = 20;
-    /// Fragment counters (a frame that draws the LOD lists): the camera's
-    /// listed batches picked for the fragments (glsl/oit_pick.comp), and
-    /// the first of their three indirect dispatch words.
-    F_PICKED: u32 = 8;
     /// Fragment counters: 1 if a sphere's own invocation visited its
     /// footprint (its inline bit set): the bits are cleared before the
     /// next frame (only then: a frame's ids span the LOD lists' slots,
     /// tens of MB of bits at meso 10^9).
     F_INLINED: u32 = 9;
+    /// Fragment counters (a frame that draws the LOD lists): the camera's
+    /// listed batches picked for the fragments (glsl/oit_pick.comp), and
+    /// the first of their three indirect dispatch words.
+    F_PICKED: u32 = 8;
     F_PICK_ARGS: u32 = 24;
     /// Raster counters: band jobs requested.
     R_BANDS_REQ: u32 = 0;

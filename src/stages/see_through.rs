@@ -177,6 +177,13 @@ struct Pick {
     room: u32,
 }
 
+impl Pick {
+    fn destroy(&mut self, ctx: &Context) {
+        self.picked.destroy(ctx);
+        self.blocks.destroy(ctx);
+    }
+}
+
 /// The stage: made the first time a frame has see-through spheres.
 pub struct SeeThrough {
     /// The splat shader counting and filling, each for orthographic and
@@ -412,8 +419,7 @@ impl SeeThrough {
             blocks,
             room,
         }) {
-            old.picked.destroy(ctx);
-            old.blocks.destroy(ctx);
+            old.destroy(ctx);
         }
         Ok(())
     }
@@ -765,8 +771,7 @@ impl SeeThrough {
             p.destroy(ctx);
         }
         if let Some(p) = &mut self.picks {
-            p.picked.destroy(ctx);
-            p.blocks.destroy(ctx);
+            p.destroy(ctx);
         }
         for b in [
             &mut self.counters,

@@ -396,12 +396,17 @@ impl RasterPass {
     /// keep an invocation's band appends within lavapipe's loop bound
     /// (glsl/raster.comp).
     pub fn cam_batches_fit(&self, perspective: bool, see_through: bool, h: u32) -> bool {
-        let made = if see_through {
-            self.cam_batches_see.is_some()
+        self.cam_pipes(see_through).is_some() && !perspective && h <= 8192
+    }
+
+    /// The camera's per-batch pipelines for frames with `see_through`
+    /// spheres or without (None: not made).
+    fn cam_pipes(&self, see_through: bool) -> Option<&[ComputePipeline; 3]> {
+        if see_through {
+            self.cam_batches_see.as_ref()
         } else {
-            self.cam_batches.is_some()
-        };
-        made && !perspective && h <= 8192
+            self.cam_batches.as_ref()
+        }
     }
 
     /// After a frame, the GPU idle: whether a sphere's bands did not fit
@@ -545,12 +550,7 @@ impl RasterPass {
         let per_batch = match (view, tested) {
             (ViewIndex::Light, _) => self.light_batches.as_ref(),
             (ViewIndex::Camera, Some(t)) if t.mode != CAM_PER_SLOT => {
-                let made = if see_through {
-                    &self.cam_batches_see
-                } else {
-                    &self.cam_batches
-                };
-                let Some(c) = made else {
+                let Some(c) = self.cam_pipes(see_through) else {
                     return Err(crate::error::Error::Internal(
                         "the camera's per-batch pipelines were not made".into(),
                     ));

@@ -83,8 +83,14 @@ fn front_shift(w: u32, h: u32, r: f32) -> u32 {
     } else {
         1
     };
-    (want..28)
-        .find(|&s| tiles(w, h, 1 << s) <= FRONT_CELLS as u64)
+    fitting_shift(w, h, want, FRONT_CELLS)
+}
+
+/// The least shift from `least` whose tiles (2^shift pixels a side) over
+/// a `w` x `h` window are at most `most`.
+fn fitting_shift(w: u32, h: u32, least: u32, most: u32) -> u32 {
+    (least..28)
+        .find(|&s| tiles(w, h, 1 << s) <= most as u64)
         .unwrap_or(28)
 }
 
@@ -117,9 +123,7 @@ const REGION_BYTES: u64 = (LOD_RECEIVERS_AT as u64 + RECEIVER_TILES as u64) * 4;
 /// The receiver tiles' shift for a `w` x `h` light map: its fine depth
 /// tiles' ([`hiz_shift`]) or coarser, within [`RECEIVER_TILES`].
 pub fn receiver_shift(w: u32, h: u32) -> u32 {
-    (hiz_shift(ViewIndex::Light, w, h)..28)
-        .find(|&s| tiles(w, h, 1 << s) <= RECEIVER_TILES as u64)
-        .unwrap_or(28)
+    fitting_shift(w, h, hiz_shift(ViewIndex::Light, w, h), RECEIVER_TILES)
 }
 
 /// What the light's cull needs of the shadow lookup: the farthest it
