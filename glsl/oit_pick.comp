@@ -10,8 +10,9 @@
 //           counted in word pc.list_word of the LOD counters), appended
 //           (its list position) where its stored atoms meet such a block,
 //           or every entry where --opacity is below 1;
-//   MODE 2: one invocation: the splat's indirect dispatch arguments, a
-//           slot per picked batch's 2^BATCH_SHIFT.
+//   MODE 2: one invocation: the splat's indirect dispatch arguments,
+//           pc.per_batch invocations per picked batch (its 2^BATCH_SHIFT
+//           slots, or its parts: oit_splat.comp BATCHES).
 #include "shared.glsl"
 #include "grid.glsl"
 
@@ -40,7 +41,7 @@ void main() {
     if (MODE == 2u) {
         if (i != 0u) return;
         uint n = min(counters[F_PICKED], pc.room);
-        uint groups = ((n << BATCH_SHIFT) + gl_WorkGroupSize.x - 1u) / gl_WorkGroupSize.x;
+        uint groups = (n * pc.per_batch + gl_WorkGroupSize.x - 1u) / gl_WorkGroupSize.x;
         uvec3 a = grid_of(groups);
         counters[F_PICK_ARGS] = a.x;
         counters[F_PICK_ARGS + 1u] = a.y;

@@ -115,83 +115,11 @@ const uint CAM_PART_AREA = 128u;
 layout(set = 0, binding = 7) uniform usamplerBuffer hizTex;
 layout(set = 0, binding = 8) uniform usamplerBuffer hizPrevTex;
 
-// Whether the tiles under window rectangle rc all hold surfaces nearer
-// than depth word `near` (last frame's with `prev`): 2x2 tiles of 2 px at
-// most (from word pc.micro_base; 0: none), else 2x2 fine tiles (2^pc.hiz_shift
-// pixels), else 2x2 coarse ones (8x8 fine), else not hidden. (A bool, not
-// the sampler: one function.)
-bool tiles_hide(bool prev, View v, ivec4 rc, uint near) {
-    ivec2 lo = ivec2(v.dims.zw);
-    ivec4 r = rc - ivec4(lo, lo);
-    int S = int(pc.hiz_shift);
-    ivec4 m = r >> 1, t = r >> S;
-    bool micro = pc.micro_base != 0u && m.z - m.x <= 1 && m.w - m.y <= 1;
-    bool fine = t.z - t.x <= 1 && t.w - t.y <= 1;
-    uint T = 1u << S;
-    int base = micro ? int(pc.micro_base)
-                     : fine ? 0 : int(((v.dims.x + T - 1u) >> S) * ((v.dims.y + T - 1u) >> S));
-    int sh = micro ? 1 : fine ? S : S + 3;
-    t = r >> sh;
-    if (t.z - t.x > 1 || t.w - t.y > 1) return false;
-    int tw = int((v.dims.x + (1u << sh) - 1u) >> sh);
-    int last = (prev ? textureSize(hizPrevTex) : textureSize(hizTex)) - 1;
-    ivec4 at = min(base + ivec4(t.y * tw + t.x, t.y * tw + t.z, t.w * tw + t.x, t.w * tw + t.z), last);
-    uvec4 w = prev ? uvec4(texelFetch(hizPrevTex, at.x).x, texelFetch(hizPrevTex, at.y).x,
-                           texelFetch(hizPrevTex, at.z).x, texelFetch(hizPrevTex, at.w).x)
-                   : uvec4(texelFetch(hizTex, at.x).x, texelFetch(hizTex, at.y).x,
-                           texelFetch(hizTex, at.z).x, texelFetch(hizTex, at.w).x);
-    return max(max(w.x, w.y), max(w.z, w.w)) < near;
-}
-
-// Instance placement p0 (its linear map's images of the axes ax) into
-// view v's pixel coordinates (plane_rect's: x ppu + W/2 - 1/2, H/2 - 1/2 -
-// y ppu; a pixel's centre at integer coordinates) and depth: an atom at a
-// (the molecule's frame) is at o + (rx . a, ry . a), depth oz + rz . a.
-// (`precise`: the camera's early and recheck pipelines must compute alike
-// bits, whatever each one's contraction into fused multiply-adds; an atom
-// both found hidden behind last frame's tiles would be lost)
-struct AtomMap {
-    vec3 rx, ry, rz;
-    vec2 o;
-    float oz;
-    // the rounding of the placed centres and of this map: far above
-    // either, in world units
-    float slack;
-};
-
-AtomMap atom_map(View v, vec3 p0, mat3 ax) {
-    float ppu = v.center.w;
-    precise vec3 rx = (v.right.xyz * ax) * ppu, ry = -(v.up.xyz * ax) * ppu, rz = v.dir.xyz * ax;
-    precise vec3 q = p0 - v.center.xyz;
-    precise vec2 o = vec2(dot(q, v.right.xyz) * ppu + 0.5 * v.right.w - 0.5,
-                  0.5 * v.up.w - 0.5 - dot(q, v.up.xyz) * ppu);
-    precise float oz = dot(q, v.dir.xyz);
-    precise float slack = 1e-5 * (coord_max(p0) + coord_max(v.center.xyz)) + 1e-3;
-    return AtomMap(rx, ry, rz, o, oz, slack);
-}
-
-// Atom a's disc in view v's pixels (mapped by m): its centre t and its
-// radius r, grown for the map's rounding.
-void atom_disc(View v, AtomMap m, vec4 a, out vec2 t, out float r) {
-    precise vec2 tp = m.o + vec2(dot(m.rx, a.xyz), dot(m.ry, a.xyz));
-    precise float rp = a.w * v.center.w + (m.slack * v.center.w + 1e-3);
-    t = tp;
-    r = rp;
-}
-
-// Atom a's pixel rectangle in view v (mapped by m), grown, and its nearest
-// depth key, less the cull's margin for the keys' f32 rounding
-// (glsl/lod_cull.comp `hidden`) and the map's.
-void atom_rect(View v, AtomMap m, vec4 a, out ivec4 rc, out uint near) {
-    vec2 t;
-    float r;
-    atom_disc(v, m, a, t, r);
-    ivec2 lo = ivec2(v.dims.zw), hi = min(lo + ivec2(v.dims.xy), ivec2(int(v.right.w), int(v.up.w))) - 1;
-    rc = ivec4(max(ivec2(ceil(t - r)), lo), min(ivec2(floor(t + r)), hi));
-    precise float z = m.oz + dot(m.rz, a.xyz);
-    precise float zmin = z - a.w + v.depth.x - (1e-4 * (abs(z) + abs(v.depth.x) + a.w) + 1e-3 + m.slack);
-    near = floatBitsToUint(max(zmin, 0.0));
-}
+// (raster.comp's two tile buffers: this frame's early image, last frame's
+// final one)
+#define TILE_WORD(prev, i) ((prev) ? texelFetch(hizPrevTex, (i)).x : texelFetch(hizTex, (i)).x)
+#define TILE_TEXELS(prev) ((prev) ? textureSize(hizPrevTex) : textureSize(hizTex))
+#include "atom_tests.glsl"
 
 void batch_part() {
     const uint PARTS = batch_parts(1u << BATCH_SHIFT);

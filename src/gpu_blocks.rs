@@ -249,6 +249,10 @@ gpu_push! {
         job_capacity: u32,
         /// Fragments the pool holds.
         capacity: u32,
+        /// Per batch (BATCHES): the final image's depth tiles (`hizTex`),
+        /// fine tiles of 2^hiz_shift pixels, 2-px ones from micro_base.
+        hiz_shift: u32,
+        micro_base: u32,
     }
 
     /// `oit_pick` (glsl/oit_pick.comp): the see-through batches of the
@@ -262,6 +266,9 @@ gpu_push! {
         capacity: u32,
         /// Entries the picked list holds.
         room: u32,
+        /// MODE 2: the splat's invocations per picked batch (its slots,
+        /// or its parts where it runs per batch).
+        per_batch: u32,
     }
 
     /// `oit_alloc` (glsl/oit_alloc.comp).

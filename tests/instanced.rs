@@ -755,7 +755,10 @@ fn culled_instances_are_never_visible() {
 /// every instance at full detail (`--lod-pixels 0`) the frames equal the
 /// expanded scene's (no cull, every sphere in the camera's order) bit for
 /// bit: colours, ids, depths and shadows, over frames with history (the
-/// same camera, a pan, the whole model).
+/// same camera, a pan, the whole model). The fragments visit the picked
+/// batches per batch, each atom tested against the final opaque image's
+/// depth tiles (dropping a part's first atom fails it: "frame 0: colours
+/// differ").
 #[test]
 fn see_through_instances_draw_through_the_lod_lists() {
     let ctx = validated_context();
@@ -798,6 +801,14 @@ fn see_through_instances_draw_through_the_lod_lists() {
         }
         let stats = rd.inspect().see_through_stats().expect("see-through ran");
         fragments += stats.fragments;
+        let per_batch = rd
+            .inspect()
+            .see_through()
+            .is_some_and(|s| s.ran_per_batch());
+        assert!(
+            per_batch,
+            "{what}: the fragments visited the picked batches per slot"
+        );
         let mut se = st.clone();
         se.camera = cam;
         let b = frame(&ctx, &e, se);

@@ -279,6 +279,11 @@ impl Resources {
                         } else {
                             None
                         },
+                        tiles: if lod {
+                            self.stages.raster.final_camera_tiles(size)
+                        } else {
+                            None
+                        },
                     },
                     size,
                 )?;

@@ -25,14 +25,15 @@
 use crate::error::{Error, Result};
 use crate::gpu::blocks::{OitAllocPush, OitPickPush, OitSplatPush};
 use crate::gpu::consts::{
-    F_ARGS, F_BANDS_FULL, F_BANDS_REQ, F_BANDS_RUN, F_COMPOSITE_CUT, F_FILL_ERRORS, F_INLINED,
-    F_MAX, F_OVERFLOW, F_PICK_ARGS, F_PIXELS, F_TOTAL, LOD_ARGS, LOD_BATCH_ARGS, LOD_BATCHES,
+    BATCH_PART_SLOTS, F_ARGS, F_BANDS_FULL, F_BANDS_REQ, F_BANDS_RUN, F_COMPOSITE_CUT,
+    F_FILL_ERRORS, F_INLINED, F_MAX, F_OVERFLOW, F_PICK_ARGS, F_PIXELS, F_TOTAL, LOD_ARGS,
+    LOD_BATCH_ARGS, LOD_BATCHES,
 };
 use crate::passes::bands::{BandArgs, BandCounters, BandJob, BandPipelines, JobList};
 use crate::passes::scene::{SCENE_ATTRIBUTES, SCENE_GEOMETRY, SceneBuffers};
 use crate::passes::{LOCAL_SIZE, spirv};
 use crate::stages::raster::compute::LodView;
-use crate::vk::pipeline::{PipelineDesc, ro, rw, texel, uniform, wo};
+use crate::vk::pipeline::{Binding, PipelineDesc, ro, rw, texel, uniform, wo};
 use crate::vk::{Buffer, ComputePipeline, Context, Grid, PassBuilder, Recorder};
 use ash::vk;
 use serde::{Deserialize, Serialize};
@@ -173,6 +174,9 @@ fn inline_bytes(ids: u32) -> u64 {
 struct Pick {
     picked: Buffer,
     blocks: Buffer,
+    /// Per part of a picked batch (the per-batch splat): the atoms its
+    /// count found may make fragments, which its fill visits.
+    masks: Buffer,
     /// Entries `picked` holds.
     room: u32,
 }
@@ -181,6 +185,66 @@ impl Pick {
     fn destroy(&mut self, ctx: &Context) {
         self.picked.destroy(ctx);
         self.blocks.destroy(ctx);
+        self.masks.destroy(ctx);
+    }
+}
+
+/// The splat's count and fill per picked batch (glsl/oit_splat.comp
+/// BATCHES, orthographic cameras: raster.comp's bound on the window), as
+/// per-sphere pipelines: their bands are the per-slot ones'.
+struct Batches([ComputePipeline; 2]);
+
+impl Batches {
+    fn destroy(&mut self, ctx: &Context) {
+        for p in &mut self.0 {
+            p.destroy(ctx);
+        }
+    }
+}
+
+/// Invocations of the per-batch splat per batch of a scene of this
+/// SCENE_SPEC (glsl/batch_parts.glsl).
+fn batch_parts(spec: u32) -> u32 {
+    ((1u32 << (spec >> 8)) / BATCH_PART_SLOTS).max(1)
+}
+
+/// The most rows a window may have for the per-batch splat (a candidate's
+/// band appends stay within lavapipe's loop bound: raster.comp's
+/// `cam_batches_fit`).
+const BATCH_MAX_ROWS: u32 = 8192;
+
+/// The splat's bindings (count and fill, per slot or per batch).
+fn splat_bindings() -> Vec<Binding> {
+    [
+        &[
+            uniform("GlobalsBlock"),
+            texel("visWordTex", vk::Format::R32_UINT),
+            rw("Count"),
+            rw("Cursor"),
+            texel("oitHeadTex", vk::Format::R32G32_UINT),
+            wo("Frags"),
+            rw("Counters"),
+            rw("Jobs"),
+            rw("Inline"),
+            texel("orderTex", vk::Format::R32_UINT),
+            texel("hizTex", vk::Format::R32_UINT),
+            rw("Masks"),
+        ][..],
+        &SCENE_GEOMETRY,
+        &SCENE_ATTRIBUTES,
+    ]
+    .concat()
+}
+
+fn splat_desc<'a>(name: &'a str, bindings: &'a [Binding], scene: u32) -> PipelineDesc<'a> {
+    PipelineDesc {
+        name,
+        shader: spirv::OIT_SPLAT_COMP,
+        bindings,
+        push_size: std::mem::size_of::<OitSplatPush>() as u32,
+        local_size: LOCAL_SIZE,
+        constants: &[],
+        scene,
     }
 }
 
@@ -196,6 +260,12 @@ pub struct SeeThrough {
     pickers: [ComputePipeline; 3],
     /// Its buffers (frames that draw the LOD lists: `ensure_picks`).
     picks: Option<Pick>,
+    /// The scene's SCENE_SPEC (pipelines made later).
+    scene: u32,
+    /// The per-batch splat (made with the picks).
+    batches: Option<Batches>,
+    /// Whether the last frame recorded ran it.
+    ran_batches: std::cell::Cell<bool>,
     counters: Buffer,
     jobs: JobList,
     /// A bit per id a frame may name (`ensure_ids`).
@@ -229,6 +299,10 @@ pub struct SeeThroughInputs<'a> {
     /// every sphere (the lists name what the camera may see, at its level
     /// of detail).
     pub lod: Option<[LodView<'a>; 2]>,
+    /// With `lod`: the camera's depth tiles of this frame's final opaque
+    /// image (their buffer, shift and 2-px tiles' first word): a sphere
+    /// they hide whole makes no fragment and is not visited.
+    pub tiles: Option<(&'a Buffer, u32, u32)>,
 }
 
 /// What `coverage` and `shade` read of them (and the counters, where
@@ -247,32 +321,8 @@ impl SeeThrough {
     /// first length (None: 2^18).
     pub fn new(ctx: &Context, scene: u32, ids: u32, band_jobs: Option<u32>) -> Result<Self> {
         let splat = |mode: u32, name: &str| -> Result<[BandPipelines; 2]> {
-            let bindings = [
-                &[
-                    uniform("GlobalsBlock"),
-                    texel("visWordTex", vk::Format::R32_UINT),
-                    rw("Count"),
-                    rw("Cursor"),
-                    texel("oitHeadTex", vk::Format::R32G32_UINT),
-                    wo("Frags"),
-                    rw("Counters"),
-                    rw("Jobs"),
-                    rw("Inline"),
-                    texel("orderTex", vk::Format::R32_UINT),
-                ][..],
-                &SCENE_GEOMETRY,
-                &SCENE_ATTRIBUTES,
-            ]
-            .concat();
-            let desc = PipelineDesc {
-                name,
-                shader: spirv::OIT_SPLAT_COMP,
-                bindings: &bindings,
-                push_size: std::mem::size_of::<OitSplatPush>() as u32,
-                local_size: LOCAL_SIZE,
-                constants: &[],
-                scene,
-            };
+            let bindings = splat_bindings();
+            let desc = splat_desc(name, &bindings, scene);
             // constants 2 (PERSP) and 3 (MODE)
             let ortho = ctx.guard(BandPipelines::new(ctx, &desc, &[0, mode])?);
             let persp = BandPipelines::new(ctx, &desc, &[1, mode])?;
@@ -349,6 +399,9 @@ impl SeeThrough {
             alloc: alloc.keep(),
             pickers: [pick0.keep(), pick1.keep(), pick2.keep()],
             picks: None,
+            scene,
+            batches: None,
+            ran_batches: std::cell::Cell::new(false),
             counters: counters.keep(),
             jobs: jobs.keep(),
             inline_bits,
@@ -399,6 +452,14 @@ impl SeeThrough {
     /// Makes the pick buffers hold `room` batches and blocks of `stored`
     /// atoms (a frame that draws the LOD lists; they grow with them).
     pub fn ensure_picks(&mut self, ctx: &Context, room: u32, stored: u64) -> Result<()> {
+        if self.batches.is_none() {
+            let bindings = splat_bindings();
+            let desc = splat_desc("oit batches", &bindings, self.scene);
+            // constants 2 (PERSP), 3 (MODE), 4 (BATCHES)
+            let count = ctx.guard(BandPipelines::pass(ctx, &desc, 0, &[0, 0, 1])?);
+            let fill = BandPipelines::pass(ctx, &desc, 0, &[0, 1, 1])?;
+            self.batches = Some(Batches([count.keep(), fill]));
+        }
         let words = stored.div_ceil(64 * 32).max(1);
         if self
             .picks
@@ -413,10 +474,13 @@ impl SeeThrough {
             "oit picked batches",
             room.max(1) as u64 * 4,
         )?);
-        let blocks = Buffer::storage(ctx, "oit see-through blocks", words * 4)?;
+        let blocks = ctx.guard(Buffer::storage(ctx, "oit see-through blocks", words * 4)?);
+        let parts = batch_parts(self.scene) as u64;
+        let masks = Buffer::storage(ctx, "oit part masks", room.max(1) as u64 * parts * 4)?;
         if let Some(mut old) = self.picks.replace(Pick {
             picked: picked.keep(),
-            blocks,
+            blocks: blocks.keep(),
+            masks,
             room,
         }) {
             old.destroy(ctx);
@@ -492,6 +556,18 @@ impl SeeThrough {
             }
         };
         bufs.push(("orderTex", order));
+        // Per picked batch: an orthographic camera with the final image's
+        // tiles (any texel buffer bound where none are read).
+        let batches = match (&self.batches, io.tiles) {
+            (Some(b), Some(t)) if pick.is_some() && !io.perspective && size.1 <= BATCH_MAX_ROWS => {
+                Some((b, t))
+            }
+            _ => None,
+        };
+        self.ran_batches.set(batches.is_some());
+        let tiles = batches.map(|b| b.1);
+        bufs.push(("hizTex", tiles.map_or(io.vis, |t| t.0)));
+        bufs.push(("Masks", pick.map_or(&self.inline_bits, |(_, p)| &p.masks)));
         bufs.extend(io.scene.geometry());
         bufs.extend(io.scene.attributes());
         let push = OitSplatPush {
@@ -499,6 +575,8 @@ impl SeeThrough {
             big_area: BIG_AREA,
             job_capacity: self.jobs.capacity(),
             capacity: l.capacity,
+            hiz_shift: tiles.map_or(0, |t| t.1),
+            micro_base: tiles.map_or(0, |t| t.2),
         };
         let ids = io.scene.frame_slots();
         if self.inline_ids < ids {
@@ -525,10 +603,10 @@ impl SeeThrough {
                 p.fill(&self.inline_bits, inline_bytes(ids), 0);
             }
             if let Some((views, pick)) = pick {
-                self.pick_steps(p, io, views, pick);
+                self.pick_steps(p, io, views, pick, batches.is_some());
             }
-            self.args
-                .steps(p, &job(&self.count[view].spheres, &self.count[view].bands));
+            let spheres = batches.map_or(&self.count[view].spheres, |b| &(b.0).0[0]);
+            self.args.steps(p, &job(spheres, &self.count[view].bands));
             Ok(())
         })?;
         rec.pass("oit_alloc", |p| {
@@ -548,8 +626,8 @@ impl SeeThrough {
             Ok(())
         })?;
         rec.pass("oit_fill", |p| {
-            self.args
-                .steps(p, &job(&self.fill[view].spheres, &self.fill[view].bands));
+            let spheres = batches.map_or(&self.fill[view].spheres, |b| &(b.0).0[1]);
+            self.args.steps(p, &job(spheres, &self.fill[view].bands));
             Ok(())
         })
     }
@@ -563,6 +641,7 @@ impl SeeThrough {
         io: &SeeThroughInputs<'b>,
         views: &[LodView<'b>; 2],
         pick: &'b Pick,
+        batches: bool,
     ) {
         let mut bufs = vec![
             ("GlobalsBlock", io.globals),
@@ -579,6 +658,11 @@ impl SeeThrough {
             list_word: 0,
             capacity: stored,
             room: pick.room,
+            per_batch: if batches {
+                batch_parts(io.scene.spec)
+            } else {
+                1 << (io.scene.spec >> 8)
+            },
         };
         p.fill(&pick.blocks, pick.blocks.size, 0);
         p.dispatch(
@@ -694,6 +778,13 @@ impl SeeThrough {
         self.jobs.set_limit(if jobs == 0 { u32::MAX } else { jobs });
     }
 
+    /// Whether the last frame recorded visited the picked batches per
+    /// batch (an orthographic camera's LOD lists), testing each atom
+    /// against the final opaque image's depth tiles.
+    pub fn ran_per_batch(&self) -> bool {
+        self.ran_batches.get()
+    }
+
     /// Entries of the band job list (grown where a frame asked more).
     pub fn job_capacity(&self) -> u32 {
         self.jobs.capacity()
@@ -724,7 +815,7 @@ impl SeeThrough {
             + self
                 .picks
                 .as_ref()
-                .map_or(0, |p| p.picked.size + p.blocks.size)
+                .map_or(0, |p| p.picked.size + p.blocks.size + p.masks.size)
     }
 
     /// Names of the buffers whose guard words a pass overwrote.
@@ -772,6 +863,9 @@ impl SeeThrough {
         }
         if let Some(p) = &mut self.picks {
             p.destroy(ctx);
+        }
+        if let Some(b) = &mut self.batches {
+            b.destroy(ctx);
         }
         for b in [
             &mut self.counters,

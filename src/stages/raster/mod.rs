@@ -385,6 +385,19 @@ impl RasterStage {
         })
     }
 
+    /// The camera's depth tiles of this frame's final image, once
+    /// `record_late` made them (`size`: the frame's window): their buffer,
+    /// fine tiles' shift and 2-px tiles' first word (0: none).
+    pub fn final_camera_tiles(&self, (w, h): (u32, u32)) -> Option<(&Buffer, u32, u32)> {
+        let l = self.lod.as_ref()?;
+        let shift = lod::hiz_shift(ViewIndex::Camera, w, h);
+        Some((
+            l.camera_tiles().1,
+            shift,
+            lod::micro_base(w, h).unwrap_or(0),
+        ))
+    }
+
     /// Makes the pipelines that leave see-through spheres to the fragment
     /// lists (the first frame that has some).
     pub fn enable_see_through(&mut self, ctx: &Context, batches: bool) -> Result<()> {
