@@ -86,7 +86,7 @@ pub const PASSES: &[(&str, &str)] = &[
     ),
     (
         "oit_count",
-        "see-through spheres (alpha below 1; the camera raster draws the opaque ones only; on an instanced scene with levels of detail, first the batches of the camera's early and late LOD lists that hold see-through atoms are picked, `glsl/oit_pick.comp`, and only those visited): the band skeleton of the raster over them, an exact ray-sphere test per pixel, and a per-pixel `atomicAdd` where the front hit lies in front of the opaque surface",
+        "see-through spheres (alpha below 1; the camera raster draws the opaque ones only; on an instanced scene with levels of detail, first the batches of the camera's early and late LOD lists that hold see-through atoms are picked, `glsl/oit_pick.comp`, and only those visited; with an orthographic camera per batch, each atom tested against the final opaque image's depth tiles, the candidates kept as a bit mask per 32 slots for the fill): the band skeleton of the raster over them, an exact ray-sphere test per pixel, and a per-pixel `atomicAdd` where the front hit lies in front of the opaque surface",
     ),
     (
         "oit_alloc",
