@@ -34,6 +34,11 @@
 #ifndef SPHERE_AT
 #define SPHERE_AT(i) (i)
 #endif
+// What an includer does after an invocation visited (part of) a sphere's
+// footprint (oit_splat.comp: the key light's receivers of its fragments).
+#ifndef BAND_VISITED
+#define BAND_VISITED(id, f)
+#endif
 
 layout(constant_id = 1) const uint BAND_PASS = 0;
 
@@ -81,7 +86,10 @@ void band_sphere_id(uint id, uint big_area) {
             here = !queued;
         }
     }
-    if (here) visit_rect(id, f, rc);
+    if (here) {
+        visit_rect(id, f, rc);
+        BAND_VISITED(id, f);
+    }
 }
 
 void band_sphere() {
@@ -109,6 +117,7 @@ void band_job() {
         int r = int((float(i) + 0.5) * inv_w);
         visit(jb.x, f, ivec2(rc.x + i - r * width, y0 + r));
     }
+    BAND_VISITED(jb.x, f);
 }
 
 // (an includer may run its own per-sphere pass: BAND_SPHERE_MAIN)

@@ -253,6 +253,12 @@ gpu_push! {
         /// fine tiles of 2^hiz_shift pixels, 2-px ones from micro_base.
         hiz_shift: u32,
         micro_base: u32,
+        /// 1: the count adds the key light's receivers of its fragments
+        /// (`Region`, lod_bounds.comp's words; receiver tiles of
+        /// 2^receiver_shift texels; the lookup's depth slack).
+        receivers: u32,
+        receiver_shift: u32,
+        slack: f32,
     }
 
     /// `oit_pick` (glsl/oit_pick.comp): the see-through batches of the

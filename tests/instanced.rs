@@ -755,10 +755,13 @@ fn culled_instances_are_never_visible() {
 /// every instance at full detail (`--lod-pixels 0`) the frames equal the
 /// expanded scene's (no cull, every sphere in the camera's order) bit for
 /// bit: colours, ids, depths and shadows, over frames with history (the
-/// same camera, a pan, the whole model). The fragments visit the picked
-/// batches per batch, each atom tested against the final opaque image's
-/// depth tiles (dropping a part's first atom fails it: "frame 0: colours
-/// differ").
+/// same camera, a pan, the whole model, then a perspective view). The
+/// fragments visit the picked batches per batch with an orthographic
+/// camera, each atom tested against the final opaque image's depth tiles
+/// (dropping a part's first atom fails it: "frame 0: colours differ"),
+/// and the count adds the key light's receivers of the spheres that made
+/// fragments (without them: "frame 0: colours differ", shadows of
+/// see-through spheres wrong).
 #[test]
 fn see_through_instances_draw_through_the_lod_lists() {
     let ctx = validated_context();
@@ -784,7 +787,10 @@ fn see_through_instances_draw_through_the_lod_lists() {
     st.lod.lod_pixels = 0.0;
     let mut rd = Renderer::new(&ctx, &s, st.clone()).expect("renderer");
     let mut fragments = 0;
-    for (f, cam) in [corner(0.0), corner(0.0), corner(0.05), whole]
+    // (last, a perspective view: per slot, each sphere that made a
+    // fragment adding the light's receivers itself)
+    let persp = camera(&s, 96, 72, Some(40.0));
+    for (f, cam) in [corner(0.0), corner(0.0), corner(0.05), whole, persp]
         .into_iter()
         .enumerate()
     {
@@ -805,9 +811,10 @@ fn see_through_instances_draw_through_the_lod_lists() {
             .inspect()
             .see_through()
             .is_some_and(|s| s.ran_per_batch());
-        assert!(
+        assert_eq!(
             per_batch,
-            "{what}: the fragments visited the picked batches per slot"
+            cam.fov_deg.is_none(),
+            "{what}: the fragments visited the picked batches per batch"
         );
         let mut se = st.clone();
         se.camera = cam;

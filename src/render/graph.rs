@@ -243,30 +243,31 @@ impl Resources {
             pixels_per_unit: cam.height as f64 / cam.view_height,
         };
         self.stages.raster.record(rec, &raster_in, &t.raster)?;
+        // The key light's cull (after the camera's and, in see-through
+        // frames, after the fragments' count, which adds the light's
+        // receivers of its fragments: their points are not in the
+        // visibility buffer).
+        let light_reads = match (
+            lod,
+            settings.shadows.draws_light_view(),
+            self.stages.shadows.light(),
+        ) {
+            (true, true, Some(light)) => Some(LightReads {
+                reach: lookup.reach(),
+                slack: lookup.depth_slack(),
+                map: (light.width, light.height),
+                preset: false,
+            }),
+            _ => None,
+        };
         if lod {
             self.stages.raster.record_late(rec, &raster_in, &t.raster)?;
-            if let (true, Some(light)) = (
-                settings.shadows.draws_light_view(),
-                self.stages.shadows.light(),
-            ) {
-                let map = (light.width, light.height);
-                self.stages.raster.record_light_cull(
-                    rec,
-                    &raster_in,
-                    &t.raster,
-                    LightReads {
-                        reach: lookup.reach(),
-                        slack: lookup.depth_slack(),
-                        map,
-                        anywhere: see.is_some(),
-                    },
-                )?;
-            }
         }
 
+        let mut preset = false;
         let see_out = match see {
             Some(s) => {
-                s.record(
+                preset = s.record(
                     rec,
                     &SeeThroughInputs {
                         globals,
@@ -284,6 +285,13 @@ impl Resources {
                         } else {
                             None
                         },
+                        receivers: light_reads.and_then(|r| {
+                            self.stages
+                                .raster
+                                .lod
+                                .as_ref()
+                                .map(|l| l.light_region(r.map, r.slack))
+                        }),
                     },
                     size,
                 )?;
@@ -291,6 +299,12 @@ impl Resources {
             }
             None => None,
         };
+        if let Some(reads) = light_reads {
+            let reads = LightReads { preset, ..reads };
+            self.stages
+                .raster
+                .record_light_cull(rec, &raster_in, &t.raster, reads)?;
+        }
 
         self.stages.shadows.record(
             rec,

@@ -33,6 +33,7 @@ use crate::passes::bands::{BandArgs, BandCounters, BandJob, BandPipelines, JobLi
 use crate::passes::scene::{SCENE_ATTRIBUTES, SCENE_GEOMETRY, SceneBuffers};
 use crate::passes::{LOCAL_SIZE, spirv};
 use crate::stages::raster::compute::LodView;
+use crate::stages::raster::lod::LightRegion;
 use crate::vk::pipeline::{Binding, PipelineDesc, ro, rw, texel, uniform, wo};
 use crate::vk::{Buffer, ComputePipeline, Context, Grid, PassBuilder, Recorder};
 use ash::vk;
@@ -229,6 +230,7 @@ fn splat_bindings() -> Vec<Binding> {
             texel("orderTex", vk::Format::R32_UINT),
             texel("hizTex", vk::Format::R32_UINT),
             rw("Masks"),
+            rw("Region"),
         ][..],
         &SCENE_GEOMETRY,
         &SCENE_ATTRIBUTES,
@@ -303,6 +305,10 @@ pub struct SeeThroughInputs<'a> {
     /// image (their buffer, shift and 2-px tiles' first word): a sphere
     /// they hide whole makes no fragment and is not visited.
     pub tiles: Option<(&'a Buffer, u32, u32)>,
+    /// With `lod`, where the key light culls after the fragments: its
+    /// region and receiver words, emptied here; the count adds each
+    /// sphere that made a fragment.
+    pub receivers: Option<LightRegion<'a>>,
 }
 
 /// What `coverage` and `shade` read of them (and the counters, where
@@ -505,13 +511,15 @@ impl SeeThrough {
         })
     }
 
-    /// `oit_count`, `oit_alloc`, `oit_fill`.
+    /// `oit_count`, `oit_alloc`, `oit_fill`. Returns whether the count
+    /// emptied the light's region and added its receivers (`io.receivers`
+    /// on a frame that draws the LOD lists).
     pub fn record(
         &self,
         rec: &mut Recorder,
         io: &SeeThroughInputs,
         size: (u32, u32),
-    ) -> Result<()> {
+    ) -> Result<bool> {
         let l = self.lists()?;
         let pixels = size.0 as u64 * size.1 as u64;
         if pixels != l.pixels {
@@ -568,6 +576,9 @@ impl SeeThrough {
         let tiles = batches.map(|b| b.1);
         bufs.push(("hizTex", tiles.map_or(io.vis, |t| t.0)));
         bufs.push(("Masks", pick.map_or(&self.inline_bits, |(_, p)| &p.masks)));
+        // (the count adds receivers only on instanced scenes)
+        let receivers = io.receivers.filter(|_| pick.is_some());
+        bufs.push(("Region", receivers.map_or(&self.inline_bits, |r| r.region)));
         bufs.extend(io.scene.geometry());
         bufs.extend(io.scene.attributes());
         let push = OitSplatPush {
@@ -577,6 +588,9 @@ impl SeeThrough {
             capacity: l.capacity,
             hiz_shift: tiles.map_or(0, |t| t.1),
             micro_base: tiles.map_or(0, |t| t.2),
+            receivers: receivers.is_some() as u32,
+            receiver_shift: receivers.map_or(0, |r| r.shift),
+            slack: receivers.map_or(0.0, |r| r.slack),
         };
         let ids = io.scene.frame_slots();
         if self.inline_ids < ids {
@@ -605,6 +619,9 @@ impl SeeThrough {
             if let Some((views, pick)) = pick {
                 self.pick_steps(p, io, views, pick, batches.is_some());
             }
+            if let Some(r) = &receivers {
+                r.empty(p);
+            }
             let spheres = batches.map_or(&self.count[view].spheres, |b| &(b.0).0[0]);
             self.args.steps(p, &job(spheres, &self.count[view].bands));
             Ok(())
@@ -629,7 +646,8 @@ impl SeeThrough {
             let spheres = batches.map_or(&self.fill[view].spheres, |b| &(b.0).0[1]);
             self.args.steps(p, &job(spheres, &self.fill[view].bands));
             Ok(())
-        })
+        })?;
+        Ok(receivers.is_some())
     }
 
     /// The picks of `oit_count` (glsl/oit_pick.comp): the blocks of stored

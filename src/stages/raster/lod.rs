@@ -129,15 +129,41 @@ pub fn receiver_shift(w: u32, h: u32) -> u32 {
 /// What the light's cull needs of the shadow lookup: the farthest it
 /// reads from a point's texel (`Lookup::reach`), how far behind a point a
 /// caster may still darken it (`Lookup::depth_slack`), the light map
-/// (width, height), and whether points outside the visibility buffer read
-/// it too (see-through fragments: then every texel is taken as read, to
-/// any depth).
+/// (width, height), and whether the region and receivers hold points
+/// already (`preset`: the see-through count emptied them and added its
+/// fragments' spheres, whose points are not in the visibility buffer;
+/// [`LightRegion`]).
 #[derive(Clone, Copy, Debug)]
 pub struct LightReads {
     pub reach: i32,
     pub slack: f32,
     pub map: (u32, u32),
-    pub anywhere: bool,
+    pub preset: bool,
+}
+
+/// The light's region and receiver words (glsl/lod_bounds.comp,
+/// lod_receivers.glsl) as another pass adds to them before the light's
+/// cull: the buffer, the receiver tiles' shift and the lookup's depth
+/// slack.
+#[derive(Clone, Copy)]
+pub struct LightRegion<'b> {
+    pub region: &'b Buffer,
+    pub shift: u32,
+    pub slack: f32,
+    map: (u32, u32),
+}
+
+impl<'b> LightRegion<'b> {
+    /// Empties the rectangle (x0, y0 the largest int, x1, y1 the least)
+    /// and the receiver words of a `map` light map.
+    pub fn empty(&self, p: &mut PassBuilder<'b>) {
+        let (mw, mh) = self.map;
+        let at = LOD_RECEIVERS_AT as u64 * 4;
+        let used = (tiles(mw, mh, 1 << self.shift) * 4).min(self.region.size - at);
+        p.fill_at(self.region, at, used, 0);
+        p.fill_at(self.region, 0, 8, i32::MAX as u32);
+        p.fill_at(self.region, 8, 8, i32::MIN as u32);
+    }
 }
 
 /// Depth tile words of a view: its fine tiles, then its coarse ones (8x8
@@ -738,10 +764,7 @@ impl LodCull {
         size: (u32, u32),
         reads: LightReads,
     ) -> Result<()> {
-        // (reach 2^29: every texel read, as lod_hiz.comp and lod_cull.comp
-        // take a lookup that reads the whole map)
-        self.reach
-            .set(if reads.anywhere { 1 << 29 } else { reads.reach });
+        self.reach.set(reads.reach);
         self.cull_steps(
             p,
             globals,
@@ -778,37 +801,24 @@ impl LodCull {
             }
         }
         if let Some((vis, (w, h), reads)) = vis {
-            let (mw, mh) = reads.map;
-            let shift = receiver_shift(mw, mh);
-            let at = LOD_RECEIVERS_AT as u64 * 4;
-            let used = (tiles(mw, mh, 1 << shift) * 4).min(self.region.size - at);
-            p.fill_at(&self.region, at, used, 0);
-            if reads.anywhere {
-                // the whole map (a see-through fragment's point is not in
-                // `vis`, and it may be the only one there is)
-                p.fill_at(&self.region, 0, 8, 0);
-                p.fill_at(&self.region, 8, 4, mw.saturating_sub(1));
-                p.fill_at(&self.region, 12, 4, mh.saturating_sub(1));
-            } else {
-                // empty: x0, y0 the largest int, x1, y1 the least; no
-                // receivers
-                p.fill_at(&self.region, 0, 8, i32::MAX as u32);
-                p.fill_at(&self.region, 8, 8, i32::MIN as u32);
-                p.dispatch(
-                    &self.bounds[perspective as usize],
-                    &LodBoundsPush {
-                        hiz_shift: shift,
-                        slack: reads.slack,
-                        pad: [0; 2],
-                    },
-                    Grid::Invocations(tiles(w, h, 16)),
-                    &[
-                        ("GlobalsBlock", globals),
-                        ("visWordTex", vis),
-                        ("Region", &self.region),
-                    ],
-                );
+            let region = self.light_region(reads.map, reads.slack);
+            if !reads.preset {
+                region.empty(p);
             }
+            p.dispatch(
+                &self.bounds[perspective as usize],
+                &LodBoundsPush {
+                    hiz_shift: region.shift,
+                    slack: reads.slack,
+                    pad: [0; 2],
+                },
+                Grid::Invocations(tiles(w, h, 16)),
+                &[
+                    ("GlobalsBlock", globals),
+                    ("visWordTex", vis),
+                    ("Region", &self.region),
+                ],
+            );
         }
         // (the early phase reads the last final image's tiles, emptied
         // where they cannot be placed: nothing hidden, every batch of the
@@ -1211,6 +1221,17 @@ impl LodCull {
         );
         self.capacity = capacity;
         Ok(())
+    }
+
+    /// The light's region words for a `map` light map and a lookup's
+    /// depth `slack`.
+    pub fn light_region(&self, map: (u32, u32), slack: f32) -> LightRegion<'_> {
+        LightRegion {
+            region: &self.region,
+            shift: receiver_shift(map.0, map.1),
+            slack,
+            map,
+        }
     }
 
     /// Device memory of the light region: its rectangle and receiver words
