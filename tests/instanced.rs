@@ -755,13 +755,13 @@ fn culled_instances_are_never_visible() {
 /// every instance at full detail (`--lod-pixels 0`) the frames equal the
 /// expanded scene's (no cull, every sphere in the camera's order) bit for
 /// bit: colours, ids, depths and shadows, over frames with history (the
-/// same camera, a pan, the whole model, then a perspective view). The
+/// same camera, a pan, the whole model, then that per slot). The
 /// fragments visit the picked batches per batch with an orthographic
 /// camera, each atom tested against the final opaque image's depth tiles
 /// (dropping a part's first atom fails it: "frame 0: colours differ"),
 /// and the count adds the key light's receivers of the spheres that made
-/// fragments (without them: "frame 0: colours differ", shadows of
-/// see-through spheres wrong).
+/// fragments, per batch and per slot (without them: "colours differ",
+/// the shadows of see-through spheres wrong).
 #[test]
 fn see_through_instances_draw_through_the_lod_lists() {
     let ctx = validated_context();
@@ -787,13 +787,18 @@ fn see_through_instances_draw_through_the_lod_lists() {
     st.lod.lod_pixels = 0.0;
     let mut rd = Renderer::new(&ctx, &s, st.clone()).expect("renderer");
     let mut fragments = 0;
-    // (last, a perspective view: per slot, each sphere that made a
-    // fragment adding the light's receivers itself)
-    let persp = camera(&s, 96, 72, Some(40.0));
-    for (f, cam) in [corner(0.0), corner(0.0), corner(0.05), whole, persp]
+    // (last, the whole model per slot, as a perspective camera's are:
+    // each sphere that made a fragment adds the light's receivers itself)
+    for (f, cam) in [corner(0.0), corner(0.0), corner(0.05), whole, whole]
         .into_iter()
         .enumerate()
     {
+        if f == 4 {
+            rd.inspect()
+                .see_through()
+                .expect("stage")
+                .set_per_slot(true);
+        }
         rd.update(|x| x.camera = cam).expect("camera");
         rd.render_frame().expect("frame");
         let what = format!("frame {f}");
@@ -813,7 +818,7 @@ fn see_through_instances_draw_through_the_lod_lists() {
             .is_some_and(|s| s.ran_per_batch());
         assert_eq!(
             per_batch,
-            cam.fov_deg.is_none(),
+            f < 4,
             "{what}: the fragments visited the picked batches per batch"
         );
         let mut se = st.clone();

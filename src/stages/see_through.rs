@@ -268,6 +268,8 @@ pub struct SeeThrough {
     batches: Option<Batches>,
     /// Whether the last frame recorded ran it.
     ran_batches: std::cell::Cell<bool>,
+    /// Test hook: per slot whatever the camera.
+    per_slot: std::cell::Cell<bool>,
     counters: Buffer,
     jobs: JobList,
     /// A bit per id a frame may name (`ensure_ids`).
@@ -408,6 +410,7 @@ impl SeeThrough {
             scene,
             batches: None,
             ran_batches: std::cell::Cell::new(false),
+            per_slot: std::cell::Cell::new(false),
             counters: counters.keep(),
             jobs: jobs.keep(),
             inline_bits,
@@ -567,7 +570,12 @@ impl SeeThrough {
         // Per picked batch: an orthographic camera with the final image's
         // tiles (any texel buffer bound where none are read).
         let batches = match (&self.batches, io.tiles) {
-            (Some(b), Some(t)) if pick.is_some() && !io.perspective && size.1 <= BATCH_MAX_ROWS => {
+            (Some(b), Some(t))
+                if pick.is_some()
+                    && !io.perspective
+                    && size.1 <= BATCH_MAX_ROWS
+                    && !self.per_slot.get() =>
+            {
                 Some((b, t))
             }
             _ => None,
@@ -801,6 +809,12 @@ impl SeeThrough {
     /// against the final opaque image's depth tiles.
     pub fn ran_per_batch(&self) -> bool {
         self.ran_batches.get()
+    }
+
+    /// Test hook: from the next frame, the picked batches are visited per
+    /// slot (`on`) whatever the camera, as a perspective one's are.
+    pub fn set_per_slot(&self, on: bool) {
+        self.per_slot.set(on);
     }
 
     /// Entries of the band job list (grown where a frame asked more).
