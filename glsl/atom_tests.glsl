@@ -49,6 +49,15 @@ struct AtomMap {
     float slack;
 };
 
+// Instance k's placement: its origin's image p0 and its linear map's
+// images of the axes ax (the AtomMap's inputs).
+void instance_map(uint k, out vec3 p0, out mat3 ax) {
+    p0 = instance_apply(k, vec3(0.0));
+    ax = mat3(instance_linear(k, vec3(1.0, 0.0, 0.0)),
+              instance_linear(k, vec3(0.0, 1.0, 0.0)),
+              instance_linear(k, vec3(0.0, 0.0, 1.0)));
+}
+
 AtomMap atom_map(View v, vec3 p0, mat3 ax) {
     float ppu = v.center.w;
     precise vec3 rx = (v.right.xyz * ax) * ppu, ry = -(v.up.xyz * ax) * ppu, rz = v.dir.xyz * ax;

@@ -7,4 +7,7 @@
 #include "constants.glsl"
 
 uint batch_parts(uint batch_slots) { return max(batch_slots / BATCH_PART_SLOTS, 1u); }
+// The largest footprint a camera part visits itself (larger ones go to
+// bands): raster.comp's CAM_BATCHES and oit_splat.comp's BATCHES.
+const uint CAM_PART_AREA = 128u;
 #endif

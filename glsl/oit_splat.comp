@@ -84,11 +84,37 @@ Footprint band_footprint(uint id) {
 // (the count: whether this invocation's visits of the sphere made one)
 bool made = false;
 
+// Adds light-texel rectangle [lo, hi] (clamped to +-1e9) of points whose
+// lookups shade makes, their farthest depth word `word` (slack and margins
+// included), where `some`: the receiver tiles of the centre texels within
+// it (kept one inside the map, as lod_bounds.comp does), and the region's
+// rectangle once per subgroup (each lane's atomics on the same four words
+// cost the count 57 ms more at meso 10^9's 2,025 A).
+void add_light_points(bool some, vec2 lo, vec2 hi, uint word) {
+    if (some) {
+        int size = int(g.light.dims.x);
+        int S = int(pc.receiver_shift);
+        int tw = (size + (1 << S) - 1) >> S;
+        ivec2 c0 = clamp(ivec2(round(lo)), ivec2(1), ivec2(size - 2)) >> S;
+        ivec2 c1 = clamp(ivec2(round(hi)), ivec2(1), ivec2(size - 2)) >> S;
+        for (int ty = c0.y; ty <= c1.y; ++ty) {
+            for (int tx = c0.x; tx <= c1.x; ++tx) atomicMax(region[receiver_word(ty * tw + tx)], int(word));
+        }
+    }
+    ivec2 a = subgroupMin(some ? ivec2(floor(lo)) : ivec2(1 << 30));
+    ivec2 b = subgroupMax(some ? ivec2(ceil(hi)) : ivec2(-(1 << 30)));
+    if (subgroupElect() && a.x <= b.x) {
+        atomicMin(region[0], a.x);
+        atomicMin(region[1], a.y);
+        atomicMax(region[2], b.x);
+        atomicMax(region[3], b.y);
+    }
+}
+
 // The light texels of sphere id's fragments' lookups: its disc in light
-// texels (grown past the rounding of the points shade finds on it), the
-// receiver tiles of the centre texels within it (kept one inside the map,
-// as lod_bounds.comp does), and its far side's depth word grown by the
-// lookup's slack and lod_bounds.comp's margin.
+// texels (grown past the rounding of the points shade finds on it) and
+// its far side's depth word grown by the lookup's slack and
+// lod_bounds.comp's margin.
 void add_receivers(uint id) {
     if (!made) return;
     made = false;
@@ -104,24 +130,7 @@ void add_receivers(uint id) {
     float zf = z + s.w * 1.001 + grow + pc.slack + 1e-4 * (abs(z) + abs(L.depth.x)) + 1e-3;
     uint word = floatBitsToUint(max(zf, 0.0));
     vec2 lo = clamp(p - rp, vec2(-1e9), vec2(1e9)), hi = clamp(p + rp, vec2(-1e9), vec2(1e9));
-    // (the rectangle's four words: one lane of the subgroup for all, where
-    // each lane's atomics on the same words cost count 57 ms more than
-    // this at meso 10^9's 2,025 A)
-    ivec2 a = subgroupMin(ivec2(floor(lo))), b = subgroupMax(ivec2(ceil(hi)));
-    if (subgroupElect()) {
-        atomicMin(region[0], a.x);
-        atomicMin(region[1], a.y);
-        atomicMax(region[2], b.x);
-        atomicMax(region[3], b.y);
-    }
-    int size = int(L.dims.x);
-    int S = int(pc.receiver_shift);
-    int tw = (size + (1 << S) - 1) >> S;
-    ivec2 c0 = clamp(ivec2(round(lo)), ivec2(1), ivec2(size - 2)) >> S;
-    ivec2 c1 = clamp(ivec2(round(hi)), ivec2(1), ivec2(size - 2)) >> S;
-    for (int ty = c0.y; ty <= c1.y; ++ty) {
-        for (int tx = c0.x; tx <= c1.x; ++tx) atomicMax(region[receiver_word(ty * tw + tx)], int(word));
-    }
+    add_light_points(true, lo, hi, word);
 }
 
 void visit(uint id, Footprint f, ivec2 t) {
@@ -171,10 +180,8 @@ bool band_replay(uint id) { return (inline_bits[id >> 5] & (1u << (id & 31u))) !
 #define TILE_TEXELS(prev) textureSize(hizTex)
 #include "atom_tests.glsl"
 #include "batch_parts.glsl"
-// (raster.comp's: a part's loops stay within lavapipe's 65,535 back-edges)
-const uint CAM_PART_AREA = 128u;
 
-uint part_candidates(uvec4 b, vec3 p0, mat3 ax, uint from);
+uint part_candidates(uint id0, uvec4 b, vec3 p0, mat3 ax, uint from);
 void part_receivers(uvec4 b, vec3 p0, mat3 ax, uint from, uint shown);
 
 void batch_part() {
@@ -190,11 +197,8 @@ void batch_part() {
     mat3 ax = mat3(1.0);
     if (MODE == 0u) {
         b = scene_batch(id0);
-        p0 = instance_apply(b.x, vec3(0.0));
-        ax = mat3(instance_linear(b.x, vec3(1.0, 0.0, 0.0)),
-                  instance_linear(b.x, vec3(0.0, 1.0, 0.0)),
-                  instance_linear(b.x, vec3(0.0, 0.0, 1.0)));
-        cand = part_candidates(b, p0, ax, from);
+        instance_map(b.x, p0, ax);
+        cand = part_candidates(id0, b, p0, ax, from);
         masks[FLAT_ID] = cand;
     } else {
         cand = masks[FLAT_ID];
@@ -211,17 +215,17 @@ void batch_part() {
     if (MODE == 0u && pc.receivers != 0u) part_receivers(b, p0, ax, from, shown);
 }
 
-// The atoms of a part (slots from `from` of batch b, placed at p0 with the
-// linear map ax) that may make a fragment: see-through, and the final
-// opaque image's tiles do not hide their rectangle.
-uint part_candidates(uvec4 b, vec3 p0, mat3 ax, uint from) {
+// The atoms of a part (slots from `from` of batch b at slot id0, placed
+// at p0 with the linear map ax) that may make a fragment: see-through, and
+// the final opaque image's tiles do not hide their rectangle.
+uint part_candidates(uint id0, uvec4 b, vec3 p0, mat3 ax, uint from) {
     uint count = min(b.w & 0xFFu, from + BATCH_PART_SLOTS);
     View v = g.cam;
     AtomMap m = atom_map(v, p0, ax);
     uint cand = 0u;
     for (uint j = from; j < count; ++j) {
         vec4 a = texelFetch(sphereTex, int(b.y + j));
-        float alpha = float(texelFetch(colorTex, int(b.y + j)).x >> 24u) / 255.0 * g.alpha.x;
+        float alpha = batch_alpha(b, id0 + j);
         ivec4 rc;
         uint near;
         atom_rect(v, m, a, rc, near);
@@ -235,9 +239,8 @@ uint part_candidates(uvec4 b, vec3 p0, mat3 ax, uint from) {
 // `shown` from slot `from`), projected by the transform's linear map into
 // the light's texels, together: their rectangle's receiver tiles (a
 // batch's atoms mostly share a light texel) take the farthest of their
-// depth words, the region's rectangle once per subgroup. (Per sphere,
-// through its placement again: count 293 -> 411 ms at meso 10^9's 2,025
-// A; per atom and tile here ~410.)
+// depth words. (Per sphere, through its placement again: count 293 -> 411
+// ms at meso 10^9's 2,025 A; per atom and tile here ~410.)
 void part_receivers(uvec4 b, vec3 p0, mat3 ax, uint from, uint shown) {
     View L = g.light;
     AtomMap lm = atom_map(L, p0, ax);
@@ -255,24 +258,8 @@ void part_receivers(uvec4 b, vec3 p0, mat3 ax, uint from, uint shown) {
     }
     lo = clamp(lo - 0.01, vec2(-1e9), vec2(1e9));
     hi = clamp(hi + 0.01, vec2(-1e9), vec2(1e9));
-    if (shown != 0u) {
-        uint word = floatBitsToUint(max(zf + lm.slack + pc.slack + 1e-3, 0.0));
-        int size = int(L.dims.x);
-        int S = int(pc.receiver_shift);
-        int tw = (size + (1 << S) - 1) >> S;
-        ivec2 c0 = clamp(ivec2(round(lo)), ivec2(1), ivec2(size - 2)) >> S;
-        ivec2 c1 = clamp(ivec2(round(hi)), ivec2(1), ivec2(size - 2)) >> S;
-        for (int ty = c0.y; ty <= c1.y; ++ty) {
-            for (int tx = c0.x; tx <= c1.x; ++tx) atomicMax(region[receiver_word(ty * tw + tx)], int(word));
-        }
-    }
-    ivec2 ra = subgroupMin(ivec2(floor(lo))), rb = subgroupMax(ivec2(ceil(hi)));
-    if (subgroupElect() && ra.x <= rb.x) {
-        atomicMin(region[0], ra.x);
-        atomicMin(region[1], ra.y);
-        atomicMax(region[2], rb.x);
-        atomicMax(region[3], rb.y);
-    }
+    uint word = floatBitsToUint(max(zf + lm.slack + pc.slack + 1e-3, 0.0));
+    add_light_points(shown != 0u, lo, hi, word);
 }
 
 void splat_spheres() {

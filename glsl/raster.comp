@@ -107,7 +107,6 @@ layout(constant_id = 4) const bool LIGHT_BATCHES = false;
 // The camera's test (CAM_EARLY, CAM_RECHECK, CAM_LATE; CAM_PER_SLOT: none).
 layout(constant_id = 5) const uint CAM_BATCHES = CAM_PER_SLOT;
 const uint BATCH_PART_AREA = 512u;
-const uint CAM_PART_AREA = 128u;
 
 // The camera's depth tiles (glsl/lod_hiz.comp, fine tiles of
 // 2^pc.hiz_shift pixels first): of this frame's early image, and of last
@@ -130,10 +129,9 @@ void batch_part() {
     uint from = (FLAT_ID % PARTS) * BATCH_PART_SLOTS;
     uint count = min(b.w & 0xFFu, from + BATCH_PART_SLOTS);
     View v = LIGHT_BATCHES ? g.light : g.cam;
-    vec3 p0 = instance_apply(b.x, vec3(0.0));
-    mat3 ax = mat3(instance_linear(b.x, vec3(1.0, 0.0, 0.0)),
-                   instance_linear(b.x, vec3(0.0, 1.0, 0.0)),
-                   instance_linear(b.x, vec3(0.0, 0.0, 1.0)));
+    vec3 p0;
+    mat3 ax;
+    instance_map(b.x, p0, ax);
     AtomMap m = atom_map(v, p0, ax);
     // (the camera's early and recheck tests ask whether last frame's tiles
     // hid the atom where last frame's view saw it: pc.prev)

@@ -162,9 +162,10 @@ uint scene_color(uint id) { return batch_color(scene_batch_of(id), id); }
 
 // The sphere's alpha (1 opaque): its colour's A byte times the frame's
 // opacity (--opacity, Globals.alpha.x).
-float scene_alpha(uint id) {
-    return float(scene_color(id) >> 24u) / 255.0 * g.alpha.x;
+float batch_alpha(uvec4 b, uint id) {
+    return float(batch_color(b, id) >> 24u) / 255.0 * g.alpha.x;
 }
+float scene_alpha(uint id) { return batch_alpha(scene_batch_of(id), id); }
 
 // Region id of sphere `id` at hierarchy `level`: plain, from its 4 words
 // (one 4-byte gather: a 16-byte texel and a dynamic pick of one word cost

@@ -32,7 +32,7 @@ use crate::gpu::consts::{
 use crate::passes::bands::{BandArgs, BandCounters, BandJob, BandPipelines, JobList};
 use crate::passes::scene::{SCENE_ATTRIBUTES, SCENE_GEOMETRY, SceneBuffers};
 use crate::passes::{LOCAL_SIZE, spirv};
-use crate::stages::raster::compute::LodView;
+use crate::stages::raster::compute::{CAM_BATCH_MAX_ROWS, LodView};
 use crate::stages::raster::lod::LightRegion;
 use crate::vk::pipeline::{Binding, PipelineDesc, ro, rw, texel, uniform, wo};
 use crate::vk::{Buffer, ComputePipeline, Context, Grid, PassBuilder, Recorder};
@@ -208,11 +208,6 @@ impl Batches {
 fn batch_parts(spec: u32) -> u32 {
     ((1u32 << (spec >> 8)) / BATCH_PART_SLOTS).max(1)
 }
-
-/// The most rows a window may have for the per-batch splat (a candidate's
-/// band appends stay within lavapipe's loop bound: raster.comp's
-/// `cam_batches_fit`).
-const BATCH_MAX_ROWS: u32 = 8192;
 
 /// The splat's bindings (count and fill, per slot or per batch).
 fn splat_bindings() -> Vec<Binding> {
@@ -573,7 +568,7 @@ impl SeeThrough {
             (Some(b), Some(t))
                 if pick.is_some()
                     && !io.perspective
-                    && size.1 <= BATCH_MAX_ROWS
+                    && size.1 <= CAM_BATCH_MAX_ROWS
                     && !self.per_slot.get() =>
             {
                 Some((b, t))

@@ -95,6 +95,11 @@ pub struct RasterIo<'b> {
     pub tested: Option<TileTest<'b>>,
 }
 
+/// The most rows a window may have for the camera's per-batch passes (the
+/// raster's and the see-through fragments'): a candidate's band appends
+/// (at most 1,025 each) stay within lavapipe's loop bound (glsl/raster.comp).
+pub const CAM_BATCH_MAX_ROWS: u32 = 8192;
+
 /// How the camera's LOD list is tested per atom (glsl/raster.comp
 /// `batch_part`): the mode (CAM_EARLY, CAM_RECHECK, CAM_LATE) and the
 /// depth tiles of this frame's early image and of last frame's final one,
@@ -396,7 +401,7 @@ impl RasterPass {
     /// keep an invocation's band appends within lavapipe's loop bound
     /// (glsl/raster.comp).
     pub fn cam_batches_fit(&self, perspective: bool, see_through: bool, h: u32) -> bool {
-        self.cam_pipes(see_through).is_some() && !perspective && h <= 8192
+        self.cam_pipes(see_through).is_some() && !perspective && h <= CAM_BATCH_MAX_ROWS
     }
 
     /// The camera's per-batch pipelines for frames with `see_through`
