@@ -90,9 +90,66 @@ pub struct SceneBuffers {
     /// Atoms of the scene's own (`Scene::spheres`); the colour buffer holds
     /// them, then the coarse copies (`coarse_source`).
     base_atoms: u32,
-    /// Per coarse stored atom: the stored atom it copies and its level's
-    /// alpha exponent ([`MoleculeLod::alpha_exponent`]).
-    coarse_source: Vec<(u32, f32)>,
+    /// Per coarse stored atom: what it copies and stands for.
+    coarse_source: CoarseSources,
+}
+
+/// The coarse copies' sources: their colours follow the atoms' ones
+/// ([`CoarseSources::colour`]).
+#[derive(Default)]
+struct CoarseSources {
+    /// Per coarse stored atom: the stored atom it copies, its level's
+    /// alpha exponent ([`MoleculeLod::alpha_exponent`]) and the run of
+    /// `runs` it stands for (start, length: [`MoleculeLod::stands_for`]).
+    copies: Vec<(u32, f32, [u32; 2])>,
+    /// Stored atoms: each molecule type's in its spatial order.
+    runs: Vec<u32>,
+}
+
+impl CoarseSources {
+    /// Coarse copy `i`'s colour word from the scene's atoms' `words`: its
+    /// source atom's with the level's alpha; a see-through copy takes the
+    /// mean (alpha-weighted, in linear light) of the atoms it stands for,
+    /// as full detail blends their layers into one tone (the source's
+    /// alone would show a see-through molecule's element colours as
+    /// speckle through its levels). Opaque copies keep their source's.
+    fn colour(&self, words: &[u32], i: usize) -> u32 {
+        let (src, e, [start, len]) = self.copies[i];
+        let own = level_alpha(words[src as usize], e);
+        if own >> 24 == 255 {
+            return own;
+        }
+        let to_linear = |b: u32| {
+            let c = b as f32 / 255.0;
+            if c <= 0.04045 {
+                c / 12.92
+            } else {
+                ((c + 0.055) / 1.055).powf(2.4)
+            }
+        };
+        let to_byte = |l: f32| {
+            let c = if l <= 0.003_130_8 {
+                l * 12.92
+            } else {
+                1.055 * l.powf(1.0 / 2.4) - 0.055
+            };
+            (c * 255.0).round().clamp(0.0, 255.0) as u32
+        };
+        let (mut sum, mut weight) = ([0.0f32; 3], 0.0f32);
+        for &a in &self.runs[start as usize..(start + len) as usize] {
+            let w = words[a as usize];
+            let alpha = (w >> 24) as f32;
+            for (k, s) in sum.iter_mut().enumerate() {
+                *s += alpha * to_linear((w >> (8 * k)) & 0xFF);
+            }
+            weight += alpha;
+        }
+        if weight <= 0.0 {
+            return own;
+        }
+        let rgb = (0..3).fold(0u32, |acc, k| acc | to_byte(sum[k] / weight) << (8 * k));
+        (own & 0xFF00_0000) | rgb
+    }
 }
 
 /// The tables of the LOD cull (glsl/lod_cull.comp) and its lists.
@@ -290,10 +347,8 @@ impl SceneBuffers {
             )));
         }
         let mut out: Vec<u32> = colors.iter().map(|c| u32::from_le_bytes(*c)).collect();
-        let coarse: Vec<u32> = self
-            .coarse_source
-            .iter()
-            .map(|&(i, e)| level_alpha(out[i as usize], e))
+        let coarse: Vec<u32> = (0..self.coarse_source.copies.len())
+            .map(|i| self.coarse_source.colour(&out, i))
             .collect();
         out.extend(coarse);
         Ok(out)
@@ -499,7 +554,7 @@ impl SceneBuffers {
             lod: None,
             listed: std::cell::Cell::new(false),
             base_atoms: 0,
-            coarse_source: Vec::new(),
+            coarse_source: CoarseSources::default(),
         })
     }
 
@@ -575,7 +630,7 @@ struct Built {
     chains: Vec<u32>,
     colors: Vec<u32>,
     origins: Vec<u32>,
-    coarse_source: Vec<(u32, f32)>,
+    coarse_source: CoarseSources,
     tables: BatchTables,
     /// Per instance its first batch in the static table (+ the total).
     batch_first: Vec<u64>,
@@ -622,7 +677,7 @@ fn build_instanced(
     };
     // The coarse levels' atoms after the scene's own.
     let mut origins: Vec<u32> = Vec::new();
-    let mut coarse_source: Vec<(u32, f32)> = Vec::new();
+    let mut coarse_source = CoarseSources::default();
     let mut lod_tables = None;
     if let Some(lod) = &lod {
         origins = vec![0; geom.len()];
@@ -631,6 +686,13 @@ fn build_instanced(
                 levels: ml, switch, ..
             } = &lod[m];
             let own = mol.first as usize..(mol.first + mol.atoms) as usize;
+            // (the molecule's atoms in their spatial order: its copies'
+            // runs)
+            let runs = coarse_source.runs.len() as u32;
+            if ml.levels() > 1 {
+                let spatial = ml.spatial.iter().map(|&a| mol.first + a);
+                coarse_source.runs.extend(spatial);
+            }
             for (l, sw) in switch.iter().enumerate().take(ml.levels()) {
                 let first = if l == 0 { mol.first } else { geom.len() as u32 };
                 // (level 0's row holds the number of levels; a proxy's
@@ -657,12 +719,13 @@ fn build_instanced(
                 // (a see-through atom's copy is as opaque as the atoms it
                 // stands for along a ray)
                 let e = ml.alpha_exponent(l);
-                for &a in &ml.order[..ml.counts[l] as usize] {
+                for (&a, run) in ml.order.iter().zip(ml.stands_for(l)) {
                     let src = mol.first + a;
                     chains.push(chains[src as usize]);
-                    colors.push(level_alpha(colors[src as usize], e));
+                    let run = [runs + run.start as u32, run.len() as u32];
+                    coarse_source.copies.push((src, e, run));
+                    colors.push(coarse_source.colour(&colors, coarse_source.copies.len() - 1));
                     origins.push(origin(a));
-                    coarse_source.push((src, e));
                 }
             }
         }
@@ -1579,5 +1642,41 @@ mod tests {
             panic!("built --lod off past 2^32 slots");
         };
         assert_eq!(e.to_string(), msg);
+    }
+
+    /// A see-through copy takes the alpha-weighted mean colour (linear
+    /// light) of the atoms it stands for; an opaque copy its source's.
+    #[test]
+    fn see_through_copies_take_their_atoms_mean_colour() {
+        // RGBA8 words, red lowest; alpha above
+        let word = |r: u32, g: u32, b: u32, a: u32| r | g << 8 | b << 16 | a << 24;
+        let words = [
+            word(255, 0, 0, 128),
+            word(0, 0, 255, 128),
+            word(0, 255, 0, 255),
+            word(255, 255, 255, 0),
+            word(188, 188, 188, 128),
+        ];
+        let sources = CoarseSources {
+            copies: vec![
+                (0, 1.0, [0, 2]),
+                (2, 1.0, [0, 3]),
+                (1, 1.0, [1, 3]),
+                (0, 2.0, [0, 2]),
+                (4, 1.0, [3, 1]),
+            ],
+            runs: vec![0, 1, 2, 3],
+        };
+        // red and blue at equal weight: each half its linear value, 188
+        assert_eq!(sources.colour(&words, 0), word(188, 0, 188, 128));
+        // an opaque copy keeps its source's colour
+        assert_eq!(sources.colour(&words, 1), words[2]);
+        // blue at 128, green at 255, white at alpha 0 (no weight): linear
+        // blue 128/383 -> 156, green 255/383 -> 213
+        assert_eq!(sources.colour(&words, 2), word(0, 213, 156, 128));
+        // the level's alpha exponent raises the copy's alpha
+        assert_eq!(sources.colour(&words, 3), word(188, 0, 188, 192));
+        // nothing but an invisible atom to average: the source's colour
+        assert_eq!(sources.colour(&words, 4), words[4]);
     }
 }

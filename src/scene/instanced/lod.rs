@@ -112,6 +112,11 @@ pub struct MoleculeLod {
     /// (n / n_L)^(1/3) until [`MoleculeLod::switch_ppu`] picks, of a few
     /// around it, the one drawn up to the largest size.
     pub radius: Vec<f32>,
+    /// The atoms in their spatial order (Morton, cyclic from the atom
+    /// nearest the centroid): a level takes every stride-th of it.
+    pub spatial: Vec<u32>,
+    /// Per entry of `order`: its position in `spatial`.
+    pub position: Vec<u32>,
 }
 
 impl MoleculeLod {
@@ -123,6 +128,8 @@ impl MoleculeLod {
                 order: Vec::new(),
                 counts: vec![0],
                 radius: vec![1.0],
+                spatial: Vec::new(),
+                position: Vec::new(),
             };
         }
         let (mut lo, mut hi) = ([f32::MAX; 3], [f32::MIN; 3]);
@@ -174,7 +181,9 @@ impl MoleculeLod {
         };
         let mut js: Vec<usize> = (0..n).collect();
         js.sort_by_key(|&j| (std::cmp::Reverse(rank(j)), j));
-        let order = js.iter().map(|&j| sorted[(start + j) % n]).collect();
+        let spatial: Vec<u32> = (0..n).map(|j| sorted[(start + j) % n]).collect();
+        let order = js.iter().map(|&j| spatial[j]).collect();
+        let position = js.iter().map(|&j| j as u32).collect();
         let mut counts = vec![n as u32];
         let mut stride = 1usize;
         for &s in &steps {
@@ -189,7 +198,20 @@ impl MoleculeLod {
             order,
             counts,
             radius,
+            spatial,
+            position,
         }
+    }
+
+    /// Per copy of level `l` (in `order`), the atoms it stands for: a
+    /// run of positions in `spatial`, from its own atom to the level's
+    /// next copy. The runs of a level partition the molecule.
+    pub fn stands_for(&self, l: usize) -> impl Iterator<Item = std::ops::Range<usize>> + '_ {
+        let n = self.spatial.len();
+        let stride: usize = strides(n).iter().take(l).product();
+        self.position[..self.counts[l] as usize]
+            .iter()
+            .map(move |&j| j as usize..(j as usize + stride).min(n))
     }
 
     /// Levels (1 for a single atom).
@@ -681,6 +703,23 @@ mod tests {
             let d = |a: &[f32; 4]| (0..3).map(|k| (a[k] - c[k]).powi(2)).sum::<f32>();
             let best = atoms.iter().map(d).fold(f32::MAX, f32::min);
             assert_eq!(d(&atoms[lod.order[0] as usize]), best);
+            // each copy stands for a run that starts at its own atom; a
+            // level's runs hold every atom once, in spatial neighbourhoods
+            for l in 0..lod.levels() {
+                let mut all: Vec<u32> = Vec::new();
+                for (k, run) in lod.stands_for(l).enumerate() {
+                    let run = &lod.spatial[run];
+                    assert_eq!(run[0], lod.order[k], "level {l} copy {k}");
+                    all.extend_from_slice(run);
+                }
+                assert_eq!(all.len(), n, "level {l}");
+                all.sort_unstable();
+                assert_eq!(all, (0..n as u32).collect::<Vec<_>>(), "level {l}");
+            }
+            assert!(lod.stands_for(0).all(|r| r.len() == 1));
+            if let Some(last) = lod.stands_for(lod.levels() - 1).next() {
+                assert_eq!(last.len(), n, "the one sphere stands for them all");
+            }
         }
     }
 
