@@ -69,6 +69,12 @@ pub struct Context {
     /// (see [`cache`]), so a second start creates pipelines quickly.
     pub pipeline_cache: vk::PipelineCache,
     cache_file: Option<std::path::PathBuf>,
+    /// Compute pipelines made on this device, kept until it is destroyed
+    /// and handed to every later renderer asking for the same one
+    /// ([`pipeline::PipelineKey`]): a pipeline compiles once per context
+    /// (lavapipe compiles each with LLVM, and with GPU-assisted validation
+    /// each instrumented copy again: ~1 s a pipeline).
+    pub(crate) pipelines: Mutex<pipeline::Pool>,
     pub queue: vk::Queue,
     pub queue_family: u32,
     pub allocator: ManuallyDrop<Mutex<Allocator>>,
@@ -406,6 +412,7 @@ impl Context {
             device,
             pipeline_cache,
             cache_file,
+            pipelines: Mutex::new(pipeline::Pool::default()),
             queue,
             queue_family,
             allocator: ManuallyDrop::new(Mutex::new(allocator)),
@@ -621,6 +628,12 @@ impl Context {
         unsafe {
             let _ = self.device.device_wait_idle();
             self.device.destroy_command_pool(self.command_pool, None);
+            let pool = std::mem::take(self.pipelines.get_mut().unwrap_or_else(|e| e.into_inner()));
+            for (_, (pipeline, layout, set_layout)) in pool {
+                self.device.destroy_pipeline(pipeline, None);
+                self.device.destroy_pipeline_layout(layout, None);
+                self.device.destroy_descriptor_set_layout(set_layout, None);
+            }
             cache::save(
                 &self.device,
                 self.pipeline_cache,

@@ -100,7 +100,28 @@ pub struct ComputePipeline {
     bindings: Vec<(Binding, Option<u32>)>,
 }
 
-/// Pipelines created so far in this process (tests count rebuilds).
+/// What makes two compute pipelines the same: the shader's SPIR-V, the
+/// layout (declared bindings, their numbers, push size) and the
+/// specialization (debug name included: object names stay right).
+#[derive(Clone, Debug, PartialEq, Eq, Hash)]
+pub struct PipelineKey {
+    name: String,
+    spirv: (usize, usize),
+    layout: String,
+    local_size: u32,
+    constants: Vec<u32>,
+    scene: u32,
+}
+
+/// A context's compute pipelines by key: the pipeline, its layout and its
+/// descriptor set layout ([`Context::pipelines`]).
+pub type Pool = std::collections::HashMap<
+    PipelineKey,
+    (vk::Pipeline, vk::PipelineLayout, vk::DescriptorSetLayout),
+>;
+
+/// Pipelines compiled so far in this process (tests count rebuilds; one
+/// taken from the context's pool is not counted).
 pub static CREATED: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
 
 /// Checks declared bindings against the reflected ones; returns each
@@ -202,6 +223,28 @@ impl ComputePipeline {
                     )));
                 }
             }
+        }
+
+        let key = PipelineKey {
+            name: desc.name.to_string(),
+            spirv: (desc.shader.spirv.as_ptr() as usize, desc.shader.spirv.len()),
+            layout: format!("{:?} {numbers:?} {}", desc.bindings, desc.push_size),
+            local_size: desc.local_size,
+            constants: desc.constants.to_vec(),
+            scene: desc.scene,
+        };
+        let made = |(pipeline, layout, set_layout)| ComputePipeline {
+            name: desc.name.to_string(),
+            pipeline,
+            layout,
+            set_layout,
+            local_size: desc.local_size,
+            push_size: desc.push_size,
+            bindings: desc.bindings.iter().copied().zip(numbers.clone()).collect(),
+        };
+        let pool = || ctx.pipelines.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(&objects) = pool().get(&key) {
+            return Ok(made(objects));
         }
 
         let layout_bindings: Vec<_> = desc
@@ -317,15 +360,15 @@ impl ComputePipeline {
         };
         ctx.name(pipeline, desc.name);
         CREATED.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        Ok(ComputePipeline {
-            name: desc.name.to_string(),
-            pipeline,
-            layout,
-            set_layout,
-            local_size: desc.local_size,
-            push_size: desc.push_size,
-            bindings: desc.bindings.iter().copied().zip(numbers).collect(),
-        })
+        let mut pool = pool();
+        if let Some(&objects) = pool.get(&key) {
+            // (another thread made the same one meanwhile)
+            let (mut p, mut l, mut s) = (pipeline, layout, set_layout);
+            destroy_pipeline_objects(ctx, &mut p, &mut l, &mut s);
+            return Ok(made(objects));
+        }
+        pool.insert(key, (pipeline, layout, set_layout));
+        Ok(made((pipeline, layout, set_layout)))
     }
 
     /// The accesses of a dispatch with these named buffers (for barriers);
@@ -472,19 +515,20 @@ impl ComputePipeline {
         Ok(())
     }
 
-    /// Destroys the pipeline's objects; a second call does nothing.
-    pub fn destroy(&mut self, ctx: &Context) {
-        destroy_pipeline_objects(
-            ctx,
-            &mut self.pipeline,
-            &mut self.layout,
-            &mut self.set_layout,
-        );
+    /// Lets go of the pipeline: its objects stay in the context's pool for
+    /// the next renderer (destroyed with the device); a second call does
+    /// nothing.
+    pub fn destroy(&mut self, _ctx: &Context) {
+        // (the context's pool owns the objects: destroyed with the device)
+        self.pipeline = vk::Pipeline::null();
+        self.layout = vk::PipelineLayout::null();
+        self.set_layout = vk::DescriptorSetLayout::null();
     }
 }
 
 /// Destroys a pipeline with its layout and descriptor set layout and nulls
-/// the handles (the compute pipelines and the graphics raster baseline); a
+/// the handles (the graphics raster baseline; a compute pipeline pooled
+/// twice by racing threads); a
 /// second call does nothing. The owner calls it after the last frame using
 /// the pipeline finished.
 pub fn destroy_pipeline_objects(
