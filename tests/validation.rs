@@ -128,14 +128,21 @@ fn gpu_struct_layout_matches_glsl() {
 
 /// Tearing down a renderer with every technique leaves nothing behind: the
 /// layer reports leaked objects when the device is destroyed, and
-/// `Context::finish` counts those too.
+/// `Context::finish` counts those too (the context's kept pipelines
+/// included). A renderer like an earlier one on the same context takes
+/// that one's pipelines (none compiled again) and draws the same image;
+/// another technique adds its own.
 #[test]
 fn renderer_teardown_leaks_nothing() {
     use sphereshade::render::Renderer;
     use sphereshade::settings::{ShadowMode, SsdoMode};
     let ctx = validated_context();
     let s = sphereshade::scene::procedural("capsid", 1500, 4).expect("scene");
+    // (pipelines compiled on the context after each renderer)
+    let mut kept = Vec::new();
+    let mut images = Vec::new();
     for (shadows, ssdo) in [
+        (ShadowMode::IssmSoft, SsdoMode::Semantic),
         (ShadowMode::IssmSoft, SsdoMode::Semantic),
         (ShadowMode::Deep, SsdoMode::Plain),
         (ShadowMode::None, SsdoMode::Off),
@@ -145,7 +152,16 @@ fn renderer_teardown_leaks_nothing() {
         st.ssdo_knobs.blur = true;
         let mut r = Renderer::new(&ctx, &s, st).expect("renderer");
         r.render_frame().expect("frame");
+        kept.push(ctx.pipelines_compiled());
+        images.push(r.inspect().read_color().expect("colour"));
     }
+    assert!(kept[0] > 0 && kept[1] == kept[0], "kept {kept:?}");
+    assert!(
+        kept[2] > kept[1],
+        "deep lists and plain SSDO: kept {kept:?}"
+    );
+    assert!(images[1] == images[0], "the same settings, another image");
+    assert!(images[2] != images[0], "the techniques drew the same image");
     let (n, msgs) = ctx.finish();
     assert_eq!(n, 0, "teardown reported: {}", msgs.join("\n---\n"));
 }

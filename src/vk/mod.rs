@@ -75,6 +75,8 @@ pub struct Context {
     /// (lavapipe compiles each with LLVM, and with GPU-assisted validation
     /// each instrumented copy again: ~1 s a pipeline).
     pub(crate) pipelines: Mutex<pipeline::Pool>,
+    /// [`Context::pipelines_compiled`].
+    pub(crate) compiled: std::sync::atomic::AtomicU64,
     pub queue: vk::Queue,
     pub queue_family: u32,
     pub allocator: ManuallyDrop<Mutex<Allocator>>,
@@ -413,6 +415,7 @@ impl Context {
             pipeline_cache,
             cache_file,
             pipelines: Mutex::new(pipeline::Pool::default()),
+            compiled: Default::default(),
             queue,
             queue_family,
             allocator: ManuallyDrop::new(Mutex::new(allocator)),
@@ -617,6 +620,12 @@ impl Context {
 }
 
 impl Context {
+    /// Compute pipelines compiled on this context (each kept for its
+    /// later renderers: [`Context::pipelines`]).
+    pub fn pipelines_compiled(&self) -> u64 {
+        self.compiled.load(std::sync::atomic::Ordering::Relaxed)
+    }
+
     /// Destroys the device (idempotent). The validation layer reports leaked
     /// objects here, so counts read afterwards include them.
     fn destroy_device(&mut self) {

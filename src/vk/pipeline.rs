@@ -360,6 +360,8 @@ impl ComputePipeline {
         };
         ctx.name(pipeline, desc.name);
         CREATED.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        ctx.compiled
+            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         let mut pool = pool();
         if let Some(&objects) = pool.get(&key) {
             // (another thread made the same one meanwhile)
