@@ -876,7 +876,7 @@ pub fn run(cmd: ViewCmd) -> Result<Exit> {
             app.drag_times.len(),
             mean_ms(&app.drag_times),
             crate::render::RENDERERS_CREATED.load(Ordering::Relaxed),
-            crate::vk::pipeline::CREATED.load(Ordering::Relaxed),
+            ctx.pipelines_compiled(),
         );
         if let Some(r) = &app.renderer {
             let s = r.settings();

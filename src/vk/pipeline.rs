@@ -27,7 +27,7 @@ pub struct Shader {
 
 /// One declared binding: the GLSL block name (a texel buffer's variable
 /// name), how the shader uses it, and for texel buffers the view format.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct Binding {
     pub name: &'static str,
     pub access: Access,
@@ -101,13 +101,15 @@ pub struct ComputePipeline {
 }
 
 /// What makes two compute pipelines the same: the shader's SPIR-V, the
-/// layout (declared bindings, their numbers, push size) and the
-/// specialization (debug name included: object names stay right).
+/// layout (declared bindings, whose numbers the SPIR-V gives, and push
+/// size) and the specialization (debug name included: object names stay
+/// right).
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]
 pub struct PipelineKey {
     name: String,
     spirv: (usize, usize),
-    layout: String,
+    bindings: Vec<Binding>,
+    push_size: u32,
     local_size: u32,
     constants: Vec<u32>,
     scene: u32,
@@ -119,10 +121,6 @@ pub type Pool = std::collections::HashMap<
     PipelineKey,
     (vk::Pipeline, vk::PipelineLayout, vk::DescriptorSetLayout),
 >;
-
-/// Pipelines compiled so far in this process (tests count rebuilds; one
-/// taken from the context's pool is not counted).
-pub static CREATED: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
 
 /// Checks declared bindings against the reflected ones; returns each
 /// declared binding's number.
@@ -228,7 +226,8 @@ impl ComputePipeline {
         let key = PipelineKey {
             name: desc.name.to_string(),
             spirv: (desc.shader.spirv.as_ptr() as usize, desc.shader.spirv.len()),
-            layout: format!("{:?} {numbers:?} {}", desc.bindings, desc.push_size),
+            bindings: desc.bindings.to_vec(),
+            push_size: desc.push_size,
             local_size: desc.local_size,
             constants: desc.constants.to_vec(),
             scene: desc.scene,
@@ -359,7 +358,6 @@ impl ComputePipeline {
             }
         };
         ctx.name(pipeline, desc.name);
-        CREATED.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         ctx.compiled
             .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         let mut pool = pool();
