@@ -3,8 +3,9 @@
 // a linear map into a view's pixels, an atom's disc, rectangle and nearest
 // depth key through it, and whether depth tiles hide a rectangle. Before
 // inclusion: scene.glsl, push constants pc.hiz_shift and pc.micro_base,
-// and TILE_WORD(prev, i) / TILE_TEXELS(prev), the depth word of tile
-// texel i and the texels of the tiles (`prev`: last frame's final ones).
+// TILE_WORD(prev, i) / TILE_TEXELS(prev), the depth word of tile texel i
+// and the texels of the tiles (`prev`: last frame's final ones), and the
+// camera's PERSP specialization constant (cam_map, cam_rect).
 #ifndef ATOM_TESTS_GLSL
 #define ATOM_TESTS_GLSL
 
@@ -89,6 +90,62 @@ void atom_rect(View v, AtomMap m, vec4 a, out ivec4 rc, out uint near) {
     rc = ivec4(max(ivec2(ceil(t - r)), lo), min(ivec2(floor(t + r)), hi));
     precise float z = m.oz + dot(m.rz, a.xyz);
     precise float zmin = z - a.w + v.depth.x - (1e-4 * (abs(z) + abs(v.depth.x) + a.w) + 1e-3 + m.slack);
+    near = floatBitsToUint(max(zmin, 0.0));
+}
+// The camera's map of an instance: atom_map's for an orthographic
+// camera; for a perspective one (PERSP) into view space from the eye,
+// unscaled: an atom at a (the molecule's frame) is at (o + (rx . a, ry .
+// a), oz + rz . a) along right, up and the view direction.
+AtomMap cam_map(View v, vec3 p0, mat3 ax) {
+    if (!PERSP) return atom_map(v, p0, ax);
+    precise vec3 rx = v.right.xyz * ax, ry = v.up.xyz * ax, rz = v.dir.xyz * ax;
+    precise vec3 eye = v.center.xyz - v.dir.w * v.dir.xyz;
+    precise vec3 q = p0 - eye;
+    precise vec2 o = vec2(dot(q, v.right.xyz), dot(q, v.up.xyz));
+    precise float oz = dot(q, v.dir.xyz);
+    precise float slack = 1e-5 * (coord_max(p0) + coord_max(eye)) + 1e-3;
+    return AtomMap(rx, ry, rz, o, oz, slack);
+}
+
+// Atom a's pixel rectangle in the camera's view v (mapped by cam_map's m),
+// grown, and its nearest depth key less a margin: atom_rect's for an
+// orthographic camera. Perspective: the sphere's centre c from the eye and
+// radius r (grown by the map's slack); along each plane axis its image
+// lies between its two tangents from the eye, of slopes (c.a c.z +- r
+// sqrt(c.a^2 + c.z^2 - r^2)) / (c.z^2 - r^2) (plane coordinates are the
+// eye distance times the slope); a sphere reaching the eye's plane takes
+// the whole window. Its nearest depth (the ray distance from the eye) is
+// at least |c| - r. (`precise` throughout: the early and recheck
+// pipelines must compute alike bits, see AtomMap.)
+void cam_rect(View v, AtomMap m, vec4 a, out ivec4 rc, out uint near) {
+    if (!PERSP) {
+        atom_rect(v, m, a, rc, near);
+        return;
+    }
+    ivec2 lo = ivec2(v.dims.zw), hi = min(lo + ivec2(v.dims.xy), ivec2(int(v.right.w), int(v.up.w))) - 1;
+    precise vec3 c = vec3(m.o + vec2(dot(m.rx, a.xyz), dot(m.ry, a.xyz)), m.oz + dot(m.rz, a.xyz));
+    precise float r = a.w + m.slack;
+    if (c.z + r <= 0.0) {
+        rc = ivec4(1, 1, 0, 0); // behind the eye
+    } else if (c.z - r <= 1e-3 * r) {
+        rc = ivec4(lo, hi);
+    } else {
+        precise float d = c.z * c.z - r * r;
+        precise vec2 t = r * sqrt(c.xy * c.xy + d);
+        precise vec2 mn = (c.xy * c.z - t) / d, mx = (c.xy * c.z + t) / d;
+        float ppu = v.center.w * v.dir.w;
+        // (plane -> pixel as plane_rect, less and plus a margin for the
+        // rounding of the slopes)
+        precise vec2 f0 = vec2(mn.x * ppu + 0.5 * v.right.w, 0.5 * v.up.w - mx.y * ppu) - 0.55;
+        precise vec2 f1 = vec2(mx.x * ppu + 0.5 * v.right.w, 0.5 * v.up.w - mn.y * ppu) - 0.45;
+        f0 = clamp(f0, vec2(-1.0), vec2(v.right.w, v.up.w));
+        f1 = clamp(f1, vec2(-1.0), vec2(v.right.w, v.up.w));
+        rc = ivec4(max(ivec2(ceil(f0)), lo), min(ivec2(floor(f1)), hi));
+    }
+    // (less glsl/lod_cull.comp `hidden`'s margin: a grazing ray's key may
+    // lose ~|c| * 3e-4 to cancellation)
+    precise float l = length(c);
+    precise float zmin = l - r - (1e-3 * (l + r) + m.slack);
     near = floatBitsToUint(max(zmin, 0.0));
 }
 #endif

@@ -87,7 +87,7 @@ void raster_spheres();
 #include "bands.glsl"
 
 // The LOD lists per batch (LIGHT_BATCHES: the key light's; CAM_BATCHES:
-// the orthographic camera's): one invocation per BATCH_PART_SLOTS slots
+// the camera's): one invocation per BATCH_PART_SLOTS slots
 // of a listed batch (pc.sphere_count: the list's slots; dispatched by
 // LOD_BATCH_ARGS). The per-slot raster pays each slot's setup (batch
 // record, placement, rectangle: ~8.6 ns on lavapipe) though most slots
@@ -132,10 +132,12 @@ void batch_part() {
     vec3 p0;
     mat3 ax;
     instance_map(b.x, p0, ax);
-    AtomMap m = atom_map(v, p0, ax);
+    // (cam_map: atom_map but for a perspective camera; the light's
+    // pipeline is orthographic)
+    AtomMap m = cam_map(v, p0, ax);
     // (the camera's early and recheck tests ask whether last frame's tiles
     // hid the atom where last frame's view saw it: pc.prev)
-    AtomMap mp = atom_map(pc.prev, p0, ax);
+    AtomMap mp = cam_map(pc.prev, p0, ax);
     uint cand = 0u;
     for (uint j = from; j < count; ++j) {
         vec4 a = texelFetch(sphereTex, int(b.y + j));
@@ -151,8 +153,8 @@ void batch_part() {
         } else {
             ivec4 rc, rcp;
             uint near, nearp;
-            atom_rect(v, m, a, rc, near);
-            atom_rect(pc.prev, mp, a, rcp, nearp);
+            cam_rect(v, m, a, rc, near);
+            cam_rect(pc.prev, mp, a, rcp, nearp);
             bool some = rc.x <= rc.z && rc.y <= rc.w;
             bool hid_prev = CAM_BATCHES != CAM_LATE && tiles_hide(true, pc.prev, rcp, nearp);
             bool hid_now = CAM_BATCHES != CAM_EARLY && tiles_hide(false, v, rc, near);

@@ -755,9 +755,10 @@ fn culled_instances_are_never_visible() {
 /// every instance at full detail (`--lod-pixels 0`) the frames equal the
 /// expanded scene's (no cull, every sphere in the camera's order) bit for
 /// bit: colours, ids, depths and shadows, over frames with history (the
-/// same camera, a pan, the whole model, then that per slot). The
-/// fragments visit the picked batches per batch with an orthographic
-/// camera, each atom tested against the final opaque image's depth tiles
+/// same camera, a pan, the whole model, then that per slot, then a
+/// perspective camera inside the model, its opaque spheres drawn per
+/// batch). The fragments visit the picked batches per batch with an
+/// orthographic camera, each atom tested against the final opaque image's depth tiles
 /// (dropping a part's first atom fails it: "frame 0: colours differ"),
 /// and the count adds the key light's receivers of the spheres that made
 /// fragments, per batch and per slot (without them: "colours differ",
@@ -774,11 +775,18 @@ fn see_through_instances_draw_through_the_lod_lists() {
     assert!(s.has_translucent() && s.instancing.is_some(), "{rule}");
     let e = s.expand().unwrap();
     let whole = camera(&s, 96, 72, None);
-    let (_, r) = s.bounding_sphere();
+    let (c, r) = s.bounding_sphere();
     let corner = |shift: f64| {
         let mut cam = whole;
         cam.view_height = whole.view_height / 3.0;
         cam.center = whole.center + whole.right * (r as f64 * (0.3 + shift));
+        cam
+    };
+    // (the eye inside the motor, perspective)
+    let inside = {
+        let mut cam = camera(&s, 96, 72, Some(50.0));
+        cam.view_height = r as f64 / 3.0;
+        cam.center = c.as_dvec3() + cam.right * (r as f64 * 0.3);
         cam
     };
     let all = s.represented();
@@ -788,8 +796,9 @@ fn see_through_instances_draw_through_the_lod_lists() {
     let mut rd = Renderer::new(&ctx, &s, st.clone()).expect("renderer");
     let mut fragments = 0;
     // (last, the whole model per slot, as a perspective camera's are:
-    // each sphere that made a fragment adds the light's receivers itself)
-    for (f, cam) in [corner(0.0), corner(0.0), corner(0.05), whole, whole]
+    // each sphere that made a fragment adds the light's receivers itself;
+    // then a perspective camera, whose opaque spheres are drawn per batch)
+    for (f, cam) in [corner(0.0), corner(0.0), corner(0.05), whole, whole, inside]
         .into_iter()
         .enumerate()
     {
@@ -820,6 +829,10 @@ fn see_through_instances_draw_through_the_lod_lists() {
             per_batch,
             f < 4,
             "{what}: the fragments visited the picked batches per batch"
+        );
+        assert!(
+            rd.inspect().camera_per_batch(),
+            "{what}: the camera's opaque spheres were drawn per slot"
         );
         let mut se = st.clone();
         se.camera = cam;
@@ -952,8 +965,9 @@ fn the_light_per_batch_draws_the_per_slot_map() {
 /// ones; footprints past 128 pixels in bands), a molecule far from the
 /// origin, and a panning one (its early test places each atom where last
 /// frame's view saw it: atoms hidden there and now in view are the
-/// recheck's). (A recheck that draws nothing, or an early test without
-/// the recheck's, fails it.)
+/// recheck's), and a perspective camera inside the scene, still and
+/// panning. (A recheck that draws nothing, or an early test without the
+/// recheck's, fails it.)
 #[test]
 fn the_camera_per_batch_draws_the_per_slot_frame() {
     let ctx = validated_context();
@@ -995,12 +1009,27 @@ fn the_camera_per_batch_draws_the_per_slot_frame() {
     };
     let mut far_cam = camera(&far, 160, 120, None);
     far_cam.view_height /= 3.0;
+    // Perspective: the eye inside the virion (atoms up to the eye, some
+    // reaching its plane, larger the nearer), still and panning (its early
+    // test places each atom where last frame's perspective view saw it).
+    let r = s.bounding_sphere().1 as f64;
+    let mut persp = camera(&s, 160, 120, Some(40.0));
+    persp.view_height /= 8.0;
+    let persp_pans = [0.0, 0.0, 0.01, 0.02]
+        .map(|u| {
+            let mut c = persp;
+            c.center += c.right * (r * u);
+            c
+        })
+        .to_vec();
     for (what, scene, cams, lod_pixels) in [
         ("whole", &s, still(whole), 2.0),
         ("zoomed", &s, still(zoomed), 2.0),
         ("close, full detail", &s, still(closer), 0.0),
         ("panning", &s, pans, 2.0),
         ("far from the origin", &far, still(far_cam), 0.0),
+        ("perspective", &s, still(persp), 2.0),
+        ("perspective, panning", &s, persp_pans, 2.0),
     ] {
         let s = scene;
         let mut st = settings(cams[0], ShadowMode::IssmSoft);
@@ -1017,6 +1046,10 @@ fn the_camera_per_batch_draws_the_per_slot_frame() {
             let counts = a.inspect().lod_counts().unwrap().expect("the cull ran");
             let what = format!("{what}, frame {f}: {counts:?}");
             assert!(counts.camera_spheres > 0, "{what}");
+            assert!(
+                a.inspect().camera_per_batch() && !b.inspect().camera_per_batch(),
+                "{what}: not drawn per batch and per slot"
+            );
             assert_same_frame(&a.inspect(), &b.inspect(), &what);
         }
         assert_no_validation_messages(&ctx);

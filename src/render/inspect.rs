@@ -58,6 +58,12 @@ impl<'r> Inspect<'r, '_> {
         cull.map(|l| l.counts(self.r.ctx)).transpose()
     }
 
+    /// Whether the last frame drew the camera's LOD lists per batch, each
+    /// atom tested against depth tiles (else per slot).
+    pub fn camera_per_batch(&self) -> bool {
+        self.r.res.stages.raster.camera_per_batch()
+    }
+
     /// Batches each LOD list holds now (None: the last frame drew none).
     pub fn lod_list_capacity(&self) -> Option<u32> {
         self.r.res.stages.raster.last_cull().map(|l| l.capacity())

@@ -163,9 +163,10 @@ impl Resources {
         // The batch table: the LOD lists, or the static one (made by
         // `ensure_orders` the first time a frame draws every atom).
         self.scene.listed.set(self.lod_lists(settings));
+        let perspective = settings.camera.fov_deg.is_some();
         if self.scene.listed.get() {
             let light = settings.shadows != ShadowMode::None;
-            self.stages.raster.enable_batches(ctx, light)?;
+            self.stages.raster.enable_batches(ctx, light, perspective)?;
         }
         self.globals.counts[0] = self.scene.frame_slots();
         let (hw, hh) = self.targets.half();
@@ -177,7 +178,7 @@ impl Resources {
             settings.check_see_through(self.translucent)?;
             self.stages
                 .raster
-                .enable_see_through(ctx, self.scene.listed.get())?;
+                .enable_see_through(ctx, self.scene.listed.get(), perspective)?;
             if self.stages.see_through.is_none() {
                 let mut st = SeeThrough::new(
                     ctx,

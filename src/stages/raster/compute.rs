@@ -133,14 +133,15 @@ pub struct RasterPass {
     light_batches: Option<ComputePipeline>,
     /// Whether this renderer draws the light's lists per batch.
     light_per_batch: bool,
-    /// The orthographic camera's LOD lists per batch, tested against
-    /// depth tiles (constant 5: CAM_EARLY, CAM_RECHECK, CAM_LATE), made
-    /// with the light's.
-    cam_batches: Option<[ComputePipeline; 3]>,
+    /// The camera's LOD lists per batch, tested against depth tiles
+    /// (constant 5: CAM_EARLY, CAM_RECHECK, CAM_LATE), for orthographic
+    /// and perspective cameras (constant 2), each made the first time a
+    /// frame that draws the lists has such a camera.
+    cam_batches: [Option<[ComputePipeline; 3]>; 2],
     /// The same with SEE_THROUGH (their atoms' per-slot path skips
-    /// see-through spheres), made the first time a frame that draws the
-    /// lists has see-through spheres.
-    cam_batches_see: Option<[ComputePipeline; 3]>,
+    /// see-through spheres), made the first time such a frame has
+    /// see-through spheres.
+    cam_batches_see: [Option<[ComputePipeline; 3]>; 2],
     /// Whether this renderer draws the camera's lists per batch.
     cam_per_batch: bool,
     /// Kept to make them.
@@ -346,8 +347,8 @@ impl RasterPass {
             see_through: None,
             light_batches: None,
             light_per_batch: per_batch.light && scene & 0xFF != SCENE_PLAIN,
-            cam_batches: None,
-            cam_batches_see: None,
+            cam_batches: [None, None],
+            cam_batches_see: [None, None],
             cam_per_batch: per_batch.camera && scene & 0xFF != SCENE_PLAIN,
             scene,
             args: args.keep(),
@@ -360,21 +361,33 @@ impl RasterPass {
 
     /// Makes the SEE_THROUGH pipelines (the first frame with see-through
     /// spheres; the per-batch camera's with `batches`: it draws the LOD
-    /// lists).
-    pub fn enable_see_through(&mut self, ctx: &Context, batches: bool) -> Result<()> {
+    /// lists, from a `perspective` camera or not).
+    pub fn enable_see_through(
+        &mut self,
+        ctx: &Context,
+        batches: bool,
+        perspective: bool,
+    ) -> Result<()> {
         if self.see_through.is_none() {
             self.see_through = Some(Self::pipelines(ctx, self.scene, true)?);
         }
-        if batches && self.cam_per_batch && self.cam_batches_see.is_none() {
-            self.cam_batches_see = Some(Self::cam_pipelines(ctx, self.scene, true)?);
+        let slot = &mut self.cam_batches_see[perspective as usize];
+        if batches && self.cam_per_batch && slot.is_none() {
+            *slot = Some(Self::cam_pipelines(ctx, self.scene, true, perspective)?);
         }
         Ok(())
     }
 
     /// The camera's per-batch pipelines (CAM_EARLY, CAM_RECHECK, CAM_LATE),
-    /// with SEE_THROUGH or not.
-    fn cam_pipelines(ctx: &Context, scene: u32, see: bool) -> Result<[ComputePipeline; 3]> {
-        let pipe = |mode| Self::sphere_pipeline(ctx, scene, &[0, see as u32, 0, mode]);
+    /// with SEE_THROUGH or not, for a perspective camera or not.
+    fn cam_pipelines(
+        ctx: &Context,
+        scene: u32,
+        see: bool,
+        persp: bool,
+    ) -> Result<[ComputePipeline; 3]> {
+        let constants = |mode| [persp as u32, see as u32, 0, mode];
+        let pipe = |mode| Self::sphere_pipeline(ctx, scene, &constants(mode));
         let early = ctx.guard(pipe(CAM_EARLY)?);
         let recheck = ctx.guard(pipe(CAM_RECHECK)?);
         let late = pipe(CAM_LATE)?;
@@ -382,36 +395,39 @@ impl RasterPass {
     }
 
     /// Makes the per-batch pipelines (the first frame that draws the LOD
-    /// lists, the light's with `light`; nothing for a view drawn per
-    /// slot).
-    pub fn enable_batches(&mut self, ctx: &Context, light: bool) -> Result<()> {
+    /// lists, the light's with `light`, the camera's for a `perspective`
+    /// camera or not; nothing for a view drawn per slot).
+    pub fn enable_batches(&mut self, ctx: &Context, light: bool, perspective: bool) -> Result<()> {
         if light && self.light_per_batch && self.light_batches.is_none() {
             self.light_batches = Some(Self::sphere_pipeline(ctx, self.scene, &[0, 0, 1])?);
         }
-        if self.cam_per_batch && self.cam_batches.is_none() {
-            self.cam_batches = Some(Self::cam_pipelines(ctx, self.scene, false)?);
+        let slot = &mut self.cam_batches[perspective as usize];
+        if self.cam_per_batch && slot.is_none() {
+            *slot = Some(Self::cam_pipelines(ctx, self.scene, false, perspective)?);
         }
         Ok(())
     }
 
     /// Whether the camera's LOD lists may be drawn per batch, tested
-    /// against depth tiles, in a window `h` rows high from an orthographic
-    /// (not `perspective`) camera: the pipelines are made (with
+    /// against depth tiles, in a window `h` rows high from a `perspective`
+    /// camera or an orthographic one: the pipelines are made (with
     /// `see_through` spheres, the SEE_THROUGH ones), and the window's rows
     /// keep an invocation's band appends within lavapipe's loop bound
     /// (glsl/raster.comp).
     pub fn cam_batches_fit(&self, perspective: bool, see_through: bool, h: u32) -> bool {
-        self.cam_pipes(see_through).is_some() && !perspective && h <= CAM_BATCH_MAX_ROWS
+        self.cam_pipes(see_through, perspective).is_some() && h <= CAM_BATCH_MAX_ROWS
     }
 
     /// The camera's per-batch pipelines for frames with `see_through`
-    /// spheres or without (None: not made).
-    fn cam_pipes(&self, see_through: bool) -> Option<&[ComputePipeline; 3]> {
-        if see_through {
-            self.cam_batches_see.as_ref()
+    /// spheres or without, from a `perspective` camera or not (None: not
+    /// made).
+    fn cam_pipes(&self, see_through: bool, perspective: bool) -> Option<&[ComputePipeline; 3]> {
+        let sets = if see_through {
+            &self.cam_batches_see
         } else {
-            self.cam_batches.as_ref()
-        }
+            &self.cam_batches
+        };
+        sets[perspective as usize].as_ref()
     }
 
     /// After a frame, the GPU idle: whether a sphere's bands did not fit
@@ -555,7 +571,7 @@ impl RasterPass {
         let per_batch = match (view, tested) {
             (ViewIndex::Light, _) => self.light_batches.as_ref(),
             (ViewIndex::Camera, Some(t)) if t.mode != CAM_PER_SLOT => {
-                let Some(c) = self.cam_pipes(see_through) else {
+                let Some(c) = self.cam_pipes(see_through, perspective) else {
                     return Err(crate::error::Error::Internal(
                         "the camera's per-batch pipelines were not made".into(),
                     ));
@@ -574,13 +590,12 @@ impl RasterPass {
             (Some(b), Some(l)) => Some((b, l.args_offset + ((args - LOD_ARGS) * 4) as u64)),
             _ => None,
         };
-        // (a per-batch variant's bands: the orthographic per-slot one's)
+        // (a per-batch variant's bands: the per-slot one's of its
+        // projection; its opaque spheres alone are queued)
+        let projection = (view == ViewIndex::Camera && perspective) as usize;
         let (spheres, bands) = match batches {
-            Some((b, _)) => (b, &self.pipes[0].bands),
-            None => {
-                let p = &pipes[(view == ViewIndex::Camera && perspective) as usize];
-                (&p.spheres, &p.bands)
-            }
+            Some((b, _)) => (b, &self.pipes[projection].bands),
+            None => (&pipes[projection].spheres, &pipes[projection].bands),
         };
         let mut bindings = vec![
             ("GlobalsBlock", globals),
@@ -644,8 +659,8 @@ impl RasterPass {
         for p in self
             .light_batches
             .iter_mut()
-            .chain(self.cam_batches.iter_mut().flatten())
-            .chain(self.cam_batches_see.iter_mut().flatten())
+            .chain(self.cam_batches.iter_mut().flatten().flatten())
+            .chain(self.cam_batches_see.iter_mut().flatten().flatten())
         {
             p.destroy(ctx);
         }
