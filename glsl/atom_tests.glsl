@@ -92,6 +92,7 @@ void atom_rect(View v, AtomMap m, vec4 a, out ivec4 rc, out uint near) {
     precise float zmin = z - a.w + v.depth.x - (1e-4 * (abs(z) + abs(v.depth.x) + a.w) + 1e-3 + m.slack);
     near = floatBitsToUint(max(zmin, 0.0));
 }
+
 // The camera's map of an instance: atom_map's for an orthographic
 // camera; for a perspective one (PERSP) into view space from the eye,
 // unscaled: an atom at a (the molecule's frame) is at (o + (rx . a, ry .
